@@ -1,0 +1,62 @@
+"""The ``dva`` command: one entry point, one subcommand per offline tool (git/ros2 style).
+
+Each subcommand lives in its own module exposing ``register(subparsers)``; the module adds a
+parser whose ``func`` default is called with the parsed arguments and returns an exit code.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import sys
+
+from dva_offline import __version__
+
+# name -> module; a module registers exactly one top-level subcommand.
+SUBCOMMAND_MODULES = {
+    "info": "dva_offline.info_cli",
+    "isolator": "dva_offline.isolator.cli",
+}
+
+
+class CliError(Exception):
+    """A user-facing error: printed as ``dva: error: ...`` with exit code 2, no traceback."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="dva",
+        description=(
+            "Offline tools for the aeroelastic wing with a tunable Maxwell-element dynamic "
+            "vibration absorber (DVA). Run 'dva <command> --help' for a command's options."
+        ),
+    )
+    parser.add_argument("--version", action="version", version=f"dva {__version__}")
+    subparsers = parser.add_subparsers(dest="command", metavar="<command>")
+    for module_name in SUBCOMMAND_MODULES.values():
+        importlib.import_module(module_name).register(subparsers)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 2
+    try:
+        return int(args.func(args) or 0)
+    except (CliError, ValueError, TypeError, FileNotFoundError) as exc:
+        # Input problems are reported in one line naming the bad input, never as a traceback
+        # (DVA_DEBUG=1 shows the traceback when hunting a bug).
+        if os.environ.get("DVA_DEBUG"):
+            raise
+        print(f"dva {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"dva {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

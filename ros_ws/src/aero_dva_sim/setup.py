@@ -1,0 +1,27 @@
+"""ament_python package: wing/DVA model (pure numerics) and the simulator and recorder nodes."""
+from glob import glob
+
+from setuptools import find_packages, setup
+
+PACKAGE = "aero_dva_sim"
+
+setup(
+    name=PACKAGE,
+    version="0.1.0",
+    packages=find_packages(exclude=["test"]),
+    data_files=[
+        ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
+        (f"share/{PACKAGE}", ["package.xml"]),
+        (f"share/{PACKAGE}/config", glob("config/*.yaml")),
+    ],
+    install_requires=["setuptools"],
+    zip_safe=True,
+    maintainer="aero-dva maintainers",
+    maintainer_email="maintainers@aero-dva.org",
+    description="Pitch-plunge aeroelastic wing with a tunable Maxwell-element DVA.",
+    license="Apache-2.0",
+    entry_points={
+        "console_scripts": [
+        ],
+    },
+)

@@ -1,0 +1,1 @@
+"""Spectrum analysis and semi-active damper controllers for the tunable Maxwell DVA."""

@@ -1,0 +1,28 @@
+"""ament_python package: spectrum analysis and damper controllers for the tunable Maxwell DVA."""
+from glob import glob
+
+from setuptools import find_packages, setup
+
+PACKAGE = "dva_controller"
+
+setup(
+    name=PACKAGE,
+    version="0.1.0",
+    packages=find_packages(exclude=["test"]),
+    data_files=[
+        ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
+        (f"share/{PACKAGE}", ["package.xml"]),
+        (f"share/{PACKAGE}/config", glob("config/*.yaml")),
+    ],
+    install_requires=["setuptools"],
+    zip_safe=True,
+    maintainer="aero-dva maintainers",
+    maintainer_email="maintainers@aero-dva.org",
+    description="Spectrum analysis and semi-active damper controllers for a Maxwell DVA.",
+    license="Apache-2.0",
+    entry_points={
+        "console_scripts": [
+            "fixed_controller = dva_controller.fixed_controller_node:main",
+        ],
+    },
+)

