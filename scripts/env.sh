@@ -17,7 +17,10 @@ if [[ -z "${ROS_DISTRO:-}" ]]; then
   export CMAKE_PREFIX_PATH="$_dva_venv${CMAKE_PREFIX_PATH:+:$CMAKE_PREFIX_PATH}"
   export RMW_IMPLEMENTATION="${RMW_IMPLEMENTATION:-rmw_fastrtps_cpp}"
 fi
+# colcon's setup scripts read unset variables: relax `set -u` while sourcing them.
+_dva_nounset=0; [[ $- == *u* ]] && _dva_nounset=1; set +u
 # shellcheck disable=SC1091
 COLCON_CURRENT_PREFIX="$_dva_repo/ros_ws/install" source "$_dva_repo/ros_ws/install/local_setup.bash"
+(( _dva_nounset )) && set -u
 export DVA_REPO="$_dva_repo"
-unset _dva_repo _dva_venv
+unset _dva_repo _dva_venv _dva_nounset
