@@ -1,0 +1,321 @@
+"""``dva isolator``: modal analysis, identification, FRF estimation and plots (seed ch. 3-5).
+
+All values on the command line and in files are SI: kg, N/m, N s/m, Hz (rad/s where named).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from dva_offline.isolator import isolator_io
+from dva_offline.isolator.element_types import classify_elements
+from dva_offline.isolator.frf_data import check_units, estimate_modal, to_receptance
+from dva_offline.isolator.maxwell_model import MaxwellModel, frf, modal_properties
+
+
+def _maxwell_pair(text: str) -> tuple[float, float]:
+    try:
+        k_text, c_text = text.split(",")
+        return float(k_text), float(c_text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"--maxwell expects K,C (N/m,N s/m), got {text!r}"
+        ) from None
+
+
+def _model_from_args(args) -> MaxwellModel:
+    pairs = args.maxwell or []
+    return MaxwellModel(
+        args.mass, args.k, args.c, tuple(p[0] for p in pairs), tuple(p[1] for p in pairs)
+    )
+
+
+def _elements_json(model: MaxwellModel, types, k_std=None, c_std=None) -> list[dict]:
+    out = []
+    for i, (ki, ci, t) in enumerate(zip(model.maxwell_k, model.maxwell_c, types)):
+        item = {
+            "k": ki, "c": ci, "tau_s": ci / ki, "type": t.label,
+            "omega_tau": t.omega_tau, "phase_deg": t.phase_deg,
+        }
+        if k_std is not None:
+            item["k_std"] = k_std[i]
+            item["c_std"] = c_std[i]
+        out.append(item)
+    return out
+
+
+def _emit(args, payload: dict, lines: list[str]) -> None:
+    if args.json:
+        print(json.dumps(payload, allow_nan=True))
+    else:
+        print("\n".join(lines))
+
+
+def _cmd_modal(args) -> int:
+    model = _model_from_args(args)
+    modal = modal_properties(model)
+    types = classify_elements(model, modal.natural_frequency_rad_s)
+    payload = {
+        "natural_frequency_rad_s": modal.natural_frequency_rad_s,
+        "natural_frequency_hz": modal.natural_frequency_rad_s / (2 * np.pi),
+        "damping_ratio": modal.damping_ratio,
+        "element_types": [t.label for t in types],
+        "elements": _elements_json(model, types),
+        "static_stiffness_n_per_m": model.static_stiffness,
+        "stable": modal.is_stable,
+        "eigenvalues": [[float(e.real), float(e.imag)] for e in modal.eigenvalues],
+    }
+    lines = [
+        f"natural frequency {modal.natural_frequency_rad_s:.3f} rad/s "
+        f"({payload['natural_frequency_hz']:.3f} Hz), damping ratio {modal.damping_ratio:.4f}",
+        *(f"element {i + 1}: k = {e['k']:.6g} N/m, c = {e['c']:.6g} N s/m, "
+          f"tau = {1e3 * e['tau_s']:.3f} ms, w_n tau = {e['omega_tau']:.3f}, Type {e['type']}"
+          for i, e in enumerate(payload["elements"])),
+    ]
+    _emit(args, payload, lines)
+    return 0
+
+
+def _read_frf(args):
+    path = Path(args.file)
+    if path.suffix.lower() in (".uff", ".unv") or args.format == "uff58":
+        return isolator_io.read_uff58(path, args.quantity)
+    return isolator_io.read_frf_csv(path, args.quantity)
+
+
+def _cmd_identify(args) -> int:
+    from dva_offline.isolator.maxwell_fit import FitWarning, fit_maxwell_model
+    from dva_offline.isolator.order_selection import select_model_order
+
+    if not args.mass > 0:
+        raise ValueError(f"--mass must be > 0 kg, got {args.mass}")
+    if not args.static_stiffness > 0:
+        raise ValueError(f"--static-stiffness must be > 0 N/m, got {args.static_stiffness}")
+    data = _read_frf(args)
+    omega, h = to_receptance(data, args.mass)
+    if args.natural_frequency_rad_s is None or args.damping_ratio is None:
+        est = estimate_modal(omega, h)
+    wn = args.natural_frequency_rad_s or est.natural_frequency_rad_s
+    zeta = args.damping_ratio if args.damping_ratio is not None else est.damping_ratio
+    check_units(omega, h, args.mass, args.static_stiffness, wn)
+    kwargs = dict(objective=args.objective, weighting=args.weighting)
+    selection = None
+    # Fit warnings are reported in the output ("warnings"), not as Python warnings.
+    warnings.simplefilter("ignore", FitWarning)
+    if args.elements == "auto":
+        selection = select_model_order(
+            omega, h, args.mass, args.static_stiffness, wn, zeta,
+            max_elements=args.max_elements, **kwargs,
+        )
+        if selection.fit is None:
+            raise ValueError(
+                "order selection chose a Voigt model (no Maxwell element improves the held-out "
+                "FRF error); use --elements N to force a Maxwell model"
+            )
+        fit = selection.fit
+    else:
+        try:
+            n = int(args.elements)
+        except ValueError:
+            raise ValueError(
+                f"--elements must be an integer or 'auto', got {args.elements!r}"
+            ) from None
+        fit = fit_maxwell_model(omega, h, args.mass, args.static_stiffness, n, wn, zeta, **kwargs)
+    model = fit.model
+    payload = {
+        "file": str(args.file),
+        "mass_kg": model.mass,
+        "static_stiffness_n_per_m": model.k,
+        "c": model.c,
+        "c_std": fit.c_std,
+        "n_elements": model.n_elements,
+        "elements": _elements_json(model, fit.element_types, fit.maxwell_k_std,
+                                   fit.maxwell_c_std),
+        "element_types": [t.label for t in fit.element_types],
+        "natural_frequency_rad_s": fit.modal.natural_frequency_rad_s if fit.modal else None,
+        "damping_ratio": fit.modal.damping_ratio if fit.modal else None,
+        "target_natural_frequency_rad_s": wn,
+        "target_damping_ratio": zeta,
+        "frf_error": fit.frf_error,
+        "frf_error_definition": "||H_model - H||_2 / ||H||_2 over the receptance points",
+        "warnings": list(fit.warnings),
+        "covariates": sorted(data.covariates),
+    }
+    if selection is not None:
+        payload["order_selection"] = {
+            "orders": list(selection.orders),
+            "holdout_errors": list(selection.holdout_errors),
+            "train_errors": list(selection.train_errors),
+            "selected_order": selection.selected_order,
+        }
+    if args.plot:
+        from dva_offline.isolator.plots import plot_frf
+
+        f_hz = omega / (2 * np.pi)
+        plot_frf(args.plot, [("measured", f_hz, h, "k."),
+                             (f"{model.n_elements}-element model", f_hz, frf(model, omega), "r-")],
+                 "receptance [m/N]", Path(args.file).name)
+        payload["plot"] = str(args.plot)
+    lines = [
+        f"target: w_n = {wn:.3f} rad/s, zeta = {zeta:.4f}; static stiffness {model.k:.6g} N/m",
+        f"c = {model.c:.6g} +- {fit.c_std:.2g} N s/m",
+        *(f"element {i + 1}: k = {e['k']:.6g} +- {e['k_std']:.2g} N/m, c = {e['c']:.6g} +- "
+          f"{e['c_std']:.2g} N s/m, Type {e['type']} (w_n tau = {e['omega_tau']:.3f})"
+          for i, e in enumerate(payload["elements"])),
+        f"relative FRF error {fit.frf_error:.4f}",
+        *(f"warning: {w}" for w in fit.warnings),
+    ]
+    _emit(args, payload, lines)
+    return 0
+
+
+def _cmd_estimate(args) -> int:
+    from dva_offline.isolator.frf_estimation import estimate_frf
+
+    series = isolator_io.read_time_series_csv(
+        args.file, args.force_column, args.response_column, args.fs
+    )
+    est = estimate_frf(series.force, series.response, series.fs, args.nfft, args.window)
+    h = est.h1 if args.estimator == "h1" else est.h2
+    keep = (est.frequency_hz > 0) & (est.frequency_hz <= (args.fmax_hz or np.inf))
+    isolator_io.write_frf_csv(
+        args.out, est.frequency_hz[keep], h[keep], {"coherence": est.coherence[keep]}
+    )
+    payload = {
+        "out": str(args.out), "fs_hz": series.fs, "nfft": args.nfft, "window": args.window,
+        "estimator": args.estimator, "n_points": int(keep.sum()),
+        "responses": list(series.response_names),
+        "mean_coherence": float(np.nanmean(est.coherence[keep])),
+    }
+    _emit(args, payload, [f"wrote {payload['n_points']} FRF points to {args.out} "
+                          f"(mean coherence {payload['mean_coherence']:.3f})"])
+    return 0
+
+
+def _cmd_static(args) -> int:
+    from dva_offline.isolator.frf_estimation import static_stiffness_from_load_deflection
+
+    x, f = isolator_io.read_load_deflection_csv(args.file)
+    res = static_stiffness_from_load_deflection(x, f, args.center_m, args.half_width_m)
+    payload = {
+        "static_stiffness_n_per_m": res.stiffness_n_per_m, "offset_n": res.offset_n,
+        "n_points": res.n_points, "rms_residual_n": res.rms_residual_n,
+    }
+    _emit(args, payload, [f"static stiffness {res.stiffness_n_per_m:.6g} N/m "
+                          f"from {res.n_points} points"])
+    return 0
+
+
+def _cmd_plot(args) -> int:
+    from dva_offline.isolator.plots import parametric_study_figures, plot_frf
+
+    written = []
+    if args.study:
+        if not args.plot_dir:
+            raise ValueError("--study needs --plot-dir DIR")
+        written += [str(p) for p in parametric_study_figures(args.plot_dir)]
+    if args.file:
+        if not args.plot:
+            raise ValueError("plotting a FRF file needs --plot FILE.png")
+        data = _read_frf(args)
+        curves = [("measured", data.frequency_hz, data.values, "k.")]
+        if args.mass is not None and args.k is not None:
+            model = _model_from_args(args)
+            curves.append(("model", data.frequency_hz,
+                           frf(model, data.omega_rad_s, args.quantity), "r-"))
+        written.append(str(plot_frf(args.plot, curves, args.quantity, Path(args.file).name)))
+    if not written:
+        raise ValueError("nothing to plot: give a FRF file with --plot, or --study --plot-dir")
+    _emit(args, {"plots": written}, [f"wrote {p}" for p in written])
+    return 0
+
+
+def register(subparsers) -> None:
+    """Add the ``isolator`` subcommand to the ``dva`` parser."""
+    parser = subparsers.add_parser(
+        "isolator",
+        help="rubber isolator models: modal analysis, identification, FRF estimation",
+        description=__doc__,
+    )
+    sub = parser.add_subparsers(dest="isolator_command", metavar="<action>", required=True)
+
+    def common(p):
+        p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+
+    p = sub.add_parser("modal", help="natural frequency, damping ratio and element types")
+    p.add_argument("--mass", type=float, required=True, help="mass [kg]")
+    p.add_argument("--k", type=float, required=True, help="primary stiffness [N/m]")
+    p.add_argument("--c", type=float, required=True, help="primary damping [N s/m]")
+    p.add_argument("--maxwell", type=_maxwell_pair, action="append", metavar="K,C",
+                   help="Maxwell element stiffness [N/m] and damping [N s/m]; repeat")
+    common(p)
+    p.set_defaults(func=_cmd_modal)
+
+    def frf_input(p):
+        p.add_argument("--quantity", choices=("receptance", "accelerance", "stiffness"),
+                       default="receptance", help="what the FRF file holds (SI units)")
+        p.add_argument("--format", choices=("csv", "uff58"), default="csv",
+                       help="file format (.uff/.unv files are read as UFF 58)")
+
+    p = sub.add_parser("identify", help="identify a general Maxwell model from a measured FRF")
+    p.add_argument("file", help="FRF file: CSV frequency_hz,real,imag[,covariates] or UFF 58")
+    frf_input(p)
+    p.add_argument("--mass", type=float, required=True, help="isolated mass [kg]")
+    p.add_argument("--static-stiffness", type=float, required=True,
+                   help="static stiffness k [N/m]")
+    p.add_argument("--elements", default="2", help="number of Maxwell elements, or 'auto'")
+    p.add_argument("--max-elements", type=int, default=3, help="largest order for 'auto'")
+    p.add_argument("--natural-frequency-rad-s", type=float, default=None,
+                   help="measured w_n; default: zero crossing of Re(H)")
+    p.add_argument("--damping-ratio", type=float, default=None,
+                   help="measured zeta; default: half-power points")
+    p.add_argument("--objective", choices=("l2", "l1"), default="l2")
+    p.add_argument("--weighting", choices=("relative", "none"), default="relative")
+    p.add_argument("--plot", metavar="FILE.png", help="write measured vs model FRF")
+    common(p)
+    p.set_defaults(func=_cmd_identify)
+
+    p = sub.add_parser("estimate", help="FRF (H1/H2, coherence) from a time-series CSV")
+    p.add_argument("file", help="CSV with time_s, force and response columns")
+    p.add_argument("--out", required=True, help="output FRF CSV")
+    p.add_argument("--fs", type=float, default=None, help="sampling rate [Hz] (default: time_s)")
+    p.add_argument("--nfft", type=int, default=10000, help="FFT/segment length (seed: 10000)")
+    p.add_argument("--window", default="boxcar", help="window (seed: none = boxcar)")
+    p.add_argument("--estimator", choices=("h1", "h2"), default="h1")
+    p.add_argument("--force-column", default="force_n")
+    p.add_argument("--response-column", action="append", default=None,
+                   help="response column (repeat; default: all other columns)")
+    p.add_argument("--fmax-hz", type=float, default=None, help="highest frequency written")
+    common(p)
+    p.set_defaults(func=_cmd_estimate)
+
+    p = sub.add_parser("static", help="static stiffness from a load-deflection CSV")
+    p.add_argument("file", help="CSV deflection_m,load_n (loading and unloading)")
+    p.add_argument("--center-m", type=float, default=None, help="static equilibrium x_o [m]")
+    p.add_argument("--half-width-m", type=float, default=None, help="range about x_o [m]")
+    common(p)
+    p.set_defaults(func=_cmd_static)
+
+    p = sub.add_parser("plot", help="FRF plot of a file (with a model) or Figs. 3.2-3.11")
+    p.add_argument("file", nargs="?", help="FRF file to plot")
+    frf_input(p)
+    p.add_argument("--plot", metavar="FILE.png", help="output PNG for the FRF plot")
+    p.add_argument("--study", action="store_true", help="write the Figs. 3.2-3.11 study")
+    p.add_argument("--plot-dir", help="directory for --study figures")
+    p.add_argument("--mass", type=float, default=None, help="model mass [kg]")
+    p.add_argument("--k", type=float, default=None, help="model primary stiffness [N/m]")
+    p.add_argument("--c", type=float, default=0.0, help="model primary damping [N s/m]")
+    p.add_argument("--maxwell", type=_maxwell_pair, action="append", metavar="K,C")
+    common(p)
+    p.set_defaults(func=_cmd_plot)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    from dva_offline.cli import main
+
+    sys.exit(main(["isolator", *sys.argv[1:]]))
