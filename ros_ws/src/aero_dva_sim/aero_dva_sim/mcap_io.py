@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import os
 import re
+import sys
 import tempfile
 import warnings
 from collections.abc import Iterable, Iterator, Mapping, Sequence
@@ -146,6 +147,8 @@ def _search_roots(msg_dirs: Sequence[str | os.PathLike]) -> list[Path]:
         if prefix:
             roots.append(Path(prefix) / "share")
     roots.append(Path(__file__).resolve().parents[2])  # ros_ws/src in a source checkout
+    # ROS 2 wheels install share/ into the environment's prefix (no sourcing needed).
+    roots.append(Path(sys.prefix) / "share")
     return roots
 
 
