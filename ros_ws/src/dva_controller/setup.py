@@ -23,6 +23,9 @@ setup(
     entry_points={
         "console_scripts": [
             "fixed_controller = dva_controller.fixed_controller_node:main",
+            "spectrum = dva_controller.spectrum_node:main",
+            "airspeed_controller = dva_controller.airspeed_controller_node:main",
+            "rbf_controller = dva_controller.rbf_controller_node:main",
         ],
     },
 )

@@ -1,0 +1,336 @@
+"""``rbf_controller``: c2 from the scaled vibration spectra with an RBF network (seed sec. 7.2).
+
+For each ``dva/spectrum`` message the network's input is the scaled magnitudes, channel-major,
+followed by the current c2 (the spectrum's ``damping`` field, the c2 applied during the
+window); ``network.predict`` of it, clamped to ``[damping_min, damping_max]``, is published as
+``dva/damper_command`` (source "rbf_network").
+
+The network file (.npz, :func:`dva_controller.rbf_io.load_rbf_network`, no pickle) is checked
+at start-up: its input dimension must be ``len(channels) * len(frequencies) + 1`` and its input
+names and units those of :func:`dva_controller.rbf_network.spectrum_input_names` for the
+``channels`` and ``frequencies`` parameters. A missing, corrupt or mismatched file stops the
+node with a one-line error naming the file (exit code 2).
+
+Each spectrum is checked against what the network was trained on: channel names and order,
+frequencies, scaling "band_sum", window function and window duration. A spectrum that does not
+match, or holds NaN/inf magnitudes or a missing/negative c2, gives no command and is reported on
+``/diagnostics``.
+
+Parameters
+----------
+network_file : str, required
+    The trained network (.npz).
+channels : string array, default ["plunge", "pitch"]
+    Spectrum channels the network was trained on, in order.
+frequencies : double array, default 5..20 in 1 Hz steps
+    [Hz] spectrum frequencies the network was trained on.
+window : str, default "rectangular"
+    Window function of the training spectra.
+window_duration : float, default 2.0
+    [s] window length of the training spectra.
+damping_min, damping_max : float, default 0.0, 2500.0
+    [N s/m] range of the damper; commands are clamped to it.
+stale_timeout : float, default 1.0
+    [s] ROS time without a spectrum after which the periodic status turns WARN.
+diagnostic_period : float, default 1.0
+    [s] ROS time between periodic status reports on ``/diagnostics``.
+
+Subscribes ``dva/spectrum`` (dva_msgs/ScaledSpectrum); publishes ``dva/damper_command``
+(dva_msgs/DamperCommand) and ``/diagnostics``. A command's stamp is the node's ROS time when it
+was computed (sim time with ``use_sim_time``), never earlier than the spectrum's stamp.
+"""
+from __future__ import annotations
+
+import math
+import sys
+import time
+
+import numpy as np
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+
+from dva_controller import messages
+from dva_controller.rbf_io import load_rbf_network
+from dva_controller.rbf_network import RBFNetwork, spectrum_input_names, spectrum_input_vector
+from dva_controller.spectrum import DEFAULT_FREQUENCIES, WINDOW_FUNCTIONS
+from dva_controller.spectrum_node import checked_frequencies
+from dva_msgs.msg import DamperCommand, ScaledSpectrum
+
+NODE_NAME = "rbf_controller"
+MAX_DAMPING = 1.0e6  # [N s/m] far above any damper of this size class; larger is a unit error
+FREQUENCY_TOLERANCE = 1.0e-6  # [Hz] spectrum frequencies must match the training ones this well
+DURATION_TOLERANCE = 1.0e-6  # [s]
+#: Hidden activations below this everywhere mean the input is far from every training centre.
+FAR_ACTIVATION = 1.0e-3
+_READ_AT_START = (
+    "network_file",
+    "channels",
+    "frequencies",
+    "window",
+    "window_duration",
+    "damping_min",
+    "damping_max",
+    "stale_timeout",
+    "diagnostic_period",
+)
+
+
+def _bounded(description: str, low: float, high: float) -> ParameterDescriptor:
+    return ParameterDescriptor(
+        description=description,
+        floating_point_range=[FloatingPointRange(from_value=low, to_value=high)],
+    )
+
+
+def check_network_inputs(
+    network: RBFNetwork, path: str, channels: tuple[str, ...], frequencies: np.ndarray
+) -> None:
+    """Raise ValueError unless the network's inputs are the spectrum inputs of the parameters."""
+    names, units = spectrum_input_names(channels, frequencies)
+    if network.input_names != names:
+        diff = [(i, a, b) for i, (a, b) in enumerate(zip(network.input_names, names)) if a != b]
+        i, got, want = diff[0]
+        raise ValueError(
+            f"RBF network file {path!r}: input {i} is {got!r} but channels {list(channels)} "
+            f"and frequencies {frequencies.tolist()} Hz give {want!r} "
+            f"({len(diff)} of {len(names)} input names differ)"
+        )
+    if network.input_units != units:
+        raise ValueError(
+            f"RBF network file {path!r}: input units {list(network.input_units)} are not "
+            f"{list(units)}"
+        )
+
+
+class RBFController(Node):
+    """Command c2 from each scaled spectrum with a trained RBF network."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__(NODE_NAME, **kwargs)
+        self.declare_parameter(
+            "network_file", "", ParameterDescriptor(description="trained RBF network (.npz)")
+        )
+        self.declare_parameter(
+            "channels",
+            ["plunge", "pitch"],
+            ParameterDescriptor(description="spectrum channels of the network, in order"),
+        )
+        self.declare_parameter(
+            "frequencies",
+            DEFAULT_FREQUENCIES.tolist(),
+            ParameterDescriptor(
+                description="spectrum frequencies of the network [Hz]", dynamic_typing=True
+            ),
+        )
+        self.declare_parameter(
+            "window",
+            "rectangular",
+            ParameterDescriptor(description=f"window function, one of {WINDOW_FUNCTIONS}"),
+        )
+        self.declare_parameter(
+            "window_duration", 2.0, _bounded("window length [s]", 1.0e-3, 3600.0)
+        )
+        self.declare_parameter(
+            "damping_min", 0.0, _bounded("damper range, lower end [N s/m]", 0.0, MAX_DAMPING)
+        )
+        self.declare_parameter(
+            "damping_max", 2500.0, _bounded("damper range, upper end [N s/m]", 0.0, MAX_DAMPING)
+        )
+        self.declare_parameter(
+            "stale_timeout", 1.0, _bounded("input age reported as stale [s]", 1.0e-3, 3600.0)
+        )
+        self.declare_parameter(
+            "diagnostic_period", 1.0, _bounded("status period [s]", 1.0e-2, 3600.0)
+        )
+        channels = tuple(self.get_parameter("channels").value)
+        if not channels or len(set(channels)) != len(channels) or not all(channels):
+            raise ValueError(
+                f"parameter 'channels' must be distinct non-empty names, got {list(channels)}"
+            )
+        self.channels = channels
+        self.frequencies = checked_frequencies(self.get_parameter("frequencies").value)
+        self.window = str(self.get_parameter("window").value)
+        if self.window not in WINDOW_FUNCTIONS:
+            raise ValueError(
+                f"parameter 'window' must be one of {list(WINDOW_FUNCTIONS)}, got {self.window!r}"
+            )
+        self.window_duration = float(self.get_parameter("window_duration").value)
+        low = float(self.get_parameter("damping_min").value)
+        high = float(self.get_parameter("damping_max").value)
+        if not low < high:
+            raise ValueError(
+                f"parameters 'damping_min' and 'damping_max' must satisfy min < max, "
+                f"got {low}, {high} N s/m"
+            )
+        self.damping_range = (low, high)
+        path = str(self.get_parameter("network_file").value)
+        if not path:
+            raise ValueError("parameter 'network_file' is required (a trained RBF network .npz)")
+        dim = len(self.channels) * self.frequencies.size + 1
+        self.network = load_rbf_network(path, expected_input_dim=dim)  # RBFFileError names it
+        check_network_inputs(self.network, path, self.channels, self.frequencies)
+        self._stale_ns = round(float(self.get_parameter("stale_timeout").value) * 1e9)
+        period = float(self.get_parameter("diagnostic_period").value)
+        self._report_period = period
+
+        self.counts = dict.fromkeys(("spectra", "rejected", "commands", "far_inputs"), 0)
+        self.last_command = math.nan
+        self.last_activation = math.nan
+        self._last_input_ns: int | None = None
+        self._first_tick_ns: int | None = None
+        self._last_report: dict[str, float] = {}
+        self._status_name = f"{self.get_fully_qualified_name().lstrip('/')}: rbf network"
+
+        self._command_pub = self.create_publisher(DamperCommand, "dva/damper_command", 10)
+        self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self.create_subscription(ScaledSpectrum, "dva/spectrum", self._on_spectrum, 10)
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.create_timer(period, self._status)
+        self.get_logger().info(
+            f"RBF network {path}: {self.network.n_neurons} neurons, {dim} inputs "
+            f"({list(self.channels)} x {self.frequencies.size} frequencies + c2); "
+            f"commands clamped to [{low:g}, {high:g}] N s/m"
+        )
+
+    def mismatch(self, spectrum: messages.SpectrumInput) -> str | None:
+        """Why a spectrum is not an input of this network (None if it is)."""
+        if spectrum.channel_names != self.channels:
+            return f"channels {list(spectrum.channel_names)}, network has {list(self.channels)}"
+        freqs = spectrum.frequencies
+        if freqs.shape != self.frequencies.shape or not np.allclose(
+            freqs, self.frequencies, rtol=0.0, atol=FREQUENCY_TOLERANCE
+        ):
+            return (
+                f"{freqs.size} frequencies {freqs.tolist()} Hz, network has "
+                f"{self.frequencies.size} ({self.frequencies.tolist()} Hz)"
+            )
+        if spectrum.scaling != ScaledSpectrum.SCALING_BAND_SUM:
+            wanted = ScaledSpectrum.SCALING_BAND_SUM
+            return f"scaling {spectrum.scaling!r}, network needs {wanted!r}"
+        if spectrum.window_function != self.window:
+            return f"window {spectrum.window_function!r}, network has {self.window!r}"
+        if abs(spectrum.window_duration - self.window_duration) > DURATION_TOLERANCE:
+            return (
+                f"window duration {spectrum.window_duration:g} s, network has "
+                f"{self.window_duration:g} s"
+            )
+        if not np.all(np.isfinite(spectrum.magnitudes)):
+            return "magnitudes hold NaN or inf"
+        if not (math.isfinite(spectrum.damping) and spectrum.damping >= 0.0):
+            return f"current c2 (damping) is {spectrum.damping}, not a finite value >= 0"
+        return None
+
+    def command_for(self, spectrum: messages.SpectrumInput) -> tuple[float, float]:
+        """Clamped network output [N s/m] and the largest hidden activation for a spectrum."""
+        x = spectrum_input_vector(spectrum.magnitudes, spectrum.damping)
+        activation = float(self.network.hidden(x).max()) if self.network.n_neurons else 1.0
+        c2 = self.network.predict(x)
+        return min(max(c2, self.damping_range[0]), self.damping_range[1]), activation
+
+    def _on_set_parameters(self, params) -> SetParametersResult:
+        for param in params:
+            if param.name in _READ_AT_START:
+                return SetParametersResult(
+                    successful=False, reason=f"'{param.name}' is read at start-up"
+                )
+        return SetParametersResult(successful=True)
+
+    def _on_spectrum(self, msg: ScaledSpectrum) -> None:
+        self.counts["spectra"] += 1
+        now = self.get_clock().now().nanoseconds
+        self._last_input_ns = now
+        try:
+            spectrum = messages.spectrum_input(msg)
+            problem = self.mismatch(spectrum)
+        except ValueError as exc:
+            spectrum, problem = None, str(exc)
+        if problem is None:
+            c2, activation = self.command_for(spectrum)
+            if not math.isfinite(c2):
+                problem = f"the network's output is {c2}"
+        if problem is not None:
+            self.counts["rejected"] += 1
+            self._report(messages.WARN, "rejected_spectrum", f"spectrum ignored: {problem}")
+            return
+        self.last_activation = activation
+        if activation < FAR_ACTIVATION:
+            self.counts["far_inputs"] += 1
+        stamp_ns = max(now, spectrum.stamp_ns)
+        self._command_pub.publish(
+            messages.damper_command(
+                messages.ns_to_time(stamp_ns), c2, DamperCommand.SOURCE_RBF_NETWORK
+            )
+        )
+        self.last_command = c2
+        self.counts["commands"] += 1
+
+    def _report(self, level: int, event: str, text: str, **values) -> None:
+        """Publish one event on /diagnostics, at most once per period for each kind of event
+        (wall time, so a stopped sim clock cannot mute it); the status counts every one."""
+        wall = time.monotonic()
+        last = self._last_report.get(event)
+        if last is not None and wall - last < self._report_period:
+            return
+        self._last_report[event] = wall
+        self.get_logger().warning(text)
+        self._diag_pub.publish(
+            messages.diagnostic_array(
+                self.get_clock().now().to_msg(), level, self._status_name, text,
+                dict(event=event, **values),
+            )
+        )
+
+    def _status(self) -> None:
+        now = self.get_clock().now().nanoseconds
+        if self._first_tick_ns is None or now < self._first_tick_ns:
+            self._first_tick_ns = now  # start, or the clock jumped back (a new sim run)
+        since = self._last_input_ns if self._last_input_ns is not None else self._first_tick_ns
+        age = max(now - since, 0) / 1e9
+        if now - since > self._stale_ns:
+            level, text = messages.WARN, f"stale input: no dva/spectrum for {age:.3g} s"
+        elif self.last_activation < FAR_ACTIVATION:
+            level = messages.WARN
+            text = (
+                f"last input is far from every training centre (largest activation "
+                f"{self.last_activation:.2g}): the output is close to the bias"
+            )
+        else:
+            level, text = messages.OK, f"last command {self.last_command:.6g} N s/m"
+        self._diag_pub.publish(
+            messages.diagnostic_array(
+                self.get_clock().now().to_msg(), level, self._status_name, text,
+                dict(
+                    self.counts,
+                    event="status",
+                    input_age=age,
+                    last_command=self.last_command,
+                    largest_activation=self.last_activation,
+                ),
+            )
+        )
+
+
+def main(args=None) -> int:
+    rclpy.init(args=args)
+    node = None
+    try:
+        try:
+            node = RBFController()
+        except (ValueError, rclpy.exceptions.ParameterException) as exc:
+            print(f"{NODE_NAME}: error: {exc}", file=sys.stderr)
+            return 2
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,362 @@
+"""``spectrum``: sliding-window scaled magnitude spectra of the wing's accelerations (eq. 7.3).
+
+Every ``hop`` seconds of samples, the last ``window_duration`` seconds of each channel are
+analysed at ``frequencies`` (:class:`~dva_controller.spectrum.SlidingSpectrum`) and published
+as one ``dva_msgs/ScaledSpectrum`` whose stamp is the time of the window's last sample (from the
+block header stamps, so sim time when the simulator stamps its blocks with it).
+
+A gap or an out-of-order block (``first_sample_index`` not where the previous block ended), a
+block with NaN/inf samples, or a change of ``sample_rate`` drops the window collected so far
+and starts a new one; each reset is reported on ``/diagnostics`` (WARN) with its reason and the
+sample indices. A window whose band holds no signal (scaling by a zero sum) is not published.
+
+Parameters
+----------
+channels : string array, default ["plunge", "pitch"]
+    Acceleration channels to analyse, in order; each one of "plunge", "pitch", "leading_edge".
+window_duration : float, default 2.0
+    [s] window length; times the blocks' sample rate it must be a whole number of samples.
+hop : float, default 0.1
+    [s] time between window starts; a whole number of samples.
+frequencies : double array, default 5..20 in 1 Hz steps
+    [Hz] frequencies to evaluate; distinct, > 0 and below the blocks' Nyquist frequency.
+window : str, default "rectangular"
+    Window function, "rectangular" (the seed) or "hann".
+stale_timeout : float, default 1.0
+    [s] ROS time without acceleration blocks after which the periodic status turns WARN.
+diagnostic_period : float, default 1.0
+    [s] ROS time between periodic status reports on ``/diagnostics``.
+
+Subscribes ``wing/acceleration`` (dva_msgs/AccelerationBlock) and ``dva/damper_state``
+(dva_msgs/DamperState, for the c2 applied during the window: the spectrum's ``damping`` is the
+mean of the latest applied c2 known when each block arrived, or the latest known value if a
+block of the window arrived before any damper state). Publishes ``dva/spectrum``
+(dva_msgs/ScaledSpectrum) and ``/diagnostics``. All times honour ``use_sim_time``.
+"""
+from __future__ import annotations
+
+import math
+import sys
+import time
+
+import numpy as np
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+
+from dva_controller import messages
+from dva_controller.spectrum import DEFAULT_FREQUENCIES, WINDOW_FUNCTIONS, SlidingSpectrum
+from dva_msgs.msg import AccelerationBlock, DamperState, ScaledSpectrum
+
+NODE_NAME = "spectrum"
+QOS_DEPTH = 100  # blocks of 10-50 ms: a few seconds of slack at 20x real time before a gap
+_READ_AT_START = (
+    "channels",
+    "window_duration",
+    "hop",
+    "frequencies",
+    "window",
+    "stale_timeout",
+    "diagnostic_period",
+)
+
+
+def _bounded(description: str, low: float, high: float) -> ParameterDescriptor:
+    return ParameterDescriptor(
+        description=description,
+        floating_point_range=[FloatingPointRange(from_value=low, to_value=high)],
+    )
+
+
+def checked_channels(value) -> tuple[str, ...]:
+    """Validate the ``channels`` parameter."""
+    channels = tuple(value)
+    if not channels:
+        raise ValueError("parameter 'channels' must name at least one channel")
+    unknown = [c for c in channels if c not in messages.ACCELERATION_CHANNELS]
+    if unknown:
+        raise ValueError(
+            f"parameter 'channels': unknown channel(s) {unknown}, "
+            f"expected some of {list(messages.ACCELERATION_CHANNELS)}"
+        )
+    if len(set(channels)) != len(channels):
+        raise ValueError(f"parameter 'channels' lists a channel twice: {list(channels)}")
+    return channels
+
+
+def checked_frequencies(value) -> np.ndarray:
+    """Validate the ``frequencies`` parameter (numbers, finite, > 0, distinct)."""
+    try:
+        freqs = np.array([float(f) for f in value])
+    except (TypeError, ValueError):
+        raise ValueError(f"parameter 'frequencies' must be numbers, got {value!r}") from None
+    if freqs.size == 0 or not np.all(np.isfinite(freqs)) or np.any(freqs <= 0.0):
+        raise ValueError(
+            f"parameter 'frequencies' must be finite values > 0 Hz, got {freqs.tolist()}"
+        )
+    if np.unique(freqs).size != freqs.size:
+        raise ValueError(f"parameter 'frequencies' has repeated values: {freqs.tolist()}")
+    return freqs
+
+
+class SpectrumNode(Node):
+    """Turn acceleration blocks into eq. 7.3 spectra over sliding windows."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__(NODE_NAME, **kwargs)
+        self.declare_parameter(
+            "channels",
+            ["plunge", "pitch"],
+            ParameterDescriptor(description="acceleration channels to analyse, in order"),
+        )
+        self.declare_parameter(
+            "window_duration", 2.0, _bounded("window length [s]", 1.0e-3, 3600.0)
+        )
+        self.declare_parameter(
+            "hop", 0.1, _bounded("time between window starts [s]", 1.0e-3, 3600.0)
+        )
+        self.declare_parameter(
+            "frequencies",
+            DEFAULT_FREQUENCIES.tolist(),
+            ParameterDescriptor(
+                description="frequencies to evaluate [Hz]", dynamic_typing=True
+            ),
+        )
+        self.declare_parameter(
+            "window",
+            "rectangular",
+            ParameterDescriptor(description=f"window function, one of {WINDOW_FUNCTIONS}"),
+        )
+        self.declare_parameter(
+            "stale_timeout", 1.0, _bounded("input age reported as stale [s]", 1.0e-3, 3600.0)
+        )
+        self.declare_parameter(
+            "diagnostic_period", 1.0, _bounded("status period [s]", 1.0e-2, 3600.0)
+        )
+        self.channels = checked_channels(self.get_parameter("channels").value)
+        self.frequencies = checked_frequencies(self.get_parameter("frequencies").value)
+        self.window = str(self.get_parameter("window").value)
+        if self.window not in WINDOW_FUNCTIONS:
+            raise ValueError(
+                f"parameter 'window' must be one of {list(WINDOW_FUNCTIONS)}, got {self.window!r}"
+            )
+        self.window_duration = float(self.get_parameter("window_duration").value)
+        self.hop = float(self.get_parameter("hop").value)
+        self._stale_ns = round(float(self.get_parameter("stale_timeout").value) * 1e9)
+        period = float(self.get_parameter("diagnostic_period").value)
+        self._report_period = period
+
+        self._sliding: SlidingSpectrum | None = None
+        self._problem: str | None = None  # a persistent input problem for the status
+        self._damping = math.nan  # latest applied c2 [N s/m]
+        self.counts = dict.fromkeys(
+            ("blocks", "rejected", "resets", "spectra", "empty_windows", "damper_states"), 0
+        )
+        self._last_input_ns: int | None = None
+        self._first_tick_ns: int | None = None
+        self._last_report: dict[str, float] = {}
+        self._status_name = f"{self.get_fully_qualified_name().lstrip('/')}: window"
+
+        self._spectrum_pub = self.create_publisher(ScaledSpectrum, "dva/spectrum", 10)
+        self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self.create_subscription(AccelerationBlock, "wing/acceleration", self._on_block, QOS_DEPTH)
+        self.create_subscription(DamperState, "dva/damper_state", self._on_damper_state, 10)
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.create_timer(period, self._status)
+        self.get_logger().info(
+            f"spectra of {list(self.channels)} at {self.frequencies.size} frequencies "
+            f"({self.frequencies.min():g}..{self.frequencies.max():g} Hz), "
+            f"{self.window} window of {self.window_duration:g} s every {self.hop:g} s"
+        )
+
+    @property
+    def latest_damping(self) -> float:
+        """[N s/m] latest applied c2 from ``dva/damper_state`` (NaN before the first)."""
+        return self._damping
+
+    # ------------------------------------------------------------------ callbacks
+    def _on_set_parameters(self, params) -> SetParametersResult:
+        for param in params:
+            if param.name in _READ_AT_START:
+                return SetParametersResult(
+                    successful=False, reason=f"'{param.name}' is read at start-up"
+                )
+        return SetParametersResult(successful=True)
+
+    def _on_damper_state(self, msg: DamperState) -> None:
+        value = messages.applied_damping(msg)
+        if math.isfinite(value) and value >= 0.0:
+            self._damping = value
+            self.counts["damper_states"] += 1
+
+    def _on_block(self, msg: AccelerationBlock) -> None:
+        self.counts["blocks"] += 1
+        self._last_input_ns = self.get_clock().now().nanoseconds
+        index = int(msg.first_sample_index)
+        try:
+            block = messages.acceleration_samples(msg, self.channels)
+        except ValueError as exc:
+            self._reject("malformed", f"block at index {index} rejected: {exc}", index=index)
+            return
+        rate = block.sample_rate
+        if not (math.isfinite(rate) and rate > 0.0):
+            self._reject(
+                "bad_sample_rate",
+                f"block at index {index} rejected: sample_rate {rate} Hz",
+                index=index,
+            )
+            return
+        if self._sliding is None or rate != self._sliding.sample_rate:
+            if not self._start_window(rate, index):
+                return
+        result = self._sliding.push(index, block.samples, damping=self._damping)
+        if result.reset is not None:
+            event = result.reset
+            self.counts["resets"] += 1
+            self._report(
+                messages.WARN,
+                f"reset_{event.reason.value}",
+                event.describe(),
+                reason=event.reason.value,
+                expected_index=event.expected_index,
+                received_index=event.received_index,
+                dropped_samples=event.dropped_samples,
+            )
+        for window in result.spectra:
+            self._publish(block, window)
+
+    def _start_window(self, rate: float, index: int) -> bool:
+        """(Re)build the sliding window for a sample rate; report why. False: block rejected."""
+        old = self._sliding
+        self._sliding = None
+        if old is not None:
+            expected = old.expected_index
+            dropped = old.reset().dropped_samples
+            self.counts["resets"] += 1
+            self._report(
+                messages.WARN,
+                "reset_sample_rate",
+                f"spectrum window reset: sample rate changed from {old.sample_rate:g} to "
+                f"{rate:g} Hz at index {index} (expected index {expected}); "
+                f"{dropped} samples discarded",
+                reason="sample_rate",
+                previous_sample_rate=old.sample_rate,
+                sample_rate=rate,
+                expected_index=expected,
+                received_index=index,
+                dropped_samples=dropped,
+            )
+        try:
+            self._sliding = SlidingSpectrum(
+                len(self.channels),
+                rate,
+                window_duration=self.window_duration,
+                hop=self.hop,
+                frequencies=self.frequencies,
+                window=self.window,
+            )
+        except (TypeError, ValueError) as exc:
+            self._problem = f"blocks at {rate:g} Hz cannot be analysed with the parameters: {exc}"
+            self._reject(
+                "unusable_sample_rate",
+                self._problem,
+                level=messages.ERROR,
+                index=index,
+                sample_rate=rate,
+            )
+            return False
+        self._problem = None
+        return True
+
+    def _publish(self, block: messages.AccelerationSamples, window) -> None:
+        spectrum = window.spectrum
+        if not np.all(np.isfinite(spectrum.magnitudes)):
+            empty = [c for c, s in zip(self.channels, spectrum.band_sums) if not s > 0.0]
+            self.counts["empty_windows"] += 1
+            self._report(
+                messages.WARN,
+                "empty_window",
+                f"window {window.first_sample_index}..{window.stop_sample_index - 1} not "
+                f"published: no signal in the band on {empty}",
+                first_index=window.first_sample_index,
+            )
+            return
+        damping = window.mean_damping
+        if not math.isfinite(damping):
+            damping = self._damping
+        stamp = messages.ns_to_time(block.sample_time_ns(window.stop_sample_index - 1))
+        self._spectrum_pub.publish(
+            messages.scaled_spectrum_message(
+                stamp, block.frame_id, self.channels, spectrum, self._sliding.hop, damping
+            )
+        )
+        self.counts["spectra"] += 1
+
+    # ------------------------------------------------------------------ diagnostics
+    def _reject(self, event: str, text: str, level: int = messages.WARN, **values) -> None:
+        self.counts["rejected"] += 1
+        self._report(level, event, text, **values)
+
+    def _report(self, level: int, event: str, text: str, **values) -> None:
+        """Publish one event on /diagnostics, at most once per period for each kind of event
+        (wall time, so a stopped sim clock cannot mute it); the status counts every one."""
+        wall = time.monotonic()
+        last = self._last_report.get(event)
+        if last is not None and wall - last < self._report_period:
+            return
+        self._last_report[event] = wall
+        self.get_logger().warning(text)
+        stamp = self.get_clock().now().to_msg()
+        self._diag_pub.publish(
+            messages.diagnostic_array(
+                stamp, level, self._status_name, text, dict(event=event, **values)
+            )
+        )
+
+    def _status(self) -> None:
+        now = self.get_clock().now().nanoseconds
+        if self._first_tick_ns is None or now < self._first_tick_ns:
+            self._first_tick_ns = now  # start, or the clock jumped back (a new sim run)
+        since = self._last_input_ns if self._last_input_ns is not None else self._first_tick_ns
+        age = max(now - since, 0) / 1e9
+        values = dict(self.counts, input_age=age, damping=self._damping)
+        if self._sliding is not None:
+            values.update(sample_rate=self._sliding.sample_rate,
+                          expected_index=self._sliding.expected_index)
+        if self._problem is not None:
+            level, text = messages.ERROR, self._problem
+        elif now - since > self._stale_ns:
+            level, text = messages.WARN, f"stale input: no wing/acceleration for {age:.3g} s"
+        else:
+            level, text = messages.OK, f"{self.counts['spectra']} spectra published"
+        self._diag_pub.publish(
+            messages.diagnostic_array(
+                self.get_clock().now().to_msg(), level, self._status_name, text,
+                dict(event="status", **values),
+            )
+        )
+
+
+def main(args=None) -> int:
+    rclpy.init(args=args)
+    node = None
+    try:
+        try:
+            node = SpectrumNode()
+        except (ValueError, rclpy.exceptions.ParameterException) as exc:
+            print(f"{NODE_NAME}: error: {exc}", file=sys.stderr)
+            return 2
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
