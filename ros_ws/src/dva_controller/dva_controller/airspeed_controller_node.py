@@ -38,16 +38,13 @@ from __future__ import annotations
 
 import math
 import sys
-import time
 
-import rclpy
-from diagnostic_msgs.msg import DiagnosticArray
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
-from rclpy.executors import ExternalShutdownException
+from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 
 from dva_controller import messages
 from dva_controller.airspeed_schedule import AirspeedSchedule
+from dva_controller.ros_node_tools import InputHealth, Status, bounded, refuse_changes, run_node
 from dva_controller.schedule_io import load_schedule
 from dva_msgs.msg import DamperCommand, FlightCondition
 
@@ -67,13 +64,6 @@ _READ_AT_START = (
 )
 
 
-def _bounded(description: str, low: float, high: float) -> ParameterDescriptor:
-    return ParameterDescriptor(
-        description=description,
-        floating_point_range=[FloatingPointRange(from_value=low, to_value=high)],
-    )
-
-
 def damping_range(low: float, high: float) -> tuple[float, float]:
     """Validate the ``damping_min``/``damping_max`` pair."""
     if not (math.isfinite(low) and math.isfinite(high) and 0.0 <= low < high):
@@ -89,8 +79,8 @@ class AirspeedController(Node):
 
     def __init__(self, **kwargs) -> None:
         super().__init__(NODE_NAME, **kwargs)
-        self.declare_parameter("a0", -2150.0, _bounded("eq. 7.1 intercept [N s/m]", -1e6, 1e6))
-        self.declare_parameter("a1", 31.5, _bounded("eq. 7.1 slope [N s^2/m^2]", -1e5, 1e5))
+        self.declare_parameter("a0", -2150.0, bounded("eq. 7.1 intercept [N s/m]", -1e6, 1e6))
+        self.declare_parameter("a1", 31.5, bounded("eq. 7.1 slope [N s^2/m^2]", -1e5, 1e5))
         self.declare_parameter(
             "schedule_file",
             "",
@@ -102,22 +92,16 @@ class AirspeedController(Node):
             ParameterDescriptor(description="extend the schedule file's line beyond its range"),
         )
         self.declare_parameter(
-            "damping_min", 0.0, _bounded("damper range, lower end [N s/m]", 0.0, MAX_DAMPING)
+            "damping_min", 0.0, bounded("damper range, lower end [N s/m]", 0.0, MAX_DAMPING)
         )
         self.declare_parameter(
-            "damping_max", 2500.0, _bounded("damper range, upper end [N s/m]", 0.0, MAX_DAMPING)
+            "damping_max", 2500.0, bounded("damper range, upper end [N s/m]", 0.0, MAX_DAMPING)
         )
         self.declare_parameter(
-            "min_period", 0.0, _bounded("least ROS time between commands [s]", 0.0, 3600.0)
+            "min_period", 0.0, bounded("least ROS time between commands [s]", 0.0, 3600.0)
         )
         self.declare_parameter(
-            "max_airspeed", 400.0, _bounded("larger airspeeds are rejected [m/s]", 1.0, 1.0e4)
-        )
-        self.declare_parameter(
-            "stale_timeout", 1.0, _bounded("input age reported as stale [s]", 1.0e-3, 3600.0)
-        )
-        self.declare_parameter(
-            "diagnostic_period", 1.0, _bounded("status period [s]", 1.0e-2, 3600.0)
+            "max_airspeed", 400.0, bounded("larger airspeeds are rejected [m/s]", 1.0, 1.0e4)
         )
         low, high = damping_range(
             float(self.get_parameter("damping_min").value),
@@ -146,23 +130,17 @@ class AirspeedController(Node):
             origin = "parameters a0, a1"
         self.damping_range = (low, high)
         self._min_period_ns = round(float(self.get_parameter("min_period").value) * 1e9)
-        self._stale_ns = round(float(self.get_parameter("stale_timeout").value) * 1e9)
-        period = float(self.get_parameter("diagnostic_period").value)
-        self._report_period = period
 
         self.counts = dict.fromkeys(("conditions", "rejected", "commands", "rate_limited"), 0)
         self.last_command = math.nan
         self._last_command_ns: int | None = None
-        self._last_input_ns: int | None = None
-        self._first_tick_ns: int | None = None
-        self._last_report: dict[str, float] = {}
-        self._status_name = f"{self.get_fully_qualified_name().lstrip('/')}: airspeed schedule"
+        self._health = InputHealth(
+            self, "airspeed schedule", "flight/condition", self.counts, self._status
+        )
 
         self._command_pub = self.create_publisher(DamperCommand, "dva/damper_command", 10)
-        self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self.create_subscription(FlightCondition, "flight/condition", self._on_condition, 10)
-        self.add_on_set_parameters_callback(self._on_set_parameters)
-        self.create_timer(period, self._status)
+        refuse_changes(self, _READ_AT_START)
         self.get_logger().info(
             f"c2 = {self.schedule.a0:g} + {self.schedule.a1:g} U N s/m ({origin}), "
             f"clamped to [{low:g}, {high:g}] N s/m"
@@ -173,23 +151,14 @@ class AirspeedController(Node):
         c2 = self.schedule.evaluate(airspeed, extrapolate=self.extrapolate)
         return min(max(c2, self.damping_range[0]), self.damping_range[1])
 
-    def _on_set_parameters(self, params) -> SetParametersResult:
-        for param in params:
-            if param.name in _READ_AT_START:
-                return SetParametersResult(
-                    successful=False, reason=f"'{param.name}' is read at start-up"
-                )
-        return SetParametersResult(successful=True)
-
     def _on_condition(self, msg: FlightCondition) -> None:
         self.counts["conditions"] += 1
-        now = self.get_clock().now().nanoseconds
-        self._last_input_ns = now
+        now = self._health.mark_input()
         condition = messages.flight_condition_values(msg)
         u = condition.airspeed
         if not (math.isfinite(u) and 0.0 <= u <= self.max_airspeed):
             self.counts["rejected"] += 1
-            self._report(
+            self._health.report(
                 messages.WARN,
                 "rejected_airspeed",
                 f"flight condition ignored: airspeed {u} m/s is not in [0, "
@@ -213,57 +182,13 @@ class AirspeedController(Node):
         self.last_command = c2
         self.counts["commands"] += 1
 
-    def _report(self, level: int, event: str, text: str, **values) -> None:
-        """Publish one event on /diagnostics, at most once per period for each kind of event
-        (wall time, so a stopped sim clock cannot mute it); the status counts every one."""
-        wall = time.monotonic()
-        last = self._last_report.get(event)
-        if last is not None and wall - last < self._report_period:
-            return
-        self._last_report[event] = wall
-        self.get_logger().warning(text)
-        self._diag_pub.publish(
-            messages.diagnostic_array(
-                self.get_clock().now().to_msg(), level, self._status_name, text,
-                dict(event=event, **values),
-            )
-        )
-
-    def _status(self) -> None:
-        now = self.get_clock().now().nanoseconds
-        if self._first_tick_ns is None or now < self._first_tick_ns:
-            self._first_tick_ns = now  # start, or the clock jumped back (a new sim run)
-        since = self._last_input_ns if self._last_input_ns is not None else self._first_tick_ns
-        age = max(now - since, 0) / 1e9
-        if now - since > self._stale_ns:
-            level, text = messages.WARN, f"stale input: no flight/condition for {age:.3g} s"
-        else:
-            level, text = messages.OK, f"last command {self.last_command:.6g} N s/m"
-        self._diag_pub.publish(
-            messages.diagnostic_array(
-                self.get_clock().now().to_msg(), level, self._status_name, text,
-                dict(self.counts, event="status", input_age=age, last_command=self.last_command),
-            )
-        )
+    def _status(self) -> Status:
+        text = f"last command {self.last_command:.6g} N s/m"
+        return messages.OK, text, {"last_command": self.last_command}
 
 
 def main(args=None) -> int:
-    rclpy.init(args=args)
-    node = None
-    try:
-        try:
-            node = AirspeedController()
-        except (ValueError, rclpy.exceptions.ParameterException) as exc:
-            print(f"{NODE_NAME}: error: {exc}", file=sys.stderr)
-            return 2
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(AirspeedController, NODE_NAME, args)
 
 
 if __name__ == "__main__":

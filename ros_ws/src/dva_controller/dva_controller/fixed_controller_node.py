@@ -14,33 +14,26 @@ from __future__ import annotations
 import math
 import sys
 
-import rclpy
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
-from rclpy.executors import ExternalShutdownException
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 
 from dva_controller.messages import damper_command
+from dva_controller.ros_node_tools import bounded, run_node
 from dva_msgs.msg import DamperCommand
 
+NODE_NAME = "fixed_controller"
 MAX_DAMPING = 1.0e6  # [N s/m] far above any damper of this size class; larger is a unit error
-
-
-def _bounded(description: str, low: float, high: float) -> ParameterDescriptor:
-    return ParameterDescriptor(
-        description=description,
-        floating_point_range=[FloatingPointRange(from_value=low, to_value=high)],
-    )
 
 
 class FixedController(Node):
     """Publish a constant, validated c2 at a fixed rate."""
 
     def __init__(self, **kwargs) -> None:
-        super().__init__("fixed_controller", **kwargs)
+        super().__init__(NODE_NAME, **kwargs)
         self.declare_parameter(
-            "damping", 1500.0, _bounded("c2 to command [N s/m]", 0.0, MAX_DAMPING)
+            "damping", 1500.0, bounded("c2 to command [N s/m]", 0.0, MAX_DAMPING)
         )
-        self.declare_parameter("rate", 10.0, _bounded("publishing rate [Hz]", 0.01, 1000.0))
+        self.declare_parameter("rate", 10.0, bounded("publishing rate [Hz]", 0.01, 1000.0))
         self._damping = self._checked_damping(self.get_parameter("damping").value)
         rate = float(self.get_parameter("rate").value)
         self._publisher = self.create_publisher(DamperCommand, "dva/damper_command", 10)
@@ -74,21 +67,7 @@ class FixedController(Node):
 
 
 def main(args=None) -> int:
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = FixedController()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except (ValueError, rclpy.exceptions.ParameterException) as exc:
-        print(f"fixed_controller: error: {exc}", file=sys.stderr)
-        return 2
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(FixedController, NODE_NAME, args)
 
 
 if __name__ == "__main__":

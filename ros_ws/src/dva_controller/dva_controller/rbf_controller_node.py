@@ -43,18 +43,15 @@ from __future__ import annotations
 
 import math
 import sys
-import time
 
 import numpy as np
-import rclpy
-from diagnostic_msgs.msg import DiagnosticArray
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
-from rclpy.executors import ExternalShutdownException
+from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 
 from dva_controller import messages
 from dva_controller.rbf_io import load_rbf_network
 from dva_controller.rbf_network import RBFNetwork, spectrum_input_names, spectrum_input_vector
+from dva_controller.ros_node_tools import InputHealth, Status, bounded, refuse_changes, run_node
 from dva_controller.spectrum import DEFAULT_FREQUENCIES, WINDOW_FUNCTIONS
 from dva_controller.spectrum_node import checked_frequencies
 from dva_msgs.msg import DamperCommand, ScaledSpectrum
@@ -76,13 +73,6 @@ _READ_AT_START = (
     "stale_timeout",
     "diagnostic_period",
 )
-
-
-def _bounded(description: str, low: float, high: float) -> ParameterDescriptor:
-    return ParameterDescriptor(
-        description=description,
-        floating_point_range=[FloatingPointRange(from_value=low, to_value=high)],
-    )
 
 
 def check_network_inputs(
@@ -131,19 +121,13 @@ class RBFController(Node):
             ParameterDescriptor(description=f"window function, one of {WINDOW_FUNCTIONS}"),
         )
         self.declare_parameter(
-            "window_duration", 2.0, _bounded("window length [s]", 1.0e-3, 3600.0)
+            "window_duration", 2.0, bounded("window length [s]", 1.0e-3, 3600.0)
         )
         self.declare_parameter(
-            "damping_min", 0.0, _bounded("damper range, lower end [N s/m]", 0.0, MAX_DAMPING)
+            "damping_min", 0.0, bounded("damper range, lower end [N s/m]", 0.0, MAX_DAMPING)
         )
         self.declare_parameter(
-            "damping_max", 2500.0, _bounded("damper range, upper end [N s/m]", 0.0, MAX_DAMPING)
-        )
-        self.declare_parameter(
-            "stale_timeout", 1.0, _bounded("input age reported as stale [s]", 1.0e-3, 3600.0)
-        )
-        self.declare_parameter(
-            "diagnostic_period", 1.0, _bounded("status period [s]", 1.0e-2, 3600.0)
+            "damping_max", 2500.0, bounded("damper range, upper end [N s/m]", 0.0, MAX_DAMPING)
         )
         channels = tuple(self.get_parameter("channels").value)
         if not channels or len(set(channels)) != len(channels) or not all(channels):
@@ -172,23 +156,15 @@ class RBFController(Node):
         dim = len(self.channels) * self.frequencies.size + 1
         self.network = load_rbf_network(path, expected_input_dim=dim)  # RBFFileError names it
         check_network_inputs(self.network, path, self.channels, self.frequencies)
-        self._stale_ns = round(float(self.get_parameter("stale_timeout").value) * 1e9)
-        period = float(self.get_parameter("diagnostic_period").value)
-        self._report_period = period
 
         self.counts = dict.fromkeys(("spectra", "rejected", "commands", "far_inputs"), 0)
         self.last_command = math.nan
         self.last_activation = math.nan
-        self._last_input_ns: int | None = None
-        self._first_tick_ns: int | None = None
-        self._last_report: dict[str, float] = {}
-        self._status_name = f"{self.get_fully_qualified_name().lstrip('/')}: rbf network"
+        self._health = InputHealth(self, "rbf network", "dva/spectrum", self.counts, self._status)
 
         self._command_pub = self.create_publisher(DamperCommand, "dva/damper_command", 10)
-        self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self.create_subscription(ScaledSpectrum, "dva/spectrum", self._on_spectrum, 10)
-        self.add_on_set_parameters_callback(self._on_set_parameters)
-        self.create_timer(period, self._status)
+        refuse_changes(self, _READ_AT_START)
         self.get_logger().info(
             f"RBF network {path}: {self.network.n_neurons} neurons, {dim} inputs "
             f"({list(self.channels)} x {self.frequencies.size} frequencies + c2); "
@@ -230,18 +206,9 @@ class RBFController(Node):
         c2 = self.network.predict(x)
         return min(max(c2, self.damping_range[0]), self.damping_range[1]), activation
 
-    def _on_set_parameters(self, params) -> SetParametersResult:
-        for param in params:
-            if param.name in _READ_AT_START:
-                return SetParametersResult(
-                    successful=False, reason=f"'{param.name}' is read at start-up"
-                )
-        return SetParametersResult(successful=True)
-
     def _on_spectrum(self, msg: ScaledSpectrum) -> None:
         self.counts["spectra"] += 1
-        now = self.get_clock().now().nanoseconds
-        self._last_input_ns = now
+        now = self._health.mark_input()
         try:
             spectrum = messages.spectrum_input(msg)
             problem = self.mismatch(spectrum)
@@ -253,7 +220,7 @@ class RBFController(Node):
                 problem = f"the network's output is {c2}"
         if problem is not None:
             self.counts["rejected"] += 1
-            self._report(messages.WARN, "rejected_spectrum", f"spectrum ignored: {problem}")
+            self._health.report(messages.WARN, "rejected_spectrum", f"spectrum ignored: {problem}")
             return
         self.last_activation = activation
         if activation < FAR_ACTIVATION:
@@ -267,69 +234,19 @@ class RBFController(Node):
         self.last_command = c2
         self.counts["commands"] += 1
 
-    def _report(self, level: int, event: str, text: str, **values) -> None:
-        """Publish one event on /diagnostics, at most once per period for each kind of event
-        (wall time, so a stopped sim clock cannot mute it); the status counts every one."""
-        wall = time.monotonic()
-        last = self._last_report.get(event)
-        if last is not None and wall - last < self._report_period:
-            return
-        self._last_report[event] = wall
-        self.get_logger().warning(text)
-        self._diag_pub.publish(
-            messages.diagnostic_array(
-                self.get_clock().now().to_msg(), level, self._status_name, text,
-                dict(event=event, **values),
-            )
-        )
-
-    def _status(self) -> None:
-        now = self.get_clock().now().nanoseconds
-        if self._first_tick_ns is None or now < self._first_tick_ns:
-            self._first_tick_ns = now  # start, or the clock jumped back (a new sim run)
-        since = self._last_input_ns if self._last_input_ns is not None else self._first_tick_ns
-        age = max(now - since, 0) / 1e9
-        if now - since > self._stale_ns:
-            level, text = messages.WARN, f"stale input: no dva/spectrum for {age:.3g} s"
-        elif self.last_activation < FAR_ACTIVATION:
-            level = messages.WARN
+    def _status(self) -> Status:
+        values = {"last_command": self.last_command, "largest_activation": self.last_activation}
+        if self.last_activation < FAR_ACTIVATION:
             text = (
                 f"last input is far from every training centre (largest activation "
                 f"{self.last_activation:.2g}): the output is close to the bias"
             )
-        else:
-            level, text = messages.OK, f"last command {self.last_command:.6g} N s/m"
-        self._diag_pub.publish(
-            messages.diagnostic_array(
-                self.get_clock().now().to_msg(), level, self._status_name, text,
-                dict(
-                    self.counts,
-                    event="status",
-                    input_age=age,
-                    last_command=self.last_command,
-                    largest_activation=self.last_activation,
-                ),
-            )
-        )
+            return messages.WARN, text, values
+        return messages.OK, f"last command {self.last_command:.6g} N s/m", values
 
 
 def main(args=None) -> int:
-    rclpy.init(args=args)
-    node = None
-    try:
-        try:
-            node = RBFController()
-        except (ValueError, rclpy.exceptions.ParameterException) as exc:
-            print(f"{NODE_NAME}: error: {exc}", file=sys.stderr)
-            return 2
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(RBFController, NODE_NAME, args)
 
 
 if __name__ == "__main__":

@@ -37,16 +37,13 @@ from __future__ import annotations
 
 import math
 import sys
-import time
 
 import numpy as np
-import rclpy
-from diagnostic_msgs.msg import DiagnosticArray
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
-from rclpy.executors import ExternalShutdownException
+from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 
 from dva_controller import messages
+from dva_controller.ros_node_tools import InputHealth, Status, bounded, refuse_changes, run_node
 from dva_controller.spectrum import DEFAULT_FREQUENCIES, WINDOW_FUNCTIONS, SlidingSpectrum
 from dva_msgs.msg import AccelerationBlock, DamperState, ScaledSpectrum
 
@@ -61,13 +58,6 @@ _READ_AT_START = (
     "stale_timeout",
     "diagnostic_period",
 )
-
-
-def _bounded(description: str, low: float, high: float) -> ParameterDescriptor:
-    return ParameterDescriptor(
-        description=description,
-        floating_point_range=[FloatingPointRange(from_value=low, to_value=high)],
-    )
 
 
 def checked_channels(value) -> tuple[str, ...]:
@@ -112,10 +102,10 @@ class SpectrumNode(Node):
             ParameterDescriptor(description="acceleration channels to analyse, in order"),
         )
         self.declare_parameter(
-            "window_duration", 2.0, _bounded("window length [s]", 1.0e-3, 3600.0)
+            "window_duration", 2.0, bounded("window length [s]", 1.0e-3, 3600.0)
         )
         self.declare_parameter(
-            "hop", 0.1, _bounded("time between window starts [s]", 1.0e-3, 3600.0)
+            "hop", 0.1, bounded("time between window starts [s]", 1.0e-3, 3600.0)
         )
         self.declare_parameter(
             "frequencies",
@@ -129,12 +119,6 @@ class SpectrumNode(Node):
             "rectangular",
             ParameterDescriptor(description=f"window function, one of {WINDOW_FUNCTIONS}"),
         )
-        self.declare_parameter(
-            "stale_timeout", 1.0, _bounded("input age reported as stale [s]", 1.0e-3, 3600.0)
-        )
-        self.declare_parameter(
-            "diagnostic_period", 1.0, _bounded("status period [s]", 1.0e-2, 3600.0)
-        )
         self.channels = checked_channels(self.get_parameter("channels").value)
         self.frequencies = checked_frequencies(self.get_parameter("frequencies").value)
         self.window = str(self.get_parameter("window").value)
@@ -144,9 +128,6 @@ class SpectrumNode(Node):
             )
         self.window_duration = float(self.get_parameter("window_duration").value)
         self.hop = float(self.get_parameter("hop").value)
-        self._stale_ns = round(float(self.get_parameter("stale_timeout").value) * 1e9)
-        period = float(self.get_parameter("diagnostic_period").value)
-        self._report_period = period
 
         self._sliding: SlidingSpectrum | None = None
         self._problem: str | None = None  # a persistent input problem for the status
@@ -154,17 +135,12 @@ class SpectrumNode(Node):
         self.counts = dict.fromkeys(
             ("blocks", "rejected", "resets", "spectra", "empty_windows", "damper_states"), 0
         )
-        self._last_input_ns: int | None = None
-        self._first_tick_ns: int | None = None
-        self._last_report: dict[str, float] = {}
-        self._status_name = f"{self.get_fully_qualified_name().lstrip('/')}: window"
+        self._health = InputHealth(self, "window", "wing/acceleration", self.counts, self._status)
 
         self._spectrum_pub = self.create_publisher(ScaledSpectrum, "dva/spectrum", 10)
-        self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self.create_subscription(AccelerationBlock, "wing/acceleration", self._on_block, QOS_DEPTH)
         self.create_subscription(DamperState, "dva/damper_state", self._on_damper_state, 10)
-        self.add_on_set_parameters_callback(self._on_set_parameters)
-        self.create_timer(period, self._status)
+        refuse_changes(self, _READ_AT_START)
         self.get_logger().info(
             f"spectra of {list(self.channels)} at {self.frequencies.size} frequencies "
             f"({self.frequencies.min():g}..{self.frequencies.max():g} Hz), "
@@ -177,14 +153,6 @@ class SpectrumNode(Node):
         return self._damping
 
     # ------------------------------------------------------------------ callbacks
-    def _on_set_parameters(self, params) -> SetParametersResult:
-        for param in params:
-            if param.name in _READ_AT_START:
-                return SetParametersResult(
-                    successful=False, reason=f"'{param.name}' is read at start-up"
-                )
-        return SetParametersResult(successful=True)
-
     def _on_damper_state(self, msg: DamperState) -> None:
         value = messages.applied_damping(msg)
         if math.isfinite(value) and value >= 0.0:
@@ -193,7 +161,7 @@ class SpectrumNode(Node):
 
     def _on_block(self, msg: AccelerationBlock) -> None:
         self.counts["blocks"] += 1
-        self._last_input_ns = self.get_clock().now().nanoseconds
+        self._health.mark_input()
         index = int(msg.first_sample_index)
         try:
             block = messages.acceleration_samples(msg, self.channels)
@@ -215,7 +183,7 @@ class SpectrumNode(Node):
         if result.reset is not None:
             event = result.reset
             self.counts["resets"] += 1
-            self._report(
+            self._health.report(
                 messages.WARN,
                 f"reset_{event.reason.value}",
                 event.describe(),
@@ -235,7 +203,7 @@ class SpectrumNode(Node):
             expected = old.expected_index
             dropped = old.reset().dropped_samples
             self.counts["resets"] += 1
-            self._report(
+            self._health.report(
                 messages.WARN,
                 "reset_sample_rate",
                 f"spectrum window reset: sample rate changed from {old.sample_rate:g} to "
@@ -275,7 +243,7 @@ class SpectrumNode(Node):
         if not np.all(np.isfinite(spectrum.magnitudes)):
             empty = [c for c, s in zip(self.channels, spectrum.band_sums) if not s > 0.0]
             self.counts["empty_windows"] += 1
-            self._report(
+            self._health.report(
                 messages.WARN,
                 "empty_window",
                 f"window {window.first_sample_index}..{window.stop_sample_index - 1} not "
@@ -297,65 +265,20 @@ class SpectrumNode(Node):
     # ------------------------------------------------------------------ diagnostics
     def _reject(self, event: str, text: str, level: int = messages.WARN, **values) -> None:
         self.counts["rejected"] += 1
-        self._report(level, event, text, **values)
+        self._health.report(level, event, text, **values)
 
-    def _report(self, level: int, event: str, text: str, **values) -> None:
-        """Publish one event on /diagnostics, at most once per period for each kind of event
-        (wall time, so a stopped sim clock cannot mute it); the status counts every one."""
-        wall = time.monotonic()
-        last = self._last_report.get(event)
-        if last is not None and wall - last < self._report_period:
-            return
-        self._last_report[event] = wall
-        self.get_logger().warning(text)
-        stamp = self.get_clock().now().to_msg()
-        self._diag_pub.publish(
-            messages.diagnostic_array(
-                stamp, level, self._status_name, text, dict(event=event, **values)
-            )
-        )
-
-    def _status(self) -> None:
-        now = self.get_clock().now().nanoseconds
-        if self._first_tick_ns is None or now < self._first_tick_ns:
-            self._first_tick_ns = now  # start, or the clock jumped back (a new sim run)
-        since = self._last_input_ns if self._last_input_ns is not None else self._first_tick_ns
-        age = max(now - since, 0) / 1e9
-        values = dict(self.counts, input_age=age, damping=self._damping)
+    def _status(self) -> Status:
+        values = {"damping": self._damping}
         if self._sliding is not None:
             values.update(sample_rate=self._sliding.sample_rate,
                           expected_index=self._sliding.expected_index)
         if self._problem is not None:
-            level, text = messages.ERROR, self._problem
-        elif now - since > self._stale_ns:
-            level, text = messages.WARN, f"stale input: no wing/acceleration for {age:.3g} s"
-        else:
-            level, text = messages.OK, f"{self.counts['spectra']} spectra published"
-        self._diag_pub.publish(
-            messages.diagnostic_array(
-                self.get_clock().now().to_msg(), level, self._status_name, text,
-                dict(event="status", **values),
-            )
-        )
+            return messages.ERROR, self._problem, values
+        return messages.OK, f"{self.counts['spectra']} spectra published", values
 
 
 def main(args=None) -> int:
-    rclpy.init(args=args)
-    node = None
-    try:
-        try:
-            node = SpectrumNode()
-        except (ValueError, rclpy.exceptions.ParameterException) as exc:
-            print(f"{NODE_NAME}: error: {exc}", file=sys.stderr)
-            return 2
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(SpectrumNode, NODE_NAME, args)
 
 
 if __name__ == "__main__":

@@ -1,0 +1,140 @@
+"""ROS glue shared by the dva_controller nodes: parameters, input health on ``/diagnostics``
+and the body of ``main``.
+
+:class:`InputHealth` declares the parameters
+
+stale_timeout : float, default 1.0
+    [s] ROS time without input after which the periodic status turns WARN.
+diagnostic_period : float, default 1.0
+    [s] ROS time between periodic status reports on ``/diagnostics``; also the least wall time
+    between two reports of the same kind of event.
+"""
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Callable, Collection, Mapping
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
+from rclpy.exceptions import ParameterException
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+
+from dva_controller import messages
+
+#: A node's own status: level, message and extra key/values for ``/diagnostics``.
+Status = tuple[int, str, Mapping[str, object]]
+
+
+def bounded(description: str, low: float, high: float) -> ParameterDescriptor:
+    """Descriptor of a float parameter limited to ``[low, high]``."""
+    return ParameterDescriptor(
+        description=description,
+        floating_point_range=[FloatingPointRange(from_value=low, to_value=high)],
+    )
+
+
+def refuse_changes(node: Node, names: Collection[str]) -> None:
+    """Refuse run-time changes of the parameters ``names``, which the node reads at start-up."""
+
+    def check(params) -> SetParametersResult:
+        for param in params:
+            if param.name in names:
+                return SetParametersResult(
+                    successful=False, reason=f"'{param.name}' is read at start-up"
+                )
+        return SetParametersResult(successful=True)
+
+    node.add_on_set_parameters_callback(check)
+
+
+class InputHealth:
+    """Diagnostics of a node driven by one input topic.
+
+    Events (:meth:`report`) and a periodic status go to ``/diagnostics`` under the status name
+    ``"<node>: <subject>"``. The status is the node's own (``status()``) with its ``counts``,
+    except that stale input replaces it with a WARN; only a node's ERROR outranks stale input.
+    """
+
+    def __init__(
+        self,
+        node: Node,
+        subject: str,
+        input_topic: str,
+        counts: Mapping[str, int],
+        status: Callable[[], Status],
+    ) -> None:
+        stale = node.declare_parameter(
+            "stale_timeout", 1.0, bounded("input age reported as stale [s]", 1.0e-3, 3600.0)
+        )
+        period = node.declare_parameter(
+            "diagnostic_period", 1.0, bounded("status period [s]", 1.0e-2, 3600.0)
+        )
+        self._node = node
+        self._input_topic = input_topic
+        self._counts = counts
+        self._status = status
+        self._stale_ns = round(float(stale.value) * 1e9)
+        self._period = float(period.value)
+        self.name = f"{node.get_fully_qualified_name().lstrip('/')}: {subject}"
+        self._last_input_ns: int | None = None
+        self._first_tick_ns: int | None = None
+        self._last_report: dict[str, float] = {}
+        self._pub = node.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        node.create_timer(self._period, self._publish_status)
+
+    def mark_input(self) -> int:
+        """Note that input arrived; return the node's ROS time of it [ns]."""
+        self._last_input_ns = self._node.get_clock().now().nanoseconds
+        return self._last_input_ns
+
+    def report(self, level: int, event: str, text: str, **values) -> None:
+        """Publish one event on /diagnostics, at most once per period for each kind of event
+        (wall time, so a stopped sim clock cannot mute it); the caller's counts take every one."""
+        wall = time.monotonic()
+        last = self._last_report.get(event)
+        if last is not None and wall - last < self._period:
+            return
+        self._last_report[event] = wall
+        self._node.get_logger().warning(text)
+        self._publish(level, text, dict(event=event, **values))
+
+    def _publish_status(self) -> None:
+        now = self._node.get_clock().now().nanoseconds
+        if self._first_tick_ns is None or now < self._first_tick_ns:
+            self._first_tick_ns = now  # start, or the clock jumped back (a new sim run)
+        since = self._last_input_ns if self._last_input_ns is not None else self._first_tick_ns
+        age = max(now - since, 0) / 1e9
+        level, text, values = self._status()
+        if now - since > self._stale_ns and level != messages.ERROR:
+            level, text = messages.WARN, f"stale input: no {self._input_topic} for {age:.3g} s"
+        self._publish(level, text, dict(self._counts, event="status", input_age=age, **values))
+
+    def _publish(self, level: int, text: str, values: Mapping[str, object]) -> None:
+        stamp = self._node.get_clock().now().to_msg()
+        self._pub.publish(messages.diagnostic_array(stamp, level, self.name, text, values))
+
+
+def run_node(node_class: Callable[[], Node], node_name: str, args=None) -> int:
+    """Body of a node's ``main``: the exit code (2 with a one-line error for bad parameters).
+
+    Errors while spinning are left to raise, so they keep their traceback.
+    """
+    rclpy.init(args=args)
+    node = None
+    try:
+        try:
+            node = node_class()
+        except (ValueError, ParameterException) as exc:  # file errors are ValueErrors too
+            print(f"{node_name}: error: {exc}", file=sys.stderr)
+            return 2
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass  # Ctrl-C or SIGTERM: a clean exit
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
