@@ -22,6 +22,9 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
+            "mcap_recorder = aero_dva_sim.mcap_recorder_node:main",
+            "simulator = aero_dva_sim.simulator_node:main",
+            "run_flight = aero_dva_sim.flight_runner:main",
         ],
     },
 )

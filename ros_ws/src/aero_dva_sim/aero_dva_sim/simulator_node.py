@@ -1,0 +1,221 @@
+"""``simulator``: flies a scenario with the wing and the tunable Maxwell DVA, and is the clock.
+
+Each step simulates one block of samples (exact ZOH, :class:`~aero_dva_sim.flight_sim.
+BlockSimulator`), publishes it, and advances ``/clock``; the rest of the graph runs on that sim
+time (``use_sim_time:=true``). The damper applies the latest accepted ``dva/damper_command``
+through :class:`~aero_dva_sim.damper.DamperModel` (range, lag, stale fallback, rejection of
+absurd commands). A stepped-sweep scenario applies its own c2 values and ignores commands.
+
+Parameters (SI units)
+---------------------
+scenario : str            scenario YAML (default: the package's scenario_ramp.yaml)
+wing : str                wing YAML (default: the package's reference wing)
+absorber : str            "maxwell" (default) or "none"
+absorber_mass [kg], absorber_stiffness k1 [N/m], absorber_series_stiffness k2 [N/m],
+absorber_position [m from the gravity centre, + toward the leading edge]
+    NaN (the default) takes the value of the wing file's Maxwell design.
+damper_min, damper_max, damper_initial, damper_fallback [N s/m], damper_timeout [s],
+damper_time_constant [s]
+real_time_factor : float  sim seconds per wall second (0 = as fast as possible), default 20
+wait_for_subscribers : int
+    Start the flight only when every data topic has this many subscribers (default 0), or
+    after ``wait_timeout`` wall seconds (default 30) with a warning.
+exit_on_end : bool        stop the node when the flight ends (default true)
+
+Publishes wing/acceleration, wing/displacement, wing/excitation, flight/condition,
+dva/damper_state, /clock and /diagnostics; subscribes dva/damper_command.
+"""
+from __future__ import annotations
+
+import math
+import sys
+import time
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.clock import Clock, ClockType
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.task import Future
+from rosgraph_msgs.msg import Clock as ClockMsg
+
+from aero_dva_sim import messages
+from aero_dva_sim.damper import DamperStatus
+from aero_dva_sim.flight_runtime import FlightRuntime, load_runtime_config
+from dva_msgs.msg import (
+    AccelerationBlock,
+    DamperCommand,
+    DamperState,
+    DisplacementBlock,
+    FlightCondition,
+    ForceBlock,
+)
+
+DATA_TOPICS = ("wing/acceleration", "wing/displacement", "wing/excitation", "flight/condition",
+               "dva/damper_state")
+
+
+class Simulator(Node):
+    """The plant: integrates the wing block by block and publishes what sensors would see."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__("simulator", **kwargs)
+        config = load_runtime_config(self._declare_parameters())
+        self.runtime = FlightRuntime(config)
+        self.finished = Future()
+        self._rtf = float(self.get_parameter("real_time_factor").value)
+        self._wait_for = int(self.get_parameter("wait_for_subscribers").value)
+        self._wait_timeout = float(self.get_parameter("wait_timeout").value)
+        self._exit_on_end = bool(self.get_parameter("exit_on_end").value)
+
+        self._pub = {
+            "wing/acceleration": self.create_publisher(AccelerationBlock, "wing/acceleration", 50),
+            "wing/displacement": self.create_publisher(DisplacementBlock, "wing/displacement", 50),
+            "wing/excitation": self.create_publisher(ForceBlock, "wing/excitation", 50),
+            "flight/condition": self.create_publisher(FlightCondition, "flight/condition", 50),
+            "dva/damper_state": self.create_publisher(DamperState, "dva/damper_state", 50),
+        }
+        self._clock_pub = self.create_publisher(ClockMsg, "/clock", 10)
+        self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self.published = dict.fromkeys(DATA_TOPICS, 0)
+        self.create_subscription(DamperCommand, "dva/damper_command", self._on_command, 10)
+
+        self._wall = Clock(clock_type=ClockType.STEADY_TIME)
+        self._started_wall: float | None = None
+        self._waiting_since = time.monotonic()
+        self._last_status = None
+        self._timer = self.create_timer(self._period(), self._step, clock=self._wall)
+        info = self.runtime.describe()
+        self.get_logger().info(
+            f"scenario '{info['scenario']}': {info['duration_s']:g} s at "
+            f"{info['sample_rate_hz']:g} Hz, U {info['airspeed_min']:.2f}-"
+            f"{info['airspeed_max']:.2f} m/s (U_cr without DVA {info['critical_airspeed']:.2f} "
+            f"m/s), absorber {info['absorber']}, real-time factor {self._rtf:g}")
+
+    # ------------------------------------------------------------------ parameters
+    def _declare_parameters(self) -> dict:
+        nan = float("nan")
+        defaults = {
+            "scenario": "", "wing": "", "absorber": "maxwell",
+            "absorber_mass": nan, "absorber_stiffness": nan, "absorber_series_stiffness": nan,
+            "absorber_position": nan,
+            "damper_min": 0.0, "damper_max": 2500.0, "damper_initial": nan,
+            "damper_fallback": nan, "damper_timeout": 0.5, "damper_time_constant": 0.0,
+            "real_time_factor": 20.0, "wait_for_subscribers": 0, "wait_timeout": 30.0,
+            "exit_on_end": True,
+        }
+        for name, value in defaults.items():
+            self.declare_parameter(name, value)
+        return {name: self.get_parameter(name).value for name in defaults}
+
+    def _period(self) -> float:
+        block = self.runtime.block_duration
+        return block / self._rtf if self._rtf > 0 else 1e-4
+
+    # ------------------------------------------------------------------ callbacks
+    def _on_command(self, msg: DamperCommand) -> None:
+        result = self.runtime.command(msg.damping, msg.source)
+        if result is not None and not result.accepted:
+            self._diagnose("warn", f"rejected damper command {msg.damping!r} N s/m from "
+                           f"'{msg.source}': {result.rejection.value}",
+                           {"command": msg.damping, "source": msg.source})
+
+    def _ready(self) -> bool:
+        if self._wait_for <= 0:
+            return True
+        counts = {t: self._pub[t].get_subscription_count() for t in DATA_TOPICS}
+        if min(counts.values()) >= self._wait_for:
+            return True
+        if time.monotonic() - self._waiting_since > self._wait_timeout:
+            self.get_logger().warning(f"starting without all subscribers: {counts}")
+            return True
+        return False
+
+    def _step(self) -> None:
+        if self.finished.done():
+            return
+        if self._started_wall is None:
+            if not self._ready():
+                return
+            self._started_wall = time.monotonic()
+        block = self.runtime.step()
+        self._publish(block)
+        status = self.runtime.damper_snapshot().status
+        if status != self._last_status and status in (DamperStatus.FALLBACK_STALE,):
+            self._diagnose("warn", "no damper command within "
+                           f"{self.runtime.config.damper.stale_timeout:g} s: fallback c2 = "
+                           f"{self.runtime.damper_snapshot().applied_damping:g} N s/m applied", {})
+        self._last_status = status
+        if block.diverged:
+            self._diagnose("error", f"wing diverged at U = {block.airspeed[-1]:.2f} m/s "
+                           f"(U/U_cr = {block.airspeed[-1] / self.runtime.critical_airspeed:.3f},"
+                           f" t = {block.t0:.3f} s): flight stopped", self._summary())
+            self._finish("diverged")
+        elif self.runtime.done:
+            self._diagnose("ok", "flight completed", self._summary())
+            self._finish("completed")
+
+    def _publish(self, block) -> None:
+        fs, i0, t0 = self.runtime.sample_rate, block.first_index, block.t0
+        self._clock_pub.publish(messages.clock(block.t_end))
+        outgoing = {
+            "wing/acceleration": messages.acceleration_block(t0, fs, i0, block.accelerations),
+            "wing/displacement": messages.displacement_block(t0, fs, i0, block.displacements),
+            "wing/excitation": messages.force_block(t0, fs, i0, block.force),
+            "flight/condition": messages.flight_condition(
+                t0, block.airspeed[0], block.density[0]),
+            "dva/damper_state": messages.damper_state(self.runtime.damper_snapshot()),
+        }
+        for topic, msg in outgoing.items():
+            self._pub[topic].publish(msg)
+            self.published[topic] += 1
+
+    def _summary(self) -> dict:
+        wall = time.monotonic() - (self._started_wall or time.monotonic())
+        sim = self.runtime.time
+        values = {"sim_time_s": sim, "wall_time_s": wall,
+                  "real_time_factor": sim / wall if wall > 0 else math.inf,
+                  "critical_airspeed_no_dva": self.runtime.critical_airspeed}
+        values.update({f"published:{t}": n for t, n in self.published.items()})
+        return values
+
+    def _diagnose(self, level: str, text: str, values: dict) -> None:
+        # One call site per severity: rclpy refuses a severity change at the same call site.
+        if level == "error":
+            self.get_logger().error(text)
+        elif level == "warn":
+            self.get_logger().warning(text)
+        else:
+            self.get_logger().info(text)
+        self._diag_pub.publish(messages.diagnostics(
+            self.runtime.time, "simulator: flight", "aero_dva_sim", [(level, text, values)]))
+
+    def _finish(self, outcome: str) -> None:
+        self._timer.cancel()
+        if not self.finished.done():
+            self.finished.set_result(outcome)
+
+
+def main(args=None) -> int:
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = Simulator()
+        rclpy.spin_until_future_complete(node, node.finished)
+        if node.finished.done() and not node._exit_on_end:
+            rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except (ValueError, FileNotFoundError) as exc:
+        print(f"simulator: error: {exc}", file=sys.stderr)
+        return 2
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
+

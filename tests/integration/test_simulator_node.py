@@ -1,0 +1,139 @@
+"""The simulator node: blocks and clock, damper safety (rejection, stale fallback), divergence."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from diagnostic_msgs.msg import DiagnosticArray
+from dva_msgs.msg import (
+    AccelerationBlock,
+    DamperCommand,
+    DamperState,
+    DisplacementBlock,
+    FlightCondition,
+    ForceBlock,
+)
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rosgraph_msgs.msg import Clock
+
+from aero_dva_sim.simulator_node import Simulator
+
+
+def _scenario(tmp_path, airspeed: str, duration: float = 1.0, block: int = 20) -> str:
+    path = tmp_path / "scenario.yaml"
+    path.write_text(f"name: test\nduration: {duration}\nblock_size: {block}\n"
+                    f"airspeed: {airspeed}\nexcitation: {{force_std: 1000.0, seed: 3}}\n")
+    return str(path)
+
+
+class Probe:
+    """Collects what the simulator publishes."""
+
+    def __init__(self, context):
+        self.node = Node("probe", context=context)
+        self.blocks, self.displacements, self.states, self.clock, self.diagnostics = \
+            [], [], [], [], []
+        sub = self.node.create_subscription
+        sub(AccelerationBlock, "wing/acceleration", self.blocks.append, 1000)
+        sub(DisplacementBlock, "wing/displacement", self.displacements.append, 1000)
+        sub(DamperState, "dva/damper_state", self.states.append, 1000)
+        # The simulator waits for a subscriber on every data topic before it starts.
+        sub(ForceBlock, "wing/excitation", lambda _: None, 1000)
+        sub(FlightCondition, "flight/condition", lambda _: None, 1000)
+        sub(Clock, "/clock", self.clock.append, 1000)
+        sub(DiagnosticArray, "/diagnostics", self.diagnostics.append, 1000)
+        self.commands = self.node.create_publisher(DamperCommand, "dva/damper_command", 10)
+
+    def messages(self, level: bytes | None = None) -> list[str]:
+        return [s.message for d in self.diagnostics for s in d.status
+                if level is None or s.level == level]
+
+
+def _simulator(context, tmp_path, scenario, **params):
+    overrides = [Parameter("scenario", value=scenario), Parameter("real_time_factor", value=0.0),
+                 Parameter("wait_for_subscribers", value=1)]
+    overrides += [Parameter(k, value=v) for k, v in params.items()]
+    return Simulator(context=context, parameter_overrides=overrides)
+
+
+def test_blocks_clock_and_counts(executor, spin, ros_context, tmp_path):
+    probe = Probe(ros_context)
+    sim = _simulator(ros_context, tmp_path, _scenario(tmp_path, "{kind: constant, value_ratio: 0.8}"))
+    executor.add_node(probe.node)
+    executor.add_node(sim)
+    assert spin(executor, sim.finished.done, timeout=60.0)
+    assert sim.finished.result() == "completed"
+    spin(executor, lambda: len(probe.blocks) >= 50 and len(probe.clock) >= 50
+         and probe.diagnostics, timeout=5.0)
+
+    assert len(probe.blocks) == 50  # 1 s of 20-sample blocks (the scenario's block size)
+    assert [b.first_sample_index for b in probe.blocks] == list(range(0, 1000, 20))
+    assert all(b.sample_rate == 1000.0 and len(b.plunge) == 20 for b in probe.blocks)
+    le = np.concatenate([b.leading_edge for b in probe.blocks])
+    assert np.all(np.isfinite(le)) and np.std(le) > 0
+    stamps = [c.clock.sec + 1e-9 * c.clock.nanosec for c in probe.clock]
+    assert stamps == sorted(stamps) and stamps[-1] == pytest.approx(1.0)
+    assert "flight completed" in probe.messages()
+    assert sim.published["wing/acceleration"] == 50
+
+
+def test_bad_commands_are_rejected_never_applied(executor, spin, ros_context, tmp_path):
+    probe = Probe(ros_context)
+    sim = _simulator(ros_context, tmp_path,
+                     _scenario(tmp_path, "{kind: constant, value_ratio: 0.8}", duration=2.0),
+                     damper_timeout=10.0)
+    executor.add_node(probe.node)
+    executor.add_node(sim)
+    assert spin(executor, lambda: probe.commands.get_subscription_count() > 0, timeout=20.0)
+    probe.commands.publish(DamperCommand(damping=700.0, source="test"))
+    assert spin(executor, lambda: any(s.applied_damping == 700.0 for s in probe.states), 20.0)
+    for bad in (math.nan, -5.0, math.inf, 1e9):
+        probe.commands.publish(DamperCommand(damping=bad, source="bad"))
+    assert spin(executor, lambda: len(probe.messages()) >= 4 and sim.finished.done(), 60.0)
+
+    rejected = [m for m in probe.messages() if m.startswith("rejected damper command")]
+    assert len(rejected) == 4, probe.messages()
+    later = probe.states[-1]
+    assert later.applied_damping == 700.0  # never replaced by a bad value
+    assert any(s.status == DamperState.STATUS_REJECTED for s in probe.states)
+
+
+def test_silent_controller_gets_the_fallback(executor, spin, ros_context, tmp_path):
+    probe = Probe(ros_context)
+    sim = _simulator(ros_context, tmp_path,
+                     _scenario(tmp_path, "{kind: constant, value_ratio: 0.8}", duration=1.0),
+                     damper_timeout=0.2, damper_fallback=900.0, damper_initial=300.0)
+    executor.add_node(probe.node)
+    executor.add_node(sim)
+    # One command at the start (before the flight starts), then the controller falls silent.
+    assert spin(executor, lambda: probe.commands.get_subscription_count() > 0, timeout=20.0)
+    probe.commands.publish(DamperCommand(damping=500.0, source="test"))
+    assert spin(executor, sim.finished.done, timeout=60.0)
+    spin(executor, lambda: len(probe.states) >= 50 and len(probe.messages()) >= 2, timeout=5.0)
+    applied = [s.applied_damping for s in probe.states]
+    assert 500.0 in applied and applied[-1] == 900.0
+    stale = [s for s in probe.states if s.status == DamperState.STATUS_FALLBACK_STALE]
+    assert stale and all(s.applied_damping == 900.0 for s in stale)
+    accepted = next(s for s in probe.states if s.applied_damping == 500.0)
+    first = stale[0].header.stamp.sec + 1e-9 * stale[0].header.stamp.nanosec
+    since = accepted.header.stamp.sec + 1e-9 * accepted.header.stamp.nanosec
+    assert 0.2 <= first - since + 0.02 <= 0.25  # stale 0.2 s after the command, per block
+    assert any("fallback" in m for m in probe.messages())
+
+
+def test_divergence_is_reported_not_crashed(executor, spin, ros_context, tmp_path):
+    probe = Probe(ros_context)
+    sim = _simulator(ros_context, tmp_path,
+                     _scenario(tmp_path, "{kind: constant, value_ratio: 1.3}", duration=30.0),
+                     absorber="none")
+    executor.add_node(probe.node)
+    executor.add_node(sim)
+    assert spin(executor, sim.finished.done, timeout=120.0)
+    assert sim.finished.result() == "diverged"
+    spin(executor, lambda: any("diverged" in m for m in probe.messages()), timeout=5.0)
+    assert any("diverged" in m for m in probe.messages())
+    assert len(probe.blocks) < 1500  # stopped long before the 30 s flight ended
+    le = np.concatenate([b.leading_edge for b in probe.blocks])
+    assert np.all(np.isfinite(le))
