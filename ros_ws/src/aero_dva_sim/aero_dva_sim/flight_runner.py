@@ -40,7 +40,7 @@ def executable(package: str, name: str) -> str:
 def _params(**values) -> list[str]:
     out = []
     for key, value in values.items():
-        if value is None:
+        if value is None or value == "":  # rcl cannot parse an empty override
             continue
         text = str(value).lower() if isinstance(value, bool) else str(value)
         out += ["-p", f"{key}:={text}"]

@@ -1,0 +1,96 @@
+"""Closed loop over DDS with sim time: simulator -> controller -> simulator.
+
+At an airspeed chosen from the model (above the flutter speed of the wing whose damper is stuck
+at a poor c2, below the flutter speed of the wing with c2 scheduled per airspeed), the scheduled
+loop stays bounded while the stuck damper diverges.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+from aero_dva_sim.dva_design import best_damping_curve
+from aero_dva_sim.flutter import flutter_speed, growth_rate
+from aero_dva_sim.simulator_node import Simulator
+from aero_dva_sim.wing_io import load_wing
+from aero_dva_sim.wing_model import AeroelasticModel
+from dva_controller.airspeed_controller_node import AirspeedController
+from dva_controller.airspeed_schedule import fit_airspeed_schedule
+from dva_controller.fixed_controller_node import FixedController
+from dva_msgs.msg import (
+    AccelerationBlock,
+    DamperState,
+    DisplacementBlock,
+    FlightCondition,
+    ForceBlock,
+)
+
+POOR_C2 = 2500.0  # [N s/m] the damper's top end: far from the optimum at high airspeed
+
+
+@pytest.fixture(scope="module")
+def design():
+    """Schedule (eq. 7.1 fitted to the damping-optimal c2) and a test airspeed from the model."""
+    config = load_wing()
+    model = AeroelasticModel(config.wing, config.absorber, config.aero)
+    u_poor = flutter_speed(model, 1.2, damping=POOR_C2).critical_airspeed
+    airspeeds = np.linspace(0.95 * u_poor, 1.3 * u_poor, 15)
+    tuned = best_damping_curve(model, airspeeds, 1.2)
+    stable = [s for s in tuned if s.min_damping_ratio > 0.01]
+    fit = fit_airspeed_schedule([s.airspeed for s in stable], [s.damping for s in stable],
+                                (0.0, POOR_C2))
+    u_test = round(stable[-1].airspeed, 3)  # as written to the scenario file
+    assert u_test > u_poor + 2.0, "the model offers no airspeed where scheduling matters"
+    growth = float(np.max(growth_rate(model, u_test, 1.2, damping=POOR_C2)))
+    duration = float(np.clip(12.0 / growth, 5.0, 40.0))  # e^12: far beyond the stop limit
+    return {"schedule": fit.schedule, "airspeed": u_test, "duration": duration}
+
+
+def _fly(executor, spin, ros_context, tmp_path, design, controller: Node):
+    scenario = tmp_path / "scenario.yaml"
+    scenario.write_text(f"name: hold\nduration: {design['duration']:.3f}\nblock_size: 50\n"
+                        f"airspeed: {{kind: constant, value: {design['airspeed']}}}\n"
+                        "excitation: {force_std: 1000.0, seed: 5}\n")
+    sim = Simulator(context=ros_context, parameter_overrides=[
+        Parameter("scenario", value=str(scenario)), Parameter("real_time_factor", value=0.0),
+        Parameter("wait_for_subscribers", value=1), Parameter("damper_timeout", value=1.0)])
+    probe = Node("probe", context=ros_context)
+    states, blocks = [], []
+    probe.create_subscription(DamperState, "dva/damper_state", states.append, 5000)
+    probe.create_subscription(AccelerationBlock, "wing/acceleration", blocks.append, 5000)
+    # The simulator starts when every data topic has a subscriber.
+    for msg_type, topic in ((ForceBlock, "wing/excitation"), (FlightCondition, "flight/condition"),
+                            (DisplacementBlock, "wing/displacement")):
+        probe.create_subscription(msg_type, topic, lambda _: None, 10)
+    for node in (controller, probe, sim):
+        executor.add_node(node)
+    assert spin(executor, sim.finished.done, timeout=120.0)
+    spin(executor, lambda: len(states) >= sim.published["dva/damper_state"], timeout=5.0)
+    return sim.finished.result(), states
+
+
+def _sim_time(use: bool = True) -> list[Parameter]:
+    return [Parameter("use_sim_time", value=use)]
+
+
+def test_scheduled_damper_keeps_the_wing_bounded(executor, spin, ros_context, tmp_path, design):
+    schedule = design["schedule"]
+    controller = AirspeedController(context=ros_context, parameter_overrides=_sim_time() + [
+        Parameter("a0", value=schedule.a0), Parameter("a1", value=schedule.a1)])
+    outcome, states = _fly(executor, spin, ros_context, tmp_path, design, controller)
+    assert outcome == "completed"
+    scheduled = [s for s in states if s.source == "airspeed_schedule"]
+    assert len(scheduled) > 0.9 * len(states)  # the loop closed within the first blocks
+    expected = schedule.evaluate(design["airspeed"])
+    assert scheduled[-1].applied_damping == pytest.approx(expected, rel=1e-9)
+
+
+def test_stuck_poor_damper_diverges(executor, spin, ros_context, tmp_path, design):
+    controller = FixedController(context=ros_context, parameter_overrides=_sim_time() + [
+        Parameter("damping", value=POOR_C2), Parameter("rate", value=20.0)])
+    outcome, states = _fly(executor, spin, ros_context, tmp_path, design, controller)
+    assert outcome == "diverged"
+    assert states[-1].applied_damping == POOR_C2
+
