@@ -21,6 +21,10 @@ import time
 from pathlib import Path
 
 CONTROLLERS = ("fixed", "schedule", "rbf", "none")
+# Default bound [s sim] on how far the flight may run ahead of the newest command's input:
+# one 50 ms block for the per-block schedule, the 20 Hz period for the fixed controller, one
+# 0.1 s spectrum hop plus a block for the RBF network.
+DEFAULT_COMMAND_LAG = {"schedule": 0.05, "fixed": 0.1, "rbf": 0.15, "none": 0.0}
 
 
 def executable(package: str, name: str) -> str:
@@ -72,6 +76,8 @@ def build_commands(args, bag: Path) -> dict[str, list[str]]:
         executable("aero_dva_sim", "simulator"), "--ros-args",
         *_params(scenario=args.scenario, wing=args.wing, absorber=args.absorber,
                  real_time_factor=args.real_time_factor, wait_for_subscribers=1,
+                 max_command_lag=DEFAULT_COMMAND_LAG[args.controller]
+                 if args.max_command_lag is None else args.max_command_lag,
                  damper_timeout=1e9 if args.controller == "none" else args.damper_timeout),
     ]
     return commands
@@ -176,6 +182,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--network", default=None, help="RBF network .npz (rbf)")
     parser.add_argument("--real-time-factor", type=float, default=20.0,
                         help="sim seconds per wall second; 0 = as fast as possible (default 20)")
+    parser.add_argument("--max-command-lag", type=float, default=None,
+                        help="[s] sim time the flight may run ahead of the newest command's "
+                             "input (default per controller: schedule 0.05, fixed 0.1, rbf 0.15; "
+                             "0 = free running)")
     parser.add_argument("--damper-timeout", type=float, default=0.5,
                         help="[s] sim time without commands before the fallback c2 applies")
     parser.add_argument("--output", default=None,

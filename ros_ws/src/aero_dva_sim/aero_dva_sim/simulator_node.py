@@ -21,6 +21,14 @@ wait_for_subscribers : int
     Start the flight only when every data topic has this many subscribers (default 0), or
     after ``wait_timeout`` wall seconds (default 30) with a warning.
 exit_on_end : bool        stop the node when the flight ends (default true)
+max_command_lag : float
+    [s] sim time the flight may run ahead of the newest accepted command's stamp (its input's
+    time); 0 (default) = free running. Once a controller has answered, the simulator waits for
+    it, so the loop's sim-time latency is bounded whatever the machine's load (lockstep when
+    set to one block for a per-block controller).
+command_wait_timeout : float
+    [s] wall time to wait for the controller before flying on (default 2); the damper's stale
+    fallback then takes over.
 
 Publishes wing/acceleration, wing/displacement, wing/excitation, flight/condition,
 dva/damper_state, /clock and /diagnostics; subscribes dva/damper_command.
@@ -31,6 +39,7 @@ import math
 import sys
 import time
 
+import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.clock import Clock, ClockType
@@ -78,6 +87,12 @@ class Simulator(Node):
         self._clock_pub = self.create_publisher(ClockMsg, "/clock", 10)
         self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self.published = dict.fromkeys(DATA_TOPICS, 0)
+        self._latencies: list[float] = []  # [s] sim time from a command's input to its effect
+        self._max_lag = float(self.get_parameter("max_command_lag").value)
+        self._lag_timeout = float(self.get_parameter("command_wait_timeout").value)
+        self._last_command_stamp: float | None = None
+        self._lag_since: float | None = None
+        self.lag_timeouts = 0
         self.create_subscription(DamperCommand, "dva/damper_command", self._on_command, 10)
 
         self._wall = Clock(clock_type=ClockType.STEADY_TIME)
@@ -102,7 +117,7 @@ class Simulator(Node):
             "damper_min": 0.0, "damper_max": 2500.0, "damper_initial": nan,
             "damper_fallback": nan, "damper_timeout": 0.5, "damper_time_constant": 0.0,
             "real_time_factor": 20.0, "wait_for_subscribers": 0, "wait_timeout": 30.0,
-            "exit_on_end": True,
+            "exit_on_end": True, "max_command_lag": 0.0, "command_wait_timeout": 2.0,
         }
         for name, value in defaults.items():
             self.declare_parameter(name, value)
@@ -115,6 +130,11 @@ class Simulator(Node):
     # ------------------------------------------------------------------ callbacks
     def _on_command(self, msg: DamperCommand) -> None:
         result = self.runtime.command(msg.damping, msg.source)
+        if result is not None and result.accepted:
+            # The command acts from the next block on; its stamp is its input's time.
+            stamp = messages.to_seconds(msg.header.stamp)
+            self._latencies.append(self.runtime.time - stamp)
+            self._last_command_stamp = max(stamp, self._last_command_stamp or 0.0)
         if result is not None and not result.accepted:
             self._diagnose("warn", f"rejected damper command {msg.damping!r} N s/m from "
                            f"'{msg.source}': {result.rejection.value}",
@@ -131,6 +151,22 @@ class Simulator(Node):
             return True
         return False
 
+    def _waiting_for_controller(self) -> bool:
+        """With ``max_command_lag``, hold the flight until the controller has caught up."""
+        if self._max_lag <= 0 or self._last_command_stamp is None:
+            return False
+        if self.runtime.time <= self._last_command_stamp + self._max_lag + 1e-9:
+            self._lag_since = None
+            return False
+        now = time.monotonic()
+        if self._lag_since is None:
+            self._lag_since = now
+        if now - self._lag_since < self._lag_timeout:
+            return True
+        self._lag_since = None
+        self.lag_timeouts += 1  # the controller fell silent: fly on, the damper's fallback acts
+        return False
+
     def _step(self) -> None:
         if self.finished.done():
             return
@@ -138,6 +174,8 @@ class Simulator(Node):
             if not self._ready():
                 return
             self._started_wall = time.monotonic()
+        if self._waiting_for_controller():
+            return
         block = self.runtime.step()
         self._publish(block)
         status = self.runtime.damper_snapshot().status
@@ -173,10 +211,17 @@ class Simulator(Node):
     def _summary(self) -> dict:
         wall = time.monotonic() - (self._started_wall or time.monotonic())
         sim = self.runtime.time
-        values = {"sim_time_s": sim, "wall_time_s": wall,
+        values = {"sim_time_s": sim, "wall_time_s": wall, "controller_wait_timeouts":
+                  self.lag_timeouts,
                   "real_time_factor": sim / wall if wall > 0 else math.inf,
                   "critical_airspeed_no_dva": self.runtime.critical_airspeed}
         values.update({f"published:{t}": n for t, n in self.published.items()})
+        if self._latencies:
+            latency = np.array(self._latencies)
+            values.update(command_latency_median_s=float(np.median(latency)),
+                          command_latency_p95_s=float(np.percentile(latency, 95)),
+                          command_latency_max_s=float(latency.max()),
+                          commands_accepted=latency.size)
         return values
 
     def _diagnose(self, level: str, text: str, values: dict) -> None:

@@ -31,8 +31,9 @@ diagnostic_period : float, default 1.0
     [s] ROS time between periodic status reports on ``/diagnostics``.
 
 Subscribes ``flight/condition`` (dva_msgs/FlightCondition); publishes ``dva/damper_command``
-(dva_msgs/DamperCommand) and ``/diagnostics``. A command's stamp is the node's ROS time when it
-was computed (sim time with ``use_sim_time``), never earlier than the flight condition's stamp.
+(dva_msgs/DamperCommand) and ``/diagnostics``. A command carries the stamp of the flight
+condition it was computed from (the DamperCommand convention), so whoever applies it can tell
+the sample-to-command latency.
 """
 from __future__ import annotations
 
@@ -153,7 +154,7 @@ class AirspeedController(Node):
 
     def _on_condition(self, msg: FlightCondition) -> None:
         self.counts["conditions"] += 1
-        now = self._health.mark_input()
+        self._health.mark_input()
         condition = messages.flight_condition_values(msg)
         u = condition.airspeed
         if not (math.isfinite(u) and 0.0 <= u <= self.max_airspeed):
@@ -167,7 +168,7 @@ class AirspeedController(Node):
                 stamp_ns=condition.stamp_ns,
             )
             return
-        stamp_ns = max(now, condition.stamp_ns)
+        stamp_ns = condition.stamp_ns
         last = self._last_command_ns
         if last is not None and 0 <= stamp_ns - last < self._min_period_ns:
             self.counts["rate_limited"] += 1

@@ -36,8 +36,8 @@ diagnostic_period : float, default 1.0
     [s] ROS time between periodic status reports on ``/diagnostics``.
 
 Subscribes ``dva/spectrum`` (dva_msgs/ScaledSpectrum); publishes ``dva/damper_command``
-(dva_msgs/DamperCommand) and ``/diagnostics``. A command's stamp is the node's ROS time when it
-was computed (sim time with ``use_sim_time``), never earlier than the spectrum's stamp.
+(dva_msgs/DamperCommand) and ``/diagnostics``. A command carries the stamp of the spectrum it
+was computed from (the time of the window's last sample; the DamperCommand convention).
 """
 from __future__ import annotations
 
@@ -208,7 +208,7 @@ class RBFController(Node):
 
     def _on_spectrum(self, msg: ScaledSpectrum) -> None:
         self.counts["spectra"] += 1
-        now = self._health.mark_input()
+        self._health.mark_input()
         try:
             spectrum = messages.spectrum_input(msg)
             problem = self.mismatch(spectrum)
@@ -225,7 +225,7 @@ class RBFController(Node):
         self.last_activation = activation
         if activation < FAR_ACTIVATION:
             self.counts["far_inputs"] += 1
-        stamp_ns = max(now, spectrum.stamp_ns)
+        stamp_ns = spectrum.stamp_ns
         self._command_pub.publish(
             messages.damper_command(
                 messages.ns_to_time(stamp_ns), c2, DamperCommand.SOURCE_RBF_NETWORK

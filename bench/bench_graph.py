@@ -1,0 +1,92 @@
+"""Benchmark: the whole node graph flying the 30 s ramp, against the bare flight engine.
+
+Run (after ./test.sh or ./run.sh has set everything up)::
+
+    source scripts/env.sh && python bench/bench_graph.py
+
+Measures, in one run:
+- baseline: the flight engine alone (FlightRuntime stepping blocks, no ROS, no publishing);
+- the graph: simulator, airspeed_controller and mcap_recorder as separate processes over DDS
+  (run_flight with --real-time-factor 0, i.e. as fast as the graph goes);
+and prints real-time factors, their ratio, message rates (from the recorded bag), and the
+sim-time latency from a flight-condition sample to the damper command derived from it taking
+effect (measured by the simulator).
+"""
+from __future__ import annotations
+
+import argparse
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from aero_dva_sim.dva_design import best_damping_curve
+from aero_dva_sim.flight_runner import main as run_flight
+from aero_dva_sim.flight_runtime import FlightRuntime, load_runtime_config
+from aero_dva_sim.mcap_io import bag_topics
+from aero_dva_sim.wing_io import load_wing
+from aero_dva_sim.wing_model import AeroelasticModel
+from dva_controller.airspeed_schedule import fit_airspeed_schedule
+from dva_controller.schedule_io import save_schedule
+
+
+def baseline_engine() -> tuple[float, float]:
+    """(sim seconds, wall seconds) of the ramp flight through FlightRuntime alone."""
+    runtime = FlightRuntime(load_runtime_config({}))
+    start = time.perf_counter()
+    while not runtime.done:
+        if runtime.step().diverged:
+            break
+    return runtime.time, time.perf_counter() - start
+
+
+def schedule_file(directory: Path) -> Path:
+    config = load_wing()
+    model = AeroelasticModel(config.wing, config.absorber, config.aero)
+    tuned = [s for s in best_damping_curve(model, np.linspace(95.0, 125.0, 13), 1.2)
+             if s.min_damping_ratio > 0]
+    fit = fit_airspeed_schedule([s.airspeed for s in tuned], [s.damping for s in tuned],
+                                (0.0, 2500.0))
+    return save_schedule(fit.schedule, directory / "schedule.json")
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--keep", help="directory to keep the bag in (default: temporary)")
+    args = parser.parse_args()
+    sim_s, wall_s = baseline_engine()
+    print(f"baseline engine alone : {sim_s:.2f} s sim in {wall_s:.3f} s wall = "
+          f"{sim_s / wall_s:.1f}x real time")
+    with tempfile.TemporaryDirectory() as tmp:
+        root = Path(args.keep or tmp)
+        bag = root / "bench_graph_bag"
+        started = time.perf_counter()
+        code = run_flight(["--controller", "schedule", "--schedule", str(schedule_file(root)),
+                           "--real-time-factor", "0", "--output", str(bag)])
+        total = time.perf_counter() - started
+        if code != 0:
+            print("run_flight failed")
+            return code
+        from aero_dva_sim.flight_log_io import load_flight_log
+
+        log = load_flight_log(bag)
+        final = log.diagnostics[-1]["values"]
+        graph_sim, graph_wall = float(final["sim_time_s"]), float(final["wall_time_s"])
+        print(f"graph (3 processes)   : {graph_sim:.2f} s sim in {graph_wall:.3f} s wall = "
+              f"{graph_sim / graph_wall:.1f}x real time (run_flight total {total:.1f} s with "
+              "process start and stop)")
+        print(f"ratio graph / engine  : {(graph_sim / graph_wall) / (sim_s / wall_s):.3f}")
+        for topic, info in sorted(bag_topics(bag).items()):
+            print(f"  {topic:<24} {info.message_count:6d} messages, "
+                  f"{info.message_count / graph_wall:8.0f} /s wall")
+        print("sample -> command in effect, sim time (the simulator's own measurement): median "
+              f"{float(final['command_latency_median_s']) * 1e3:.0f} ms, 95 % "
+              f"{float(final['command_latency_p95_s']) * 1e3:.0f} ms, max "
+              f"{float(final['command_latency_max_s']) * 1e3:.0f} ms over "
+              f"{final['commands_accepted']} commands")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
