@@ -20,6 +20,7 @@ flush_period : float, default 1.0
 from __future__ import annotations
 
 import importlib
+import signal
 import sys
 import time
 from pathlib import Path
@@ -136,6 +137,9 @@ def main(args=None) -> int:
         print(f"mcap_recorder: error: {exc}", file=sys.stderr)
         return 2
     finally:
+        # A second Ctrl-C while the bag is being closed must not cut the close short.
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
         if node is not None:
             node.close()
             node.destroy_node()
