@@ -1,10 +1,13 @@
-"""Closed loop over DDS with sim time: simulator -> controller -> simulator.
+"""Closed loop over DDS with sim time: simulator -> (spectrum ->) controller -> simulator.
 
 At an airspeed chosen from the model (above the flutter speed of the wing whose damper is stuck
-at a poor c2, below the flutter speed of the wing with c2 scheduled per airspeed), the scheduled
-loop stays bounded while the stuck damper diverges.
+at a poor c2, below the flutter speed of the wing with c2 tuned per airspeed), the wing starts
+with the poor c2; the airspeed schedule, and the RBF network fed by the spectrum node, each take
+the loop to a bounded flight, while the stuck damper diverges.
 """
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 import pytest
@@ -12,13 +15,20 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from aero_dva_sim.dva_design import best_damping_curve
+from aero_dva_sim.flight_runtime import FlightRuntime, load_runtime_config
 from aero_dva_sim.flutter import flutter_speed, growth_rate
+from aero_dva_sim.scenario import AirspeedProfile, Scenario
 from aero_dva_sim.simulator_node import Simulator
 from aero_dva_sim.wing_io import load_wing
 from aero_dva_sim.wing_model import AeroelasticModel
 from dva_controller.airspeed_controller_node import AirspeedController
 from dva_controller.airspeed_schedule import fit_airspeed_schedule
 from dva_controller.fixed_controller_node import FixedController
+from dva_controller.rbf_controller_node import RBFController
+from dva_controller.rbf_io import save_rbf_network
+from dva_controller.rbf_network import select_spread, spectrum_input_names, train_rbf_ols
+from dva_controller.spectrum import scaled_spectrum
+from dva_controller.spectrum_node import SpectrumNode
 from dva_msgs.msg import (
     AccelerationBlock,
     DamperState,
@@ -45,17 +55,58 @@ def design():
     assert u_test > u_poor + 2.0, "the model offers no airspeed where scheduling matters"
     growth = float(np.max(growth_rate(model, u_test, 1.2, damping=POOR_C2)))
     duration = float(np.clip(12.0 / growth, 5.0, 40.0))  # e^12: far beyond the stop limit
-    return {"schedule": fit.schedule, "airspeed": u_test, "duration": duration}
+    return {"schedule": fit.schedule, "airspeed": u_test, "duration": duration,
+            "tuned": {s.airspeed: s.damping for s in tuned}, "model": model}
 
 
-def _fly(executor, spin, ros_context, tmp_path, design, controller: Node):
+@pytest.fixture(scope="module")
+def network_file(design, tmp_path_factory):
+    """An RBF network (eq. 7.4-7.5, OLS) trained on a small simulated sweep: 2 s windows of
+    plunge and pitch accelerations at several airspeeds and c2 values, labelled with the
+    damping-optimal c2 of the airspeed (a miniature of the seed's sec. 7.2.1 experiment)."""
+    airspeeds = tuple(u for u in sorted(design["tuned"]) if u <= design["airspeed"])
+    # Only settings that are stable at every airspeed of the sweep (an unstable one would
+    # break the experiment, as the seed notes in sec. 7.1.1).
+    c2_values = tuple(c for c in (150.0, 300.0, 500.0, 800.0, 1200.0, 1800.0) if all(
+        np.max(growth_rate(design["model"], u, 1.2, damping=c)) < 0 for u in airspeeds))
+    assert len(c2_values) >= 3
+    dwell = 4.0  # 2 s to settle after the step, then the 2 s window
+    config = load_runtime_config({})
+    scenario = Scenario("sweep", len(airspeeds) * len(c2_values) * dwell, block_size=100,
+                        airspeed=AirspeedProfile("steps", airspeeds), dwell=dwell,
+                        sweep_damping=c2_values, seed=11)
+    runtime = FlightRuntime(dataclasses.replace(config, scenario=scenario))
+    blocks = []
+    while not runtime.done:
+        blocks.append(runtime.step().accelerations[:2])
+    acc = np.concatenate(blocks, axis=1)
+    n = int(dwell * 1000)
+    inputs, targets = [], []
+    for k in range(len(airspeeds) * len(c2_values)):
+        window = scaled_spectrum(acc[:, k * n + n // 2:(k + 1) * n], 1000.0)
+        inputs.append(np.append(window.magnitudes.ravel(), c2_values[k % len(c2_values)]))
+        targets.append(design["tuned"][airspeeds[k // len(c2_values)]])
+    inputs, targets = np.array(inputs), np.array(targets)
+    held_out = np.arange(len(targets)) % 4 == 0
+    spread = select_spread(inputs[~held_out], targets[~held_out], inputs[held_out],
+                           targets[held_out], spreads=(0.3, 0.6, 1.2, 2.4)).best_spread
+    names, units = spectrum_input_names()
+    network = train_rbf_ols(inputs, targets, spread, input_names=names,
+                            input_units=units).network
+    return save_rbf_network(network, tmp_path_factory.mktemp("rbf") / "network.npz")
+
+
+def _fly(executor, spin, ros_context, tmp_path, design, *controllers: Node, lag: float = 0.2):
     scenario = tmp_path / "scenario.yaml"
     scenario.write_text(f"name: hold\nduration: {design['duration']:.3f}\nblock_size: 50\n"
                         f"airspeed: {{kind: constant, value: {design['airspeed']}}}\n"
                         "excitation: {force_std: 1000.0, seed: 5}\n")
     sim = Simulator(context=ros_context, parameter_overrides=[
         Parameter("scenario", value=str(scenario)), Parameter("real_time_factor", value=0.0),
-        Parameter("wait_for_subscribers", value=1), Parameter("damper_timeout", value=1.0)])
+        Parameter("wait_for_subscribers", value=1), Parameter("damper_timeout", value=5.0),
+        # The flight starts with the damper at the poor setting: only the controller can save it.
+        Parameter("damper_initial", value=POOR_C2), Parameter("damper_fallback", value=POOR_C2),
+        Parameter("max_command_lag", value=lag)])
     probe = Node("probe", context=ros_context)
     states, blocks = [], []
     probe.create_subscription(DamperState, "dva/damper_state", states.append, 5000)
@@ -64,7 +115,7 @@ def _fly(executor, spin, ros_context, tmp_path, design, controller: Node):
     for msg_type, topic in ((ForceBlock, "wing/excitation"), (FlightCondition, "flight/condition"),
                             (DisplacementBlock, "wing/displacement")):
         probe.create_subscription(msg_type, topic, lambda _: None, 10)
-    for node in (controller, probe, sim):
+    for node in (*controllers, probe, sim):
         executor.add_node(node)
     assert spin(executor, sim.finished.done, timeout=120.0)
     spin(executor, lambda: len(states) >= sim.published["dva/damper_state"], timeout=5.0)
@@ -85,6 +136,19 @@ def test_scheduled_damper_keeps_the_wing_bounded(executor, spin, ros_context, tm
     assert len(scheduled) > 0.9 * len(states)  # the loop closed within the first blocks
     expected = schedule.evaluate(design["airspeed"])
     assert scheduled[-1].applied_damping == pytest.approx(expected, rel=1e-9)
+
+
+def test_spectrum_rbf_loop_keeps_the_wing_bounded(executor, spin, ros_context, tmp_path,
+                                                  design, network_file):
+    spectrum = SpectrumNode(context=ros_context, parameter_overrides=_sim_time())
+    rbf = RBFController(context=ros_context, parameter_overrides=_sim_time() + [
+        Parameter("network_file", value=str(network_file))])
+    outcome, states = _fly(executor, spin, ros_context, tmp_path, design, spectrum, rbf,
+                           lag=0.15)
+    assert outcome == "completed"
+    from_network = [s for s in states if s.source == "rbf_network"]
+    assert from_network, "the network never commanded the damper"
+    assert from_network[-1].applied_damping < 0.5 * POOR_C2  # moved well away from the start
 
 
 def test_stuck_poor_damper_diverges(executor, spin, ros_context, tmp_path, design):
