@@ -1,0 +1,84 @@
+"""Every executable starts the way ``ros2 run`` starts it; the runner flies a whole graph."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+
+import pytest
+from rclpy.node import Node
+
+from aero_dva_sim.flight_log_io import load_flight_log
+
+from .conftest import ros2_run_path
+
+NODES = {
+    ("aero_dva_sim", "simulator"): ["-p", "wait_for_subscribers:=1", "-p", "wait_timeout:=600.0"],
+    ("aero_dva_sim", "mcap_recorder"): ["-p", "output:={tmp}/bag"],
+    ("dva_controller", "fixed_controller"): [],
+    ("dva_controller", "spectrum"): [],
+    ("dva_controller", "airspeed_controller"): [],
+}
+
+
+@pytest.mark.parametrize(("package", "executable"), sorted(NODES))
+def test_node_starts_joins_the_graph_and_stops_cleanly(package, executable, executor, spin,
+                                                       ros_context, start_process, tmp_path):
+    path = ros2_run_path(package, executable)
+    assert path.is_file() and os.access(path, os.X_OK), path
+    args = [a.format(tmp=tmp_path) for a in NODES[(package, executable)]]
+    proc = start_process([path, "--ros-args", "-r", "__node:=under_test", *args])
+    observer = Node("observer", context=ros_context)
+    executor.add_node(observer)
+    joined = spin(executor, lambda: "under_test" in observer.get_node_names(), timeout=30.0)
+    assert joined, proc.output()
+    assert proc.stop() == 0, proc.output()
+
+
+def test_every_console_script_is_installed_where_ros2_run_looks():
+    from ament_index_python.packages import get_package_prefix
+
+    for package in ("aero_dva_sim", "dva_controller"):
+        prefix = get_package_prefix(package)
+        installed = set(os.listdir(os.path.join(prefix, "lib", package)))
+        expected = {exe for pkg, exe in NODES if pkg == package}
+        assert expected <= installed, (package, installed)
+    assert "rbf_controller" in os.listdir(
+        os.path.join(get_package_prefix("dva_controller"), "lib", "dva_controller"))
+    assert "run_flight" in os.listdir(
+        os.path.join(get_package_prefix("aero_dva_sim"), "lib", "aero_dva_sim"))
+
+
+def test_run_flight_flies_the_graph_and_leaves_a_readable_bag(tmp_path):
+    scenario = tmp_path / "short.yaml"
+    scenario.write_text("name: short\nduration: 4.0\nblock_size: 50\n"
+                        "airspeed: {kind: ramp, start_ratio: 0.8, end_ratio: 0.9}\n"
+                        "excitation: {force_std: 1000.0, seed: 2}\n")
+    bag = tmp_path / "flight"
+    result = subprocess.run(
+        [str(ros2_run_path("aero_dva_sim", "run_flight")), "--scenario", str(scenario),
+         "--controller", "fixed", "--damping", "600", "--output", str(bag), "--json"],
+        capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stdout + result.stderr
+    summary = json.loads(result.stdout)
+    assert summary["controller"] == "fixed" and summary["divergence_airspeed"] is None
+    assert summary["duration"] == pytest.approx(4.0)
+    assert 500.0 <= summary["mean_damping"] <= 600.0  # the wing file's c2 until the first command
+    assert all(code == 0 for code in summary["exit_codes"].values()), summary["exit_codes"]
+    log = load_flight_log(bag)
+    assert log.missing_samples == 0 and log.time.size == 4000
+    assert log.applied_damping[-1] == 600.0
+
+
+def test_run_flight_refuses_bad_arguments(tmp_path):
+    run_flight = str(ros2_run_path("aero_dva_sim", "run_flight"))
+    result = subprocess.run([run_flight, "--controller", "rbf"], capture_output=True, text=True,
+                            timeout=60)
+    assert result.returncode == 2 and "--network FILE" in result.stderr
+    existing = tmp_path / "exists"
+    existing.mkdir()
+    result = subprocess.run([run_flight, "--output", str(existing)], capture_output=True,
+                            text=True, timeout=60)
+    assert result.returncode == 1 and "exists" in result.stderr
+
+
