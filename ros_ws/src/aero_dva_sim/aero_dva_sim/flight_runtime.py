@@ -30,6 +30,7 @@ from aero_dva_sim.wing_io import load_wing
 from aero_dva_sim.wing_model import AeroelasticModel, WingParameters
 
 ABSORBER_CHOICES = ("maxwell", "none")
+SWEEP_SOURCE = "sweep"  # dva_msgs/DamperCommand.SOURCE_SWEEP
 QUANTUM = 1e-3  # relative rounding of held flight parameters (see FlightRuntime)
 
 
@@ -121,6 +122,10 @@ def load_runtime_config(params: dict) -> RuntimeConfig:
         stale_timeout=float(params.get("damper_timeout", 0.5)),
         time_constant=float(params.get("damper_time_constant", 0.0)),
     )
+    outside = [c for c in scenario.sweep_damping if not low <= c <= high]
+    if outside:
+        raise ValueError(f"sweep c2 values {outside} N s/m lie outside the damper's range "
+                         f"[{low}, {high}] (parameters damper_min, damper_max)")
     return RuntimeConfig(scenario=scenario, wing=wing_file.wing, aero=wing_file.aero,
                          absorber=absorber, damper=damper)
 
@@ -174,7 +179,11 @@ class FlightRuntime:
         airspeed = airspeed_at(self.scenario, t)
         density = density_at(self.scenario, t)
         if self._sweep:
+            # The sweep operates the damper itself: command it every block so the damper's
+            # state (and dva/damper_state) reports the c2 the wing really has.
             damping = sweep_damping_at(self.scenario, t)
+            self._damper.command(float(damping[0]), float(t[0]), SWEEP_SOURCE)
+            self._damper.update(float(t[0]))
         else:
             # The damper is updated once per block: commands arrive between blocks.
             damping = np.full(n, self._damper.update(float(t[0])))

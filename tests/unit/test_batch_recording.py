@@ -1,0 +1,446 @@
+"""The batch path: flight blocks -> rosbag2 MCAP bag, read back exactly by every reader."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from mcap.reader import make_reader
+
+from aero_dva_sim import batch_recording_io as br
+from aero_dva_sim.damper import DamperSnapshot, DamperStatus
+from aero_dva_sim.flight_log_io import load_flight_log
+from aero_dva_sim.flight_runtime import FlightBlock
+from aero_dva_sim.mcap_io import bag_topics, message_definition, qos_profile_yaml, read_messages
+
+RATE = 1000.0
+TOPICS = {
+    "/clock": "rosgraph_msgs/msg/Clock",
+    "/wing/acceleration": "dva_msgs/msg/AccelerationBlock",
+    "/wing/displacement": "dva_msgs/msg/DisplacementBlock",
+    "/wing/excitation": "dva_msgs/msg/ForceBlock",
+    "/flight/condition": "dva_msgs/msg/FlightCondition",
+    "/dva/damper_state": "dva_msgs/msg/DamperState",
+    "/diagnostics": "diagnostic_msgs/msg/DiagnosticArray",
+}
+
+
+def make_flight(count=120, n=50, last=17, seed=0, switch_source_at=70):
+    """Blocks of a flight (the last one shorter) and the damper snapshot after each."""
+    rng = np.random.default_rng(seed)
+    blocks, states = [], []
+    index = 0
+    for k in range(count):
+        m = last if k == count - 1 else n
+        t0 = index / RATE
+        blocks.append(FlightBlock(
+            first_index=index, t0=t0, t_end=(index + m) / RATE,
+            force=1e3 * rng.standard_normal(m),
+            airspeed=80.0 + 0.1 * k + np.arange(m) * 1e-4,
+            density=1.2 * (1 + 0.05 * np.sin(2 * np.pi * (index + np.arange(m)) / RATE)),
+            damping=np.full(m, 300.0),
+            displacements=rng.standard_normal((4, m)) * 1e-3,
+            accelerations=rng.standard_normal((3, m)),
+            diverged=False))
+        states.append(DamperSnapshot(
+            time=(index + m) / RATE, commanded_damping=math.nan if k < 10 else 700.0 + k,
+            applied_damping=500.0 + k, min_damping=0.0, max_damping=2500.0,
+            command_age=math.inf if k < 10 else 0.05,
+            status=DamperStatus.NO_COMMAND if k < 10 else DamperStatus.OK,
+            source="initial" if k < switch_source_at else "rbf_network", rejection=None))
+        index += m
+    return blocks, states
+
+
+@pytest.fixture(scope="module")
+def flight():
+    return make_flight()
+
+
+@pytest.fixture(scope="module")
+def bag(flight, tmp_path_factory):
+    blocks, states = flight
+    path = tmp_path_factory.mktemp("batch") / "run"
+    with br.BatchRecorder(path, RATE) as recorder:
+        recorder.write_blocks(blocks[:50], states[:50])
+        recorder.write_blocks(blocks[50:], states[50:])
+        recorder.write_diagnostics(blocks[-1].t_end, [
+            ("ok", "flight completed", {"sim_time_s": blocks[-1].t_end, "published": 120})])
+    return path
+
+
+def ns(seconds: float) -> int:
+    return int(round(seconds * 1e9))
+
+
+def test_topics_types_counts_and_qos(bag):
+    topics = bag_topics(bag)
+    assert {name: info.type_name for name, info in topics.items()} == TOPICS
+    counts = {name: info.message_count for name, info in topics.items()}
+    assert counts == {**dict.fromkeys(TOPICS, 120), "/diagnostics": 1}
+    info = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert info["message_count"] == 6 * 120 + 1
+    assert [t["topic_metadata"]["name"] for t in info["topics_with_message_count"]] == list(TOPICS)
+    with open(bag / "run_0.mcap", "rb") as stream:
+        summary = make_reader(stream).get_summary()
+    assert {c.metadata["offered_qos_profiles"] for c in summary.channels.values()} == {
+        qos_profile_yaml()}
+    for schema in summary.schemas.values():
+        assert schema.encoding == "ros2msg"
+        assert schema.data.decode() == message_definition(schema.name)
+
+
+def test_messages_read_back_exactly(bag, flight):
+    blocks, states = flight
+    got: dict[str, list] = {}
+    for record in read_messages(bag):
+        got.setdefault(record.topic, []).append(record)
+    for k, block in enumerate(blocks):
+        end = ns(block.t_end)
+        for topic in TOPICS:
+            if topic != "/diagnostics":
+                assert got[topic][k].log_time_ns == got[topic][k].publish_time_ns == end
+        clock = got["/clock"][k].message.clock
+        assert clock.sec * 10**9 + clock.nanosec == end
+        for topic, attribute, fields in (
+            ("/wing/acceleration", "accelerations", ("plunge", "pitch", "leading_edge")),
+            ("/wing/displacement", "displacements",
+             ("plunge", "pitch", "leading_edge", "absorber_stroke")),
+            ("/wing/excitation", None, ("aileron_force",)),
+        ):
+            msg = got[topic][k].message
+            stamp = msg.header.stamp
+            assert stamp.sec * 10**9 + stamp.nanosec == ns(block.t0)
+            assert msg.header.frame_id == ("" if attribute is None else "wing")
+            assert msg.sample_rate == RATE and msg.first_sample_index == block.first_index
+            expected = block.force[None] if attribute is None else getattr(block, attribute)
+            for row, field in zip(expected, fields, strict=True):
+                np.testing.assert_array_equal(getattr(msg, field), row)
+        condition = got["/flight/condition"][k].message
+        assert (condition.airspeed, condition.air_density) == (block.airspeed[0],
+                                                                block.density[0])
+        assert condition.header.stamp.sec * 10**9 + condition.header.stamp.nanosec == ns(
+            block.t0)
+        damper = got["/dva/damper_state"][k].message
+        state = states[k]
+        assert damper.header.stamp.sec * 10**9 + damper.header.stamp.nanosec == ns(state.time)
+        assert damper.applied_damping == state.applied_damping
+        assert damper.source == state.source and damper.status == int(state.status)
+        assert (math.isnan(damper.commanded_damping) if math.isnan(state.commanded_damping)
+                else damper.commanded_damping == state.commanded_damping)
+    (diagnostics,) = got["/diagnostics"]
+    status = diagnostics.message.status[0]
+    assert (status.name, status.message, status.hardware_id) == (
+        "simulator: flight", "flight completed", "aero_dva_sim")
+    assert {kv.key: kv.value for kv in status.values} == {"sim_time_s": "5.967",
+                                                          "published": "120"}
+
+
+def test_sequence_numbers_and_file_order(bag):
+    """Per-topic sequence numbers count from 0; the file holds blocks in publish order."""
+    with open(bag / "run_0.mcap", "rb") as stream:
+        records = list(make_reader(stream).iter_messages(log_time_order=False))
+    topics = [channel.topic for _, channel, _ in records]
+    assert topics[:6] == list(TOPICS)[:6] and topics[-1] == "/diagnostics"
+    for topic in TOPICS:
+        assert [m.sequence for _, c, m in records if c.topic == topic] == list(
+            range(topics.count(topic)))
+    log_times = [m.log_time for _, _, m in records]
+    assert log_times == sorted(log_times)
+
+
+def test_flight_log_loads_the_exact_arrays(bag, flight):
+    blocks, states = flight
+    log = load_flight_log(bag)
+    assert log.sample_rate == RATE and log.missing_samples == 0
+    np.testing.assert_array_equal(log.displacements,
+                                  np.concatenate([b.displacements for b in blocks], axis=1))
+    np.testing.assert_array_equal(log.accelerations,
+                                  np.concatenate([b.accelerations for b in blocks], axis=1))
+    np.testing.assert_array_equal(log.force, np.concatenate([b.force for b in blocks]))
+    n = sum(b.force.size for b in blocks)
+    np.testing.assert_array_equal(log.time, np.arange(n) / RATE)
+    starts = np.repeat([b.airspeed[0] for b in blocks], [b.force.size for b in blocks])
+    np.testing.assert_array_equal(log.airspeed, starts)
+    assert log.diagnostics[0]["message"] == "flight completed"
+    assert log.diagnostics[0]["level"] == 0
+
+
+def test_rosbags_reads_the_bag(bag, flight):
+    """An independent reader decodes the same values."""
+    from rosbags.rosbag2 import Reader
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+    blocks, _ = flight
+    typestore = get_typestore(Stores.EMPTY)
+    with Reader(bag) as reader:
+        for connection in reader.connections:
+            typestore.register(get_types_from_msg(connection.msgdef.data, connection.msgtype))
+        displacement = [
+            typestore.deserialize_cdr(raw, c.msgtype)
+            for c, _, raw in reader.messages() if c.topic == "/wing/displacement"]
+    assert len(displacement) == len(blocks)
+    np.testing.assert_array_equal(displacement[-1].absorber_stroke, blocks[-1].displacements[3])
+    assert displacement[-1].first_sample_index == blocks[-1].first_index
+
+
+# --------------------------------------------------------------------------------------------
+# The two writers give the same file
+# --------------------------------------------------------------------------------------------
+
+
+def _record(path, engine, flight, compression, chunk_size):
+    blocks, states = flight
+    with br.BatchRecorder(path, RATE, engine=engine, compression=compression,
+                          chunk_size=chunk_size) as recorder:
+        recorder.write_blocks(blocks[:33], states[:33])
+        recorder.write_diagnostics(1.0, [("warn", "no damper command within 0.5 s", {})])
+        for start in range(33, len(blocks), 10):  # equal runs: work buffers are reused
+            recorder.write_blocks(blocks[start:start + 10], states[start:start + 10])
+        recorder.write_diagnostics(blocks[-1].t_end, [("error", "diverged", {"u": 1.5})])
+    return (path / f"{path.name}_0.mcap").read_bytes(), (path / "metadata.yaml").read_text()
+
+
+@pytest.mark.parametrize(("compression", "chunk_size"), [
+    ("none", 1 << 20), ("none", 4000), ("none", 1), ("zstd", 1 << 20), ("zstd", 10_000),
+    ("lz4", 30_000)])
+def test_numpy_writer_equals_bagwriter_byte_for_byte(tmp_path, monkeypatch, flight,
+                                                     compression, chunk_size):
+    # Same writer library name in the MCAP header, so that the files can be equal.
+    monkeypatch.setattr(br, "_LIBRARY", "aero_dva_sim.mcap_io")
+    fast = _record(tmp_path / "a" / "bag", "numpy", flight, compression, chunk_size)
+    reference = _record(tmp_path / "b" / "bag", "bagwriter", flight, compression, chunk_size)
+    assert fast[1] == reference[1]
+    assert len(fast[0]) == len(reference[0])
+    assert fast[0] == reference[0]
+
+
+def test_writer_library_is_named(bag):
+    with open(bag / "run_0.mcap", "rb") as stream:
+        header = make_reader(stream).get_header()
+    assert header.profile == "ros2" and header.library == "aero_dva_sim.batch_recording_io"
+
+
+# --------------------------------------------------------------------------------------------
+# Options and errors
+# --------------------------------------------------------------------------------------------
+
+
+def test_record_flight_blocks_streams_and_namespaces(tmp_path, flight):
+    blocks, states = flight
+    summary = br.record_flight_blocks(tmp_path / "ns", iter(blocks), iter(states), RATE,
+                                      batch_blocks=7, namespace="/wing1/")
+    assert {t.name for t in summary.topics} == set(br.flight_topics("wing1"))
+    assert "/wing1/wing/acceleration" in br.flight_topics("wing1")
+    assert "/clock" in br.flight_topics("wing1")
+    log = load_flight_log(tmp_path / "ns", namespace="wing1")
+    np.testing.assert_array_equal(log.force, np.concatenate([b.force for b in blocks]))
+    assert summary.message_count == 6 * len(blocks)
+    assert summary.starting_time_ns == ns(blocks[0].t_end)
+    assert summary.duration_ns == ns(blocks[-1].t_end) - ns(blocks[0].t_end)
+
+
+def test_without_damper_states_there_is_no_damper_topic(tmp_path, flight):
+    blocks, _ = flight
+    summary = br.record_flight_blocks(tmp_path / "b", blocks, None, RATE)
+    assert "/dva/damper_state" not in {t.name for t in summary.topics}
+    log = load_flight_log(tmp_path / "b")
+    assert np.all(np.isnan(log.applied_damping))
+
+
+def test_bad_input_is_refused(tmp_path, flight):
+    blocks, states = flight
+    with br.BatchRecorder(tmp_path / "x", RATE) as recorder:
+        with pytest.raises(ValueError, match="damper_states is required"):
+            recorder.write_blocks(blocks[:2])
+        with pytest.raises(ValueError, match="2 snapshots for 3 blocks"):
+            recorder.write_blocks(blocks[:3], states[:2])
+        bad = replace(blocks[1], displacements=np.zeros((3, 50)))
+        with pytest.raises(ValueError, match=r"blocks\[1\]\.displacements"):
+            recorder.write_blocks([blocks[0], bad], states[:2])
+        with pytest.raises(ValueError, match="first_index"):
+            recorder.write_blocks([replace(blocks[0], first_index=0.5)], states[:1])
+        with pytest.raises(ValueError, match="finite"):
+            recorder.write_blocks([replace(blocks[0], t_end=math.nan)], states[:1])
+        with pytest.raises(ValueError, match=">= 0"):
+            recorder.write_blocks([replace(blocks[0], t0=-0.05)], states[:1])
+        with pytest.raises(ValueError, match="level"):
+            recorder.write_diagnostics(0.0, [("fatal", "x", {})])
+        assert recorder.message_counts == dict.fromkeys(TOPICS, 0)
+    with pytest.raises(ValueError, match="closed"):
+        recorder.write_blocks(blocks[:1], states[:1])
+    with pytest.raises(FileExistsError):
+        br.BatchRecorder(tmp_path / "x", RATE)
+    for kwargs, match in (({"engine": "rclpy"}, "engine"), ({"compression": "gzip"},
+                                                           "compression"),
+                          ({"chunk_size": 0}, "chunk_size")):
+        with pytest.raises(ValueError, match=match):
+            br.BatchRecorder(tmp_path / "y", RATE, **kwargs)
+    with pytest.raises(ValueError, match="sample_rate"):
+        br.BatchRecorder(tmp_path / "y", 0.0)
+    with pytest.raises(ValueError, match="ended after 2"):
+        br.record_flight_blocks(tmp_path / "z", blocks[:3], states[:2], RATE)
+    with pytest.raises(ValueError, match="more snapshots"):
+        br.record_flight_blocks(tmp_path / "w", blocks[:2], states[:3], RATE)
+
+
+def test_lists_and_other_dtypes_are_converted(tmp_path, flight):
+    blocks, states = flight
+    block = blocks[0]
+    as_lists = replace(block, force=block.force.tolist(),
+                       accelerations=block.accelerations.astype(np.float32),
+                       displacements=np.asfortranarray(block.displacements))
+    br.record_flight_blocks(tmp_path / "l", [as_lists], states[:1], RATE)
+    log = load_flight_log(tmp_path / "l")
+    np.testing.assert_array_equal(log.force, block.force)
+    np.testing.assert_array_equal(log.accelerations,
+                                  block.accelerations.astype(np.float32).astype(float))
+    np.testing.assert_array_equal(log.displacements, block.displacements)
+
+
+# --------------------------------------------------------------------------------------------
+# record_runtime
+# --------------------------------------------------------------------------------------------
+
+
+def _scenario(tmp_path: Path, text: str) -> str:
+    path = tmp_path / "scenario.yaml"
+    path.write_text(text)
+    return str(path)
+
+
+RAMP = """name: short
+duration: 1.0
+sample_rate: 1000.0
+block_size: 50
+airspeed: {kind: ramp, start_ratio: 0.8, end_ratio: 0.9}
+density: {base: 1.2, variation: 0.05, frequency: 1.0}
+excitation: {force_std: 1000.0, seed: 11}
+"""
+DIVERGING = """name: div
+duration: 3.0
+sample_rate: 1000.0
+block_size: 50
+airspeed: {kind: constant, value_ratio: 1.3}
+excitation: {force_std: 1000.0, seed: 2}
+"""
+
+
+def _runtime(scenario: str, **params):
+    from aero_dva_sim.flight_runtime import FlightRuntime, load_runtime_config
+
+    return FlightRuntime(load_runtime_config({"scenario": scenario, **params}))
+
+
+def test_record_runtime_records_the_same_flight_as_stepping_it(tmp_path):
+    scenario = _scenario(tmp_path, RAMP)
+    seen = []
+    result = br.record_runtime(tmp_path / "bag", _runtime(scenario), batch_blocks=6,
+                               progress=lambda done, total: seen.append((done, total)))
+    assert result.outcome == "completed" and result.blocks == 20 and result.samples == 1000
+    assert seen[-1] == (1000, 1000) and [d for d, _ in seen] == sorted(d for d, _ in seen)
+    twin = _runtime(scenario)  # same seed -> same data
+    blocks, states = [], []
+    while not twin.done:
+        blocks.append(twin.step())
+        states.append(twin.damper_snapshot())
+    log = load_flight_log(tmp_path / "bag")
+    np.testing.assert_array_equal(log.displacements,
+                                  np.concatenate([b.displacements for b in blocks], axis=1))
+    np.testing.assert_array_equal(log.accelerations,
+                                  np.concatenate([b.accelerations for b in blocks], axis=1))
+    np.testing.assert_array_equal(log.force, np.concatenate([b.force for b in blocks]))
+    conditions = [m.message for m in read_messages(tmp_path / "bag", ["/flight/condition"])]
+    assert [c.airspeed for c in conditions] == [b.airspeed[0] for b in blocks]
+    assert [c.air_density for c in conditions] == [b.density[0] for b in blocks]
+    dampers = [m.message for m in read_messages(tmp_path / "bag", ["/dva/damper_state"])]
+    assert [d.applied_damping for d in dampers] == [s.applied_damping for s in states]
+    (diagnostic,) = log.diagnostics
+    assert diagnostic["name"] == "simulator: flight" and diagnostic["level"] == 0
+    assert diagnostic["message"] == "flight completed"
+    values = diagnostic["values"]
+    assert values["sim_time_s"] == "1" and values["published:wing/acceleration"] == "20"
+    assert set(values) == {"sim_time_s", "wall_time_s", "real_time_factor",
+                           "critical_airspeed_no_dva", "published:wing/acceleration",
+                           "published:wing/displacement", "published:wing/excitation",
+                           "published:flight/condition", "published:dva/damper_state"}
+    assert float(values["critical_airspeed_no_dva"]) == pytest.approx(
+        twin.critical_airspeed, rel=1e-8)
+
+
+def test_record_runtime_stops_at_divergence_like_the_node(tmp_path):
+    result = br.record_runtime(tmp_path / "bag", _runtime(_scenario(tmp_path, DIVERGING)))
+    assert result.outcome == "diverged" and result.sim_time < 3.0
+    log = load_flight_log(tmp_path / "bag")
+    assert log.time.size == result.samples == 50 * result.blocks
+    (diagnostic,) = log.diagnostics
+    assert diagnostic["level"] == 2
+    assert diagnostic["message"].startswith("wing diverged at U = ")
+    assert diagnostic["message"].endswith("): flight stopped")
+    assert "(U/U_cr = 1.300, t = " in diagnostic["message"]
+    assert diagnostic["values"]["published:wing/displacement"] == str(result.blocks)
+    counts = {t.name: t.message_count for t in result.summary.topics}
+    assert counts["/clock"] == result.blocks and counts["/diagnostics"] == 1
+
+
+@dataclass
+class _FakeDamper:
+    stale_timeout: float = 0.5
+
+
+@dataclass
+class _FakeConfig:
+    damper: _FakeDamper
+
+
+class _FakeRuntime:
+    """Goes stale after 3 blocks, as a damper without commands would (duck-typed runtime)."""
+
+    def __init__(self, blocks, states):
+        self._blocks, self._states, self._k = blocks, states, 0
+        self.sample_rate = RATE
+        self.critical_airspeed = 100.0
+        self.config = _FakeConfig(_FakeDamper())
+
+        class _Scenario:
+            n_samples = sum(b.force.size for b in blocks)
+
+        self.scenario = _Scenario()
+
+    @property
+    def time(self):
+        return self._blocks[self._k - 1].t_end if self._k else 0.0
+
+    @property
+    def done(self):
+        return self._k >= len(self._blocks)
+
+    def step(self):
+        self._k += 1
+        return self._blocks[self._k - 1]
+
+    def damper_snapshot(self):
+        state = self._states[self._k - 1]
+        if self._k >= 4:
+            return replace(state, status=DamperStatus.FALLBACK_STALE, source="fallback",
+                           applied_damping=640.0)
+        return state
+
+
+def test_record_runtime_warns_once_when_the_damper_goes_stale(tmp_path, flight):
+    blocks, states = flight
+    runtime = _FakeRuntime(blocks[:10], states[:10])
+    result = br.record_runtime(tmp_path / "bag", runtime, batch_blocks=3, engine="bagwriter")
+    assert result.outcome == "completed"
+    diagnostics = [m for m in read_messages(tmp_path / "bag") if m.topic == "/diagnostics"]
+    assert len(diagnostics) == 2
+    warning = diagnostics[0].message.status[0]
+    assert warning.message == "no damper command within 0.5 s: fallback c2 = 640 N s/m applied"
+    assert diagnostics[0].log_time_ns == ns(blocks[3].t_end)
+    # The warning comes right after the block that went stale, before the next block.
+    with open(tmp_path / "bag" / "bag_0.mcap", "rb") as stream:
+        order = [c.topic for _, c, _ in make_reader(stream).iter_messages(log_time_order=False)]
+    assert order[6 * 4] == "/diagnostics" and order[6 * 4 + 1] == "/clock"
