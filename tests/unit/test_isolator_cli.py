@@ -183,3 +183,26 @@ def test_uff58_round_trip(tmp_path):
     data = isolator_io.read_uff58(path, "accelerance")
     np.testing.assert_allclose(data.frequency_hz, f, rtol=1e-6)
     np.testing.assert_allclose(data.values, h, rtol=1e-5)
+
+
+def test_point_selection_by_band_and_coherence(capsys, tmp_path):
+    path = tmp_path / "est.csv"
+    f = np.arange(0.5, 80.0, 0.5)
+    coherence = np.where(f < 5.0, 0.1, 0.99)  # weak low-frequency bins, as a boxcar Welch gives
+    h = frf(SYSTEM_F, 2 * np.pi * f, "accelerance")
+    h[f < 5.0] *= 3.0  # ... and wrong there
+    isolator_io.write_frf_csv(path, f, h, {"coherence": coherence})
+    modal = modal_properties(SYSTEM_F)
+    common = ["--quantity", "accelerance", "--mass", 1, "--static-stiffness", 12000,
+              "--natural-frequency-rad-s", modal.natural_frequency_rad_s,
+              "--damping-ratio", modal.damping_ratio, "--json"]
+    code, out, err = run(capsys, "identify", path, "--min-coherence", 0.9, "--fmax-hz", 60,
+                         *common)
+    assert code == 0, err
+    assert json.loads(out)["frf_error"] < 1e-6
+    code, _, err = run(capsys, "identify", path, "--fmin-hz", 70, "--fmax-hz", 72, *common)
+    assert code == 2 and "only 5 of 159 points" in err
+    plain = tmp_path / "plain.csv"
+    write_frf(plain, SYSTEM_F)
+    code, _, err = run(capsys, "identify", plain, "--min-coherence", 0.9, *common[2:])
+    assert code == 2 and "needs a 'coherence' column" in err

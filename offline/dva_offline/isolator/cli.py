@@ -1,6 +1,7 @@
 """``dva isolator``: modal analysis, identification, FRF estimation and plots (seed ch. 3-5).
 
-All values on the command line and in files are SI: kg, N/m, N s/m, Hz (rad/s where named).
+All values on the command line and in files are SI: kg, N/m, N s/m, Pa, m, m^2, Hz (rad/s where
+named).
 """
 from __future__ import annotations
 
@@ -14,7 +15,14 @@ import numpy as np
 
 from dva_offline.isolator import isolator_io
 from dva_offline.isolator.element_types import classify_elements
-from dva_offline.isolator.frf_data import check_units, estimate_modal, to_receptance
+from dva_offline.isolator.frf_data import (
+    check_units,
+    estimate_modal,
+    geometry_factor,
+    modulus_to_stiffness,
+    select_points,
+    to_receptance,
+)
 from dva_offline.isolator.maxwell_model import MaxwellModel, frf, modal_properties
 
 
@@ -82,16 +90,39 @@ def _cmd_modal(args) -> int:
 
 
 def _read_frf(args):
+    """Read the FRF file of ``args``; a modulus comes back as complex stiffness [N/m]."""
     path = Path(args.file)
+    modulus = args.quantity == "modulus"
+    if modulus:
+        factor = geometry_factor(args.area, args.thickness, args.geometry_factor)
+    elif args.area is not None or args.thickness is not None or args.geometry_factor is not None:
+        raise ValueError("--area/--thickness/--geometry-factor apply only to --quantity modulus")
+    quantity = "stiffness" if modulus else args.quantity
     if path.suffix.lower() in (".uff", ".unv") or args.format == "uff58":
-        return isolator_io.read_uff58(path, args.quantity)
-    return isolator_io.read_frf_csv(path, args.quantity)
+        data = isolator_io.read_uff58(path, quantity)
+    elif args.format == "stepped-sine":
+        data = isolator_io.read_stepped_sine_csv(path, quantity)
+    else:
+        data = isolator_io.read_frf_csv(path, quantity)
+    try:
+        data = select_points(data, args.fmin_hz, args.fmax_hz, args.min_coherence)
+    except ValueError as exc:
+        raise ValueError(f"{path}: {exc}") from None
+    return modulus_to_stiffness(data, factor) if modulus else data
+
+
+def _check_units(args, omega, h, mass, static_stiffness, wn) -> None:
+    try:
+        check_units(omega, h, mass, static_stiffness, wn)
+    except ValueError as exc:
+        if args.quantity != "modulus":
+            raise
+        raise ValueError(
+            f"{exc}; for a modulus check Pa vs MPa and the geometry in m (area in m^2)"
+        ) from None
 
 
 def _cmd_identify(args) -> int:
-    from dva_offline.isolator.maxwell_fit import FitWarning, fit_maxwell_model
-    from dva_offline.isolator.order_selection import select_model_order
-
     if not args.mass > 0:
         raise ValueError(f"--mass must be > 0 kg, got {args.mass}")
     if not args.static_stiffness > 0:
@@ -99,10 +130,19 @@ def _cmd_identify(args) -> int:
     data = _read_frf(args)
     omega, h = to_receptance(data, args.mass)
     if args.natural_frequency_rad_s is None or args.damping_ratio is None:
-        est = estimate_modal(omega, h)
+        try:
+            est = estimate_modal(omega, h)
+        except ValueError as exc:
+            raise ValueError(
+                f"{args.file}: {exc}; give --natural-frequency-rad-s and --damping-ratio"
+            ) from None
     wn = args.natural_frequency_rad_s or est.natural_frequency_rad_s
     zeta = args.damping_ratio if args.damping_ratio is not None else est.damping_ratio
-    check_units(omega, h, args.mass, args.static_stiffness, wn)
+    _check_units(args, omega, h, args.mass, args.static_stiffness, wn)
+    # scipy.optimize is imported only once the input has passed its checks (fast errors).
+    from dva_offline.isolator.maxwell_fit import FitWarning, fit_maxwell_model
+    from dva_offline.isolator.order_selection import select_model_order
+
     kwargs = dict(objective=args.objective, weighting=args.weighting)
     selection = None
     # Fit warnings are reported in the output ("warnings"), not as Python warnings.
@@ -146,6 +186,9 @@ def _cmd_identify(args) -> int:
         "warnings": list(fit.warnings),
         "covariates": sorted(data.covariates),
     }
+    if args.quantity == "modulus":
+        payload["geometry_factor_m"] = geometry_factor(args.area, args.thickness,
+                                                       args.geometry_factor)
     if selection is not None:
         payload["order_selection"] = {
             "orders": list(selection.orders),
@@ -157,9 +200,14 @@ def _cmd_identify(args) -> int:
         from dva_offline.isolator.plots import plot_frf
 
         f_hz = omega / (2 * np.pi)
-        plot_frf(args.plot, [("measured", f_hz, h, "k."),
-                             (f"{model.n_elements}-element model", f_hz, frf(model, omega), "r-")],
-                 "receptance [m/N]", Path(args.file).name)
+        n = model.n_elements
+        label = "identified " + ("M-" * n + "V" if n <= 3 else f"model, {n} Maxwell elements")
+        measured = "measured" if data.quantity == "receptance" else (
+            f"measured ({args.quantity} converted)")
+        title = (f"{Path(args.file).name}: identified with ωₙ = {wn:.1f} rad/s, "
+                 f"ζ = {zeta:.4f} imposed\nrelative FRF error {fit.frf_error:.3g}")
+        plot_frf(args.plot, [(measured, f_hz, h, "k."), (label, f_hz, frf(model, omega), "r-")],
+                 "receptance", title)
         payload["plot"] = str(args.plot)
     lines = [
         f"target: w_n = {wn:.3f} rad/s, zeta = {zeta:.4f}; static stiffness {model.k:.6g} N/m",
@@ -170,6 +218,11 @@ def _cmd_identify(args) -> int:
         f"relative FRF error {fit.frf_error:.4f}",
         *(f"warning: {w}" for w in fit.warnings),
     ]
+    if selection is not None:
+        errors = ", ".join(f"{o} element(s) {e:.4f}" for o, e in
+                           zip(selection.orders, selection.holdout_errors))
+        lines.insert(1, f"order selection, held-out FRF error: {errors} -> "
+                        f"{selection.selected_order}")
     _emit(args, payload, lines)
     return 0
 
@@ -194,6 +247,66 @@ def _cmd_estimate(args) -> int:
     }
     _emit(args, payload, [f"wrote {payload['n_points']} FRF points to {args.out} "
                           f"(mean coherence {payload['mean_coherence']:.3f})"])
+    return 0
+
+
+def _cmd_stepped_sine(args) -> int:
+    data = _read_frf(args)
+    if args.mass is not None and not args.mass > 0:
+        raise ValueError(f"--mass must be > 0 kg, got {args.mass}")
+    omega, h = to_receptance(data, args.mass)
+    try:
+        est = estimate_modal(omega, h)
+    except ValueError as exc:
+        raise ValueError(f"{args.file}: {exc}") from None
+    two_pi = 2 * np.pi
+    f_hz = omega / two_pi
+    band = (omega >= est.half_power_lower_rad_s) & (omega <= est.half_power_upper_rad_s)
+    warn = []
+    if band.sum() < 3:
+        warn.append(
+            f"only {int(band.sum())} step(s) between the half-power points: the damping ratio "
+            "is coarse; use finer steps near resonance"
+        )
+    payload = {
+        "file": str(args.file),
+        "quantity": args.quantity,
+        "n_steps": int(data.frequency_hz.size),
+        "frequency_min_hz": float(data.frequency_hz[0]),
+        "frequency_max_hz": float(data.frequency_hz[-1]),
+        "natural_frequency_rad_s": est.natural_frequency_rad_s,
+        "natural_frequency_hz": est.natural_frequency_rad_s / two_pi,
+        "damping_ratio": est.damping_ratio,
+        "half_power_lower_hz": est.half_power_lower_rad_s / two_pi,
+        "half_power_upper_hz": est.half_power_upper_rad_s / two_pi,
+        "peak_hz": est.peak_rad_s / two_pi,
+        "method": "w_n: zero crossing of Re(receptance); zeta: half-power points of |receptance|",
+        "warnings": warn,
+        "covariates": sorted(data.covariates),
+    }
+    if args.out:
+        isolator_io.write_frf_csv(args.out, data.frequency_hz, data.values, data.covariates)
+        payload["out"] = str(args.out)
+        payload["out_quantity"] = data.quantity
+    if args.plot:
+        from dva_offline.isolator.plots import plot_modal_estimate
+
+        title = f"{Path(args.file).name}: stepped-sine modal estimate"
+        if data.quantity != "receptance":
+            title += f" ({args.quantity} converted to receptance)"
+        plot_modal_estimate(args.plot, f_hz, h, est, title)
+        payload["plot"] = str(args.plot)
+    lines = [
+        f"{payload['n_steps']} steps, {payload['frequency_min_hz']:g}-"
+        f"{payload['frequency_max_hz']:g} Hz",
+        f"natural frequency {est.natural_frequency_rad_s:.2f} rad/s "
+        f"({payload['natural_frequency_hz']:.3f} Hz) from the zero crossing of Re(H)",
+        f"damping ratio {est.damping_ratio:.4f} from the half-power points "
+        f"{payload['half_power_lower_hz']:.3f} and {payload['half_power_upper_hz']:.3f} Hz",
+        *([f"wrote {data.quantity} FRF to {args.out}"] if args.out else []),
+        *(f"warning: {w}" for w in warn),
+    ]
+    _emit(args, payload, lines)
     return 0
 
 
@@ -227,8 +340,11 @@ def _cmd_plot(args) -> int:
         if args.mass is not None and args.k is not None:
             model = _model_from_args(args)
             curves.append(("model", data.frequency_hz,
-                           frf(model, data.omega_rad_s, args.quantity), "r-"))
-        written.append(str(plot_frf(args.plot, curves, args.quantity, Path(args.file).name)))
+                           frf(model, data.omega_rad_s, data.quantity), "r-"))
+        title = Path(args.file).name
+        if args.quantity == "modulus":
+            title += " (modulus x A/h)"
+        written.append(str(plot_frf(args.plot, curves, data.quantity, title)))
     if not written:
         raise ValueError("nothing to plot: give a FRF file with --plot, or --study --plot-dir")
     _emit(args, {"plots": written}, [f"wrote {p}" for p in written])
@@ -256,11 +372,27 @@ def register(subparsers) -> None:
     common(p)
     p.set_defaults(func=_cmd_modal)
 
-    def frf_input(p):
-        p.add_argument("--quantity", choices=("receptance", "accelerance", "stiffness"),
-                       default="receptance", help="what the FRF file holds (SI units)")
-        p.add_argument("--format", choices=("csv", "uff58"), default="csv",
-                       help="file format (.uff/.unv files are read as UFF 58)")
+    def frf_input(p, default_format="csv"):
+        p.add_argument("--quantity",
+                       choices=("receptance", "accelerance", "stiffness", "modulus"),
+                       default="receptance",
+                       help="what the file holds: receptance [m/N], accelerance [(m/s^2)/N], "
+                            "complex stiffness [N/m] or a material's complex modulus E', E'' "
+                            "[Pa] (needs --area and --thickness, or --geometry-factor)")
+        p.add_argument("--format", choices=("csv", "stepped-sine", "uff58"),
+                       default=default_format,
+                       help="csv: frequency_hz,real,imag; stepped-sine: also amplitude/phase "
+                            "per step; uff58 (.uff/.unv files are read as UFF 58)")
+        p.add_argument("--area", type=float, default=None, metavar="M2",
+                       help="modulus only: loaded area A of the rubber specimen [m^2]")
+        p.add_argument("--thickness", type=float, default=None, metavar="M",
+                       help="modulus only: thickness h of the rubber specimen [m]")
+        p.add_argument("--geometry-factor", type=float, default=None, metavar="M",
+                       help="modulus only: A/h [m], so that K* = E* A/h")
+        p.add_argument("--fmin-hz", type=float, default=None, help="use points >= this [Hz]")
+        p.add_argument("--fmax-hz", type=float, default=None, help="use points <= this [Hz]")
+        p.add_argument("--min-coherence", type=float, default=None,
+                       help="use points whose 'coherence' column is >= this")
 
     p = sub.add_parser("identify", help="identify a general Maxwell model from a measured FRF")
     p.add_argument("file", help="FRF file: CSV frequency_hz,real,imag[,covariates] or UFF 58")
@@ -293,6 +425,24 @@ def register(subparsers) -> None:
     p.add_argument("--fmax-hz", type=float, default=None, help="highest frequency written")
     common(p)
     p.set_defaults(func=_cmd_estimate)
+
+    p = sub.add_parser(
+        "stepped-sine",
+        help="natural frequency and damping ratio from stepped-sine data (Table 5.2 method)",
+        description="Reads one row per excitation frequency: frequency_hz plus real,imag or "
+                    "force_amplitude_n,force_phase_deg,response_amplitude,response_phase_deg. "
+                    "w_n is the zero crossing of Re(H), zeta comes from the half-power points "
+                    "of |receptance| (seed section 5.2).",
+    )
+    p.add_argument("file", help="stepped-sine CSV")
+    frf_input(p, default_format="stepped-sine")
+    p.add_argument("--mass", type=float, default=None,
+                   help="isolated mass [kg]; needed for --quantity stiffness or modulus")
+    p.add_argument("--out", default=None, help="write the FRF as frequency_hz,real,imag CSV")
+    p.add_argument("--plot", metavar="FILE.png", help="plot |H| with the half-power points "
+                                                      "and Re(H) with its zero crossing")
+    common(p)
+    p.set_defaults(func=_cmd_stepped_sine)
 
     p = sub.add_parser("static", help="static stiffness from a load-deflection CSV")
     p.add_argument("file", help="CSV deflection_m,load_n (loading and unloading)")

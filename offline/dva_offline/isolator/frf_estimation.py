@@ -14,7 +14,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import signal
 
 
 @dataclass(frozen=True)
@@ -82,6 +81,8 @@ def estimate_frf(
         raise ValueError(f"nfft must be an integer >= 8, got {nfft!r}")
     if force.size < nfft:
         raise ValueError(f"time series has {force.size} samples, fewer than nfft = {nfft}")
+    from scipy import signal  # imported here: scipy.signal costs ~1 s at CLI start-up
+
     kw = dict(fs=fs, window=window, nperseg=nfft, noverlap=noverlap, nfft=nfft)
     freq, s_ff = signal.welch(force, **kw)
     h1s, h2s, cohs = [], [], []
@@ -161,7 +162,10 @@ def natural_frequency_zero_crossing(frequency, h) -> float:
     re = h.real
     sign_change = np.nonzero(np.sign(re[:-1]) * np.sign(re[1:]) < 0)[0]
     if sign_change.size == 0:
-        raise ValueError("the real part of the FRF does not change sign: no natural frequency")
+        raise ValueError(
+            "the real part of the FRF does not change sign: no resonance inside the data, so "
+            "no natural frequency"
+        )
     peak = np.argmax(np.abs(h))
     i = sign_change[np.argmin(np.abs(sign_change - peak))]
     f0, f1, r0, r1 = frequency[i], frequency[i + 1], re[i], re[i + 1]
@@ -200,7 +204,17 @@ def half_power_damping(frequency, h, natural_frequency: float | None = None) -> 
     below = np.nonzero(mag[:p] < level)[0]
     above = np.nonzero(mag[p:] < level)[0]
     if below.size == 0 or above.size == 0:
-        raise ValueError("the FRF does not fall to the half-power level on both sides of the peak")
+        if p == 0 or p == mag.size - 1:
+            where = "lowest" if p == 0 else "highest"
+            raise ValueError(
+                f"the largest |H| is at the {where} frequency: no resonance peak inside the "
+                "data, so no half-power damping"
+            )
+        side = "below" if below.size == 0 else "above"
+        raise ValueError(
+            f"|H| does not fall to the half-power level (peak / sqrt 2) {side} the resonance "
+            "peak inside the data, so no half-power damping"
+        )
     i = below[-1]
     f1 = np.interp(level, [mag[i], mag[i + 1]], [frequency[i], frequency[i + 1]])
     j = p + above[0]

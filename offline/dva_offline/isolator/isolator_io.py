@@ -7,9 +7,20 @@ Formats (SI units, one header row, comma separated):
   [(m/s^2)/N] or complex stiffness [N/m]) is given by the caller.
 * Time-series CSV: ``time_s`` (optional if the sampling rate is given), a force column
   (default ``force_n``) and one or more response columns (default: all other columns).
+* Stepped-sine CSV, one row per excitation frequency: ``frequency_hz`` and either
+  ``real,imag`` (the FRF at each step, as an analyser reports it) or
+  ``force_amplitude_n,force_phase_deg,response_amplitude,response_phase_deg`` (force
+  F cos(w t + phi_f) and response X cos(w t + phi_x); ``*_phase_rad`` columns are accepted
+  instead of ``*_phase_deg``; amplitudes both peak or both RMS). With amplitudes and phases the
+  response is displacement [m] (receptance) or acceleration [m/s^2] (accelerance). Other
+  columns are kept as covariates.
 * Load-deflection CSV: ``deflection_m,load_n``.
 * Universal file format dataset 58 (function at one response/reference pair), read with pyuff
-  (optional dependency, imported only when used).
+  (optional dependency ``pip install 'dva-offline[uff]'``, imported only when used).
+
+A complex modulus (``--quantity modulus`` in the CLI) is an FRF CSV whose ``real,imag`` are the
+storage and loss modulus E', E'' [Pa]; it is read as quantity ``stiffness`` and scaled to N/m
+by :func:`~dva_offline.isolator.frf_data.modulus_to_stiffness`.
 """
 from __future__ import annotations
 
@@ -19,9 +30,16 @@ from pathlib import Path
 
 import numpy as np
 
-from dva_offline.isolator.frf_data import FrfData
+from dva_offline.isolator.frf_data import (
+    FrfData,
+    condition_columns,
+    frf_from_amplitude_phase,
+    split_conditions,
+)
 
 FRF_COLUMNS = ("frequency_hz", "real", "imag")
+STEP_AMPLITUDES = ("force_amplitude_n", "response_amplitude")
+STEP_PHASES = ("force_phase", "response_phase")
 
 
 def _read_table(path) -> tuple[list[str], np.ndarray]:
@@ -65,11 +83,23 @@ def _check_finite(path, header, data, names):
             raise ValueError(f"{path}: column {name!r} is NaN at line {bad[0] + 2}")
 
 
+def _check_increasing(path, header, data, name="frequency_hz"):
+    col = data[:, header.index(name)]
+    steps = np.nonzero(np.diff(col) <= 0)[0]
+    if steps.size:
+        i = steps[0]
+        raise ValueError(
+            f"{path}: {name} must be strictly increasing: line {i + 3} ({col[i + 1]:g} Hz) "
+            f"follows line {i + 2} ({col[i]:g} Hz)"
+        )
+
+
 def read_frf_csv(path, quantity: str) -> FrfData:
     """Read an FRF CSV (see module docstring); validation errors name the file and problem."""
     header, data = _read_table(path)
     _require(path, header, FRF_COLUMNS)
     _check_finite(path, header, data, FRF_COLUMNS)
+    _check_increasing(path, header, data)
     cols = {name: data[:, i] for i, name in enumerate(header)}
     covariates = {n: v for n, v in cols.items() if n not in FRF_COLUMNS}
     try:
@@ -78,6 +108,112 @@ def read_frf_csv(path, quantity: str) -> FrfData:
         )
     except ValueError as exc:
         raise ValueError(f"{path}: {exc}") from None
+
+
+def read_frf_csv_conditions(path, quantity: str, columns=None) -> list[FrfData]:
+    """Read an FRF CSV holding one or several sweeps stacked by condition.
+
+    Rows with equal values in the condition ``columns`` form one sweep (strictly increasing
+    frequency within it). Default columns: every covariate with few distinct values
+    (:func:`~dva_offline.isolator.frf_data.condition_columns`), so a per-point ``coherence``
+    column is kept as data but does not split the rows.
+
+    Returns
+    -------
+    list of FrfData
+        One per condition, in order of first appearance in the file.
+    """
+    header, data = _read_table(path)
+    _require(path, header, FRF_COLUMNS)
+    _check_finite(path, header, data, FRF_COLUMNS)
+    cols = {name: data[:, i] for i, name in enumerate(header)}
+    covariates = {n: v for n, v in cols.items() if n not in FRF_COLUMNS}
+    if columns is None:
+        columns = condition_columns(covariates, data.shape[0])
+    else:
+        _require(path, header, list(columns))
+        _check_finite(path, header, data, list(columns))
+    try:
+        return split_conditions(
+            cols["frequency_hz"], cols["real"] + 1j * cols["imag"], quantity, covariates,
+            list(columns),
+        )
+    except ValueError as exc:
+        raise ValueError(f"{path}: {exc}") from None
+
+
+def read_stepped_sine_csv(path, quantity: str) -> FrfData:
+    """Read a stepped-sine CSV (see module docstring) as an FRF of ``quantity``.
+
+    ``real,imag`` files may hold any quantity; amplitude/phase files hold response/force, so
+    ``quantity`` must be ``receptance`` or ``accelerance``.
+    """
+    header, data = _read_table(path)
+    _require(path, header, ["frequency_hz"])
+    if "real" in header or "imag" in header:
+        return read_frf_csv(path, quantity)
+    phases = []
+    for stem in STEP_PHASES:
+        found = [n for n in (f"{stem}_deg", f"{stem}_rad") if n in header]
+        if len(found) == 2:
+            raise ValueError(f"{path}: give {stem}_deg or {stem}_rad, not both")
+        phases.append(found[0] if found else f"{stem}_deg")
+    needed = ["frequency_hz", STEP_AMPLITUDES[0], phases[0], STEP_AMPLITUDES[1], phases[1]]
+    missing = [n for n in needed if n not in header]
+    if missing:
+        raise ValueError(
+            f"{path}: stepped-sine file needs columns frequency_hz plus real,imag or "
+            f"{','.join(needed[1:])}; missing {missing}; found {header}"
+        )
+    if quantity not in ("receptance", "accelerance"):
+        raise ValueError(
+            f"{path}: amplitude/phase steps give response/force; use --quantity receptance "
+            f"(response in m) or accelerance (response in m/s^2), not {quantity!r}"
+        )
+    _check_finite(path, header, data, needed)
+    _check_increasing(path, header, data)
+    col = {name: data[:, i] for i, name in enumerate(header)}
+    for name in STEP_AMPLITUDES:
+        bad = np.nonzero(~(col[name] > 0))[0]
+        if bad.size:
+            raise ValueError(
+                f"{path}: column {name!r} must be > 0, got {col[name][bad[0]]:g} at line "
+                f"{bad[0] + 2}"
+            )
+    f_phase, r_phase = (
+        np.radians(col[n]) if n.endswith("_deg") else col[n] for n in phases
+    )
+    h = frf_from_amplitude_phase(col[STEP_AMPLITUDES[0]], f_phase, col[STEP_AMPLITUDES[1]],
+                                 r_phase)
+    covariates = {n: v for n, v in col.items() if n not in needed}
+    try:
+        return FrfData(col["frequency_hz"], h, quantity, covariates)
+    except ValueError as exc:
+        raise ValueError(f"{path}: {exc}") from None
+
+
+def write_stepped_sine_csv(path, frequency_hz, force, response, covariates=None) -> None:
+    """Write a stepped-sine CSV in amplitude/phase form from complex force and response phasors.
+
+    Parameters
+    ----------
+    frequency_hz : array_like, shape (N,)
+    force, response : array_like, shape (N,), complex
+        Phasors F exp(j phi_f) [N] and X exp(j phi_x) [m or m/s^2] of each step.
+    """
+    f = np.asarray(frequency_hz, dtype=float)
+    fc = np.asarray(force, dtype=complex)
+    rc = np.asarray(response, dtype=complex)
+    extra = covariates or {}
+    header = ["frequency_hz", "force_amplitude_n", "force_phase_deg", "response_amplitude",
+              "response_phase_deg", *extra]
+    cols = [f, np.abs(fc), np.degrees(np.angle(fc)), np.abs(rc), np.degrees(np.angle(rc))]
+    cols += [np.asarray(c, dtype=float) for c in extra.values()]
+    with Path(path).open("w", newline="") as fh:
+        writer = csv.writer(fh)
+        writer.writerow(header)
+        for row in zip(*cols):
+            writer.writerow([repr(float(x)) for x in row])
 
 
 def write_frf_csv(path, frequency_hz, values, covariates: dict | None = None) -> None:
@@ -157,8 +293,11 @@ def read_uff58(path, quantity: str, index: int = 0) -> FrfData:
     """Read the ``index``-th dataset 58 of a universal file (abscissa in Hz, complex ordinate)."""
     try:
         import pyuff  # optional dependency
-    except ImportError as exc:  # pragma: no cover - depends on the environment
-        raise ValueError("reading UFF files needs the 'pyuff' package") from exc
+    except ImportError:
+        raise ValueError(
+            f"{path}: reading universal files (UFF 58) needs the optional package pyuff; "
+            "install it with: pip install 'dva-offline[uff]'  (or: pip install 'pyuff>=2.4')"
+        ) from None
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such file")

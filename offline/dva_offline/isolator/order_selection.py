@@ -37,6 +37,9 @@ class OrderSelection:
         The selected model (Voigt models are returned with their own mass and stiffness).
     fit : MaxwellFit or None
         Fit of the selected order refitted on all points (None for order 0).
+    models : tuple of MaxwellModel
+        The model of every order tried, fitted on the training points (same order as
+        ``orders``), for tools that refine or compare them.
     """
 
     orders: tuple[int, ...]
@@ -45,6 +48,7 @@ class OrderSelection:
     selected_order: int
     model: MaxwellModel
     fit: MaxwellFit | None
+    models: tuple[MaxwellModel, ...] = ()
 
 
 def select_model_order(
@@ -127,5 +131,6 @@ def select_model_order(
         )
         model = final_fit.model
     return OrderSelection(
-        tuple(orders), tuple(hold_err), tuple(train_err), orders[selected], model, final_fit
+        tuple(orders), tuple(hold_err), tuple(train_err), orders[selected], model, final_fit,
+        tuple(models),
     )
