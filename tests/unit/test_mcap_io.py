@@ -1,6 +1,7 @@
 """rosbag2-layout MCAP writing and reading without rclpy, checked against mcap-ros2 and rosbags."""
 
 import shutil
+import sys
 import warnings
 from pathlib import Path
 
@@ -201,8 +202,9 @@ def test_schema_text_has_rosbag2_layout():
 
 
 @pytest.mark.skipif(not SHARE.is_dir(), reason="no ROS 2 interface files installed")
-def test_embedded_definitions_equal_the_installed_ones(monkeypatch):
+def test_embedded_definitions_equal_the_installed_ones(monkeypatch, tmp_path):
     monkeypatch.delenv("AMENT_PREFIX_PATH", raising=False)
+    monkeypatch.setattr(sys, "prefix", str(tmp_path))  # no share/ of an environment either
     embedded = message_definition("std_msgs/Header")
     installed = message_definition("std_msgs/Header", msg_dirs=[SHARE])
     assert embedded == installed

@@ -72,10 +72,13 @@ def build_commands(args, bag: Path) -> dict[str, list[str]]:
         commands["fixed_controller"] = [executable("dva_controller", "fixed_controller"),
                                         "--ros-args",
                                         *_params(damping=args.damping, rate=20.0, **sim_time)]
+    # The flight starts once every other node of the graph is up (none misses its start).
+    others = list(commands)
     commands["simulator"] = [
         executable("aero_dva_sim", "simulator"), "--ros-args",
         *_params(scenario=args.scenario, wing=args.wing, absorber=args.absorber,
                  real_time_factor=args.real_time_factor, wait_for_subscribers=1,
+                 wait_for_nodes="[" + ",".join(others) + "]",
                  max_command_lag=DEFAULT_COMMAND_LAG[args.controller]
                  if args.max_command_lag is None else args.max_command_lag,
                  damper_timeout=1e9 if args.controller == "none" else args.damper_timeout),

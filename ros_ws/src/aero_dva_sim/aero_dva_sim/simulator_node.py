@@ -18,8 +18,10 @@ damper_min, damper_max, damper_initial, damper_fallback [N s/m], damper_timeout 
 damper_time_constant [s]
 real_time_factor : float  sim seconds per wall second (0 = as fast as possible), default 20
 wait_for_subscribers : int
-    Start the flight only when every data topic has this many subscribers (default 0), or
-    after ``wait_timeout`` wall seconds (default 30) with a warning.
+    Start the flight only when every data topic has this many subscribers (default 0) ...
+wait_for_nodes : string array
+    ... and these nodes are in the graph (default none), or after ``wait_timeout`` wall
+    seconds (default 30) with a warning.
 exit_on_end : bool        stop the node when the flight ends (default true)
 max_command_lag : float
     [s] sim time the flight may run ahead of the newest accepted command's stamp (its input's
@@ -74,6 +76,7 @@ class Simulator(Node):
         self.finished = Future()
         self._rtf = float(self.get_parameter("real_time_factor").value)
         self._wait_for = int(self.get_parameter("wait_for_subscribers").value)
+        self._wait_for_nodes = [n for n in self.get_parameter("wait_for_nodes").value if n]
         self._wait_timeout = float(self.get_parameter("wait_timeout").value)
         self._exit_on_end = bool(self.get_parameter("exit_on_end").value)
 
@@ -92,6 +95,7 @@ class Simulator(Node):
         self._lag_timeout = float(self.get_parameter("command_wait_timeout").value)
         self._last_command_stamp: float | None = None
         self._lag_since: float | None = None
+        self._controller_silent = False
         self.lag_timeouts = 0
         self.create_subscription(DamperCommand, "dva/damper_command", self._on_command, 10)
 
@@ -116,7 +120,8 @@ class Simulator(Node):
             "absorber_position": nan,
             "damper_min": 0.0, "damper_max": 2500.0, "damper_initial": nan,
             "damper_fallback": nan, "damper_timeout": 0.5, "damper_time_constant": 0.0,
-            "real_time_factor": 20.0, "wait_for_subscribers": 0, "wait_timeout": 30.0,
+            "real_time_factor": 20.0, "wait_for_subscribers": 0, "wait_for_nodes": [""],
+            "wait_timeout": 30.0,
             "exit_on_end": True, "max_command_lag": 0.0, "command_wait_timeout": 2.0,
         }
         for name, value in defaults.items():
@@ -135,19 +140,20 @@ class Simulator(Node):
             stamp = messages.to_seconds(msg.header.stamp)
             self._latencies.append(self.runtime.time - stamp)
             self._last_command_stamp = max(stamp, self._last_command_stamp or 0.0)
+            self._controller_silent = False
         if result is not None and not result.accepted:
             self._diagnose("warn", f"rejected damper command {msg.damping!r} N s/m from "
                            f"'{msg.source}': {result.rejection.value}",
                            {"command": msg.damping, "source": msg.source})
 
     def _ready(self) -> bool:
-        if self._wait_for <= 0:
-            return True
         counts = {t: self._pub[t].get_subscription_count() for t in DATA_TOPICS}
-        if min(counts.values()) >= self._wait_for:
+        missing = sorted(set(self._wait_for_nodes) - set(self.get_node_names()))
+        if min(counts.values()) >= self._wait_for and not missing:
             return True
         if time.monotonic() - self._waiting_since > self._wait_timeout:
-            self.get_logger().warning(f"starting without all subscribers: {counts}")
+            self.get_logger().warning(
+                f"starting without all subscribers {counts} or nodes {missing}")
             return True
         return False
 
@@ -158,13 +164,17 @@ class Simulator(Node):
         if self.runtime.time <= self._last_command_stamp + self._max_lag + 1e-9:
             self._lag_since = None
             return False
+        if self._controller_silent:
+            return False
         now = time.monotonic()
         if self._lag_since is None:
             self._lag_since = now
         if now - self._lag_since < self._lag_timeout:
             return True
+        # The controller fell silent: fly on (the damper's fallback acts) until it speaks again.
         self._lag_since = None
-        self.lag_timeouts += 1  # the controller fell silent: fly on, the damper's fallback acts
+        self._controller_silent = True
+        self.lag_timeouts += 1
         return False
 
     def _step(self) -> None:
