@@ -1,0 +1,63 @@
+"""Speed of the flutter solver, as a ratio against a baseline timed in the same run.
+
+Run:  PYTHONPATH=offline:ros_ws/src/aero_dva_sim python bench/bench_wing_flutter.py
+
+The reference wing with its Maxwell DVA (target: well under 10 ms per critical airspeed). The
+baseline assembles the state space anew at every airspeed and bisects the growth rate to the
+same 1e-10 relative tolerance, the straightforward way.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from aero_dva_sim.aerodynamics import TheodorsenAero
+from aero_dva_sim.flutter import flutter_speed
+from aero_dva_sim.wing_io import load_wing
+from aero_dva_sim.wing_model import AeroelasticModel
+
+
+def best(fn, repeats=20):
+    times = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        out = fn()
+        times.append(time.perf_counter() - t)
+    return min(times), out
+
+
+def baseline(model, rho, low, high, tol=1e-10):
+    def g(u):
+        lam = np.linalg.eigvals(model.state_space(u, rho).a)
+        lam = lam[np.abs(lam) > 1e-7]
+        return lam.real.max()
+
+    u = np.linspace(low, high, 400)
+    i = next(k for k in range(len(u)) if g(u[k]) > 0)
+    a, b = u[i - 1], u[i]
+    while b - a > tol * b:
+        m = 0.5 * (a + b)
+        a, b = (m, b) if g(m) < 0 else (a, m)
+    return 0.5 * (a + b)
+
+
+def main() -> None:
+    cfg = load_wing()
+    model = AeroelasticModel(cfg.wing, cfg.maxwell_design)
+    t_ours, res = best(lambda: flutter_speed(model, cfg.air_density))
+    high = 2.0 * res.critical_airspeed
+    t_base, u_base = best(lambda: baseline(model, cfg.air_density, 0.0, high), 3)
+    print(f"flutter speed with Maxwell DVA: {res.critical_airspeed:.6f} m/s, "
+          f"{res.flutter_frequency:.4f} Hz")
+    print(f"ours: {t_ours * 1e3:.2f} ms   baseline (bisection, reassembly): {t_base * 1e3:.1f} ms"
+          f"  -> {t_base / t_ours:.0f}x;  |difference| = "
+          f"{abs(u_base - res.critical_airspeed) / res.critical_airspeed:.1e} relative")
+    theo = AeroelasticModel(cfg.wing, cfg.maxwell_design, TheodorsenAero())
+    t_pk, res_pk = best(lambda: flutter_speed(theo, cfg.air_density), 3)
+    print(f"Theodorsen p-k: {res_pk.critical_airspeed:.4f} m/s ({res_pk.kind}) "
+          f"in {t_pk * 1e3:.0f} ms")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,92 @@
+"""Speed of the wing simulators, as ratios against baselines timed in the same run.
+
+Run:  PYTHONPATH=offline:ros_ws/src/aero_dva_sim python bench/bench_wing_sim.py [--flights 64]
+
+Prints (best of ``--repeats``):
+- the seed's flight (30 s ramp 0.8 -> 1.2 U_cr at 1 kHz, Maxwell DVA with a c2 schedule):
+  wall time and real-time factor for one flight (target >= 1000x);
+- a batch of flights vs a loop of single flights: flights per second and their ratio
+  (target >= 10x);
+- a constant-airspeed flight vs scipy.signal.dlsim on the same discretised system;
+- the streaming BlockSimulator in 20-sample blocks (the simulator node's use).
+"""
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+from scipy.signal import cont2discrete, dlsim
+
+from aero_dva_sim.flight_sim import BlockSimulator, ramp_airspeed, simulate_flights
+from aero_dva_sim.flutter import flutter_speed
+from aero_dva_sim.wing_io import load_wing
+from aero_dva_sim.wing_model import AeroelasticModel
+
+
+def best(fn, repeats):
+    times = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t)
+    return min(times)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--flights", type=int, default=64)
+    parser.add_argument("--repeats", type=int, default=3)
+    args = parser.parse_args()
+    cfg = load_wing()
+    wing, dva, rho = cfg.wing, cfg.maxwell_design, cfg.air_density
+    u_cr = flutter_speed(AeroelasticModel(wing), rho).critical_airspeed
+    u = ramp_airspeed(u_cr)
+    c2 = np.interp(u, [0.8 * u_cr, 1.2 * u_cr], [1200.0, 300.0])  # a c2 schedule
+    duration = u.size / 1000.0
+    rng = np.random.default_rng(0)
+    force = 1000.0 * rng.standard_normal((args.flights, u.size))
+
+    def one(i=0):
+        return simulate_flights(wing, dva, force=force[i], airspeed=u, density=rho, damping=c2)
+
+    t_one = best(one, args.repeats)
+    print(f"one 30 s flight:        {t_one * 1e3:8.1f} ms  = {duration / t_one:7.0f}x real time")
+
+    def loop():
+        for i in range(args.flights):
+            one(i)
+
+    def batch():
+        simulate_flights(wing, dva, force=force, airspeed=u, density=rho, damping=c2)
+
+    t_loop = best(loop, max(1, args.repeats - 2))
+    t_batch = best(batch, args.repeats)
+    rate_loop, rate_batch = args.flights / t_loop, args.flights / t_batch
+    print(f"loop of {args.flights} flights:    {rate_loop:8.1f} flights/s")
+    print(f"batch of {args.flights} flights:   {rate_batch:8.1f} flights/s"
+          f"  -> batch / loop = {rate_batch / rate_loop:.1f}x")
+
+    # Constant airspeed: the same LTI system through scipy.signal.dlsim.
+    ss = AeroelasticModel(wing, dva).state_space(0.9 * u_cr, rho, damping=600.0)
+    c = np.vstack([ss.c_displacement, ss.c_acceleration])
+    d = np.r_[np.zeros(4), ss.d_acceleration][:, None]
+    sysd = cont2discrete((ss.a, ss.b[:, None], c, d), 1e-3, "zoh")
+    t_dlsim = best(lambda: dlsim(sysd, force[0]), args.repeats)
+    t_ours = best(lambda: simulate_flights(wing, dva, force=force[0], airspeed=0.9 * u_cr,
+                                           density=rho, damping=600.0), args.repeats)
+    print(f"constant airspeed:      dlsim {t_dlsim * 1e3:.1f} ms, ours {t_ours * 1e3:.1f} ms"
+          f"  -> {t_dlsim / t_ours:.1f}x faster than dlsim")
+
+    def stream():
+        sim = BlockSimulator(wing, dva, quantum=2e-3)
+        for i in range(0, u.size, 20):
+            sim.advance(force[0, i:i + 20], u[i:i + 20], rho, c2[i:i + 20])
+
+    t_stream = best(stream, 1)
+    print(f"streaming, 20-sample blocks: {t_stream * 1e3:.0f} ms = "
+          f"{duration / t_stream:.0f}x real time")
+
+
+if __name__ == "__main__":
+    main()
