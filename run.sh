@@ -5,4 +5,4 @@ cd "$(dirname "${BASH_SOURCE[0]}")"
 bash scripts/setup.sh
 # shellcheck disable=SC1091
 source scripts/env.sh
-exec dva info "$@"
+exec bash scripts/main_job.sh "$@"

@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import math
 import os
 import signal
 import subprocess
@@ -135,10 +136,16 @@ def run(args) -> dict:
     if codes.get("simulator") not in (0, None):
         raise SystemExit(f"run_flight: error: simulator failed ({codes['simulator']}); "
                          f"see {logs / 'simulator.log'}")
-    summary = summarize(load_flight_log(bag)).to_dict()
+    log = load_flight_log(bag)
+    summary = summarize(log).to_dict()
+    final = next((d["values"] for d in reversed(log.diagnostics)
+                  if d["name"] == "simulator: flight" and "wall_time_s" in d["values"]), {})
     summary.update(controller=args.controller, bag=str(bag), node_logs=str(logs),
-                   wall_time=wall, exit_codes=codes)
-    return summary
+                   wall_time=wall, exit_codes=codes,
+                   flight_wall_time=float(final.get("wall_time_s", "nan")),
+                   command_latency_median=float(final.get("command_latency_median_s", "nan")))
+    return {k: (None if isinstance(v, float) and math.isnan(v) else v)
+            for k, v in summary.items()}
 
 
 def _format(summary: dict) -> str:
@@ -150,8 +157,11 @@ def _format(summary: dict) -> str:
     lines = [
         f"controller           {summary['controller']}",
         f"flown                {number('duration', '.2f')} s of sim time in "
-        f"{summary['wall_time']:.1f} s wall ({summary['duration'] / summary['wall_time']:.1f}x "
-        "real time)",
+        f"{number('flight_wall_time', '.1f')} s wall "
+        f"({summary['duration'] / (summary['flight_wall_time'] or math.inf):.1f}x real time; "
+        f"{summary['wall_time']:.1f} s with starting and stopping the nodes)",
+        f"command latency      {number('command_latency_median', '.3f')} s sim time from a "
+        "sample to its command acting (median)",
         f"airspeed             {number('airspeed_start', '.1f')} -> "
         f"{number('airspeed_end', '.1f')} m/s (U_cr without DVA "
         f"{number('critical_airspeed', '.2f')} m/s)",
