@@ -1,6 +1,8 @@
 """The recorder node writes bags that other tools read, and loses nothing it received on SIGINT."""
 from __future__ import annotations
 
+import subprocess
+import sys
 from pathlib import Path
 
 from mcap.reader import make_reader
@@ -77,6 +79,14 @@ def test_recorded_bag_reads_back_in_three_readers(executor, spin, ros_context, s
     decoded = _rosbags_messages(bag, "/wing/acceleration")
     assert len(decoded) == sent
     assert list(decoded[-1].leading_edge) == [-float(sent - 1)] * 20
+    # (4) rerun converts it to a recording with the topics as entities
+    rerun = str(Path(sys.executable).with_name("rerun"))
+    rrd = tmp_path / "run.rrd"
+    subprocess.run([rerun, "mcap", "convert", str(mcap_file), "-o", str(rrd)], check=True,
+                   capture_output=True, timeout=120)
+    stats = subprocess.run([rerun, "rrd", "stats", str(rrd)], check=True, capture_output=True,
+                           text=True, timeout=120)
+    assert "/wing/acceleration" in stats.stdout + stats.stderr
 
 
 def test_sigint_mid_stream_keeps_a_valid_bag(executor, spin, ros_context, start_process,
