@@ -15,7 +15,10 @@ from dva_offline import __version__
 # name -> module; a module registers exactly one top-level subcommand.
 SUBCOMMAND_MODULES = {
     "info": "dva_offline.info_cli",
+    "wing": "dva_offline.wing_cli",
     "isolator": "dva_offline.isolator.cli",
+    "discrepancy": "dva_offline.discrepancy.cli",
+    "control": "dva_offline.control_cli",
 }
 
 

@@ -251,11 +251,13 @@ def _modal(args) -> int:
     if args.tune:
         from tqdm import tqdm
 
+        from aero_dva_sim.absorbers import MaxwellAbsorber
+
+        if not isinstance(absorber, MaxwellAbsorber):
+            raise ValueError("modal --tune supports --absorber maxwell (c2 only)")
         curve = best_damping_curve(model, tqdm(u, desc="tuning", file=sys.stderr), rho,
                                    **_tune_kwargs(args))
         damping = np.array([c.damping for c in curve])
-        if absorber.__class__.__name__ == "PassiveAbsorber":
-            raise ValueError("modal --tune supports --absorber maxwell (c2 only)")
     res = modal_analysis(model, u, rho, damping)
     payload = {**source, "aero": aero.name, "density": rho, "absorber": _absorber_json(absorber),
                "bare_critical_airspeed": u_cr, "airspeed": u,

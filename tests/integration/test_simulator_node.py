@@ -6,6 +6,11 @@ import math
 import numpy as np
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rosgraph_msgs.msg import Clock
+
+from aero_dva_sim.simulator_node import Simulator
 from dva_msgs.msg import (
     AccelerationBlock,
     DamperCommand,
@@ -14,11 +19,6 @@ from dva_msgs.msg import (
     FlightCondition,
     ForceBlock,
 )
-from rclpy.node import Node
-from rclpy.parameter import Parameter
-from rosgraph_msgs.msg import Clock
-
-from aero_dva_sim.simulator_node import Simulator
 
 
 def _scenario(tmp_path, airspeed: str, duration: float = 1.0, block: int = 20) -> str:
@@ -60,7 +60,8 @@ def _simulator(context, tmp_path, scenario, **params):
 
 def test_blocks_clock_and_counts(executor, spin, ros_context, tmp_path):
     probe = Probe(ros_context)
-    sim = _simulator(ros_context, tmp_path, _scenario(tmp_path, "{kind: constant, value_ratio: 0.8}"))
+    scenario = _scenario(tmp_path, "{kind: constant, value_ratio: 0.8}")
+    sim = _simulator(ros_context, tmp_path, scenario)
     executor.add_node(probe.node)
     executor.add_node(sim)
     assert spin(executor, sim.finished.done, timeout=60.0)

@@ -142,8 +142,9 @@ def test_optimal_rms_grows_with_airspeed_and_is_flat_at_low_speed(model, u_cr, r
 
 
 def test_objectives_have_different_optima(model, u_cr):
-    """Seed: the translational and rotational optima differ (fig. 7.1 vs 7.2)."""
-    speeds = np.array([0.85, 0.9]) * u_cr
+    """Seed: the translational and rotational optima differ (fig. 7.1 vs 7.2). For the
+    reference wing the two curves cross near 0.9 U_cr, so compare away from the crossing."""
+    speeds = np.array([0.8, 1.0]) * u_cr
     plunge = optimal_damping(model, speeds, GRID, RHO, objective="plunge")
     pitch = optimal_damping(model, speeds, GRID, RHO, objective="rotation")
     edge = optimal_damping(model, speeds, GRID, RHO)

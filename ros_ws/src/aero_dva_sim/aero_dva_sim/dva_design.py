@@ -212,7 +212,7 @@ def _optimiser(model, density, **kwargs):
 def best_damping_curve(model, airspeeds, density: float, **kwargs) -> list[TunedSetting]:
     """The tuned setting at each airspeed (fig. 6.10-6.12, 6.20, 6.23)."""
     opt = _optimiser(model, density, **kwargs)
-    return [opt(float(u)) for u in np.asarray(airspeeds, dtype=float)]
+    return [opt(float(u)) for u in airspeeds]  # any iterable, e.g. wrapped in a progress bar
 
 
 def critical_frequency(model, setting: TunedSetting, density: float) -> float:

@@ -156,7 +156,13 @@ class _DiscreteCache:
     def lookup(self, params: np.ndarray, level: str = "basic") -> np.ndarray:
         """Indices (K,) of the rows of ``params`` (K, 3) = [U, rho, damping], computed to
         ``level`` ("basic", "carry" or "period"; each includes the previous)."""
-        rows, inverse = np.unique(params, axis=0, return_inverse=True)
+        params = np.asarray(params, dtype=float).reshape(-1, 3)
+        # Held parameters come in runs: deduplicate the runs first (cheap), then the rest.
+        new_run = np.ones(len(params), dtype=bool)
+        new_run[1:] = np.any(params[1:] != params[:-1], axis=1)
+        starts = np.flatnonzero(new_run)
+        rows, inverse = np.unique(params[starts], axis=0, return_inverse=True)
+        inverse = np.repeat(inverse.reshape(-1), np.diff(np.r_[starts, len(params)]))
         keys = [tuple(row) for row in rows.tolist()]
         missing = [k for k in keys if k not in self.index]
         if missing:
@@ -306,8 +312,8 @@ def _period_outputs(period, keys, x, out):
     h = out.shape[-1]
     uniq, inverse = np.unique(keys, return_inverse=True)
     if len(uniq) * 4 > nb:
-        res = np.einsum("fbi,boi->fob", x, period[keys]).reshape(f, 7, h, nb)
-        out[...] = res.transpose(0, 1, 3, 2)
+        res = x.transpose(1, 0, 2) @ period[keys].transpose(0, 2, 1)  # (B, F, 7 h)
+        out[...] = res.reshape(nb, f, 7, h).transpose(1, 2, 0, 3)
         return
     order = np.argsort(inverse, kind="stable")
     bounds = np.searchsorted(inverse[order], np.arange(len(uniq) + 1))
@@ -320,8 +326,9 @@ def _period_outputs(period, keys, x, out):
 
 
 BATCH_COLUMNS = 8
-"""From this many flights sharing one schedule on, whole hold periods are computed as one
-matrix product each (:func:`_period_outputs`); fewer flights are stepped sample by sample."""
+"""From this many flights sharing one schedule on (or when each discretisation serves at least
+eight hold periods), whole hold periods are computed as one matrix product each
+(:func:`_period_outputs`); otherwise the flights are stepped sample by sample."""
 
 
 def _run_full(cache, y, rows, u, out):
@@ -336,8 +343,11 @@ def _run_full(cache, y, rows, u, out):
     arr = cache.arr
     shared = f == 1 or bool(np.all(rows == rows[:1]))
     if shared:
-        level = "period" if f >= BATCH_COLUMNS else "carry"
-        k = cache.lookup(rows[0], level)
+        k = cache.lookup(rows[0], "carry")
+        # Whole-period products pay off for many flights or for keys reused many times.
+        level = "period" if f >= BATCH_COLUMNS or 8 * len(np.unique(k)) <= nb else "carry"
+        if level == "period":
+            k = cache.lookup(rows[0], "period")
         g = arr["ctrb"][k] @ u.transpose(1, 2, 0)  # (B, n, F)
         starts = _carry(arr["phih"][k], g, y.T)  # (B + 1, n, F)
         if level == "period":

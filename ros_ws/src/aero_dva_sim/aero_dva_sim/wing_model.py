@@ -90,7 +90,9 @@ class WingParameters:
         ``dC_L/dalpha`` [1/rad].
     span : float
         [m] The seed's forces are per unit span while its masses are totals; ``span``
-        multiplies the aerodynamic forces (1.0 reproduces the seed).
+        multiplies the aerodynamic forces (1.0 reproduces the printed equations). The seed is
+        inconsistent about its airspeeds (figure list: U_cr ~ 800 m/s; section 7.1.1:
+        ~100 m/s); the reference wing keeps 100 m/s with an effective span (docs/wing.md).
     """
 
     mass: float
