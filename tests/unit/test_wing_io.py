@@ -11,7 +11,6 @@ from aero_dva_sim.aerodynamics import QuasiSteadyAero
 from aero_dva_sim.wing_io import (
     load_section,
     load_wing,
-    load_wing_file,
     reference_wing_path,
     save_wing,
 )
@@ -25,7 +24,7 @@ def test_reference_wing_loads_with_its_maxwell_design():
     assert isinstance(cfg.aero, QuasiSteadyAero) and cfg.aero.pitch_damping == "thin_airfoil"
     assert isinstance(cfg.maxwell_design, MaxwellAbsorber)
     assert cfg.maxwell_design.mass == pytest.approx(0.04 * cfg.wing.mass)
-    assert load_wing_file(reference_wing_path()) == cfg
+    assert load_wing(reference_wing_path()) == cfg
 
 
 def test_round_trip(tmp_path):

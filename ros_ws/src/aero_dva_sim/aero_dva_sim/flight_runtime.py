@@ -99,9 +99,7 @@ def load_runtime_config(params: dict) -> RuntimeConfig:
     choice = params.get("absorber", "maxwell")
     if choice not in ABSORBER_CHOICES:
         raise ValueError(f"parameter 'absorber' must be one of {ABSORBER_CHOICES}, got {choice!r}")
-    design = wing_file.absorber
-    if not isinstance(design, MaxwellAbsorber):
-        raise ValueError("the wing file has no Maxwell absorber to take defaults from")
+    design = wing_file.maxwell_design
     absorber = None
     if choice == "maxwell":
         absorber = MaxwellAbsorber(

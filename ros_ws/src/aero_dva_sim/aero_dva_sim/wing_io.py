@@ -28,6 +28,7 @@ import yaml
 
 from aero_dva_sim.absorbers import MaxwellAbsorber, PassiveAbsorber
 from aero_dva_sim.aerodynamics import QuasiSteadyAero, aero_from_name
+from aero_dva_sim.paths import config_file
 from aero_dva_sim.typical_section import TypicalSection
 from aero_dva_sim.wing_checks import positive
 from aero_dva_sim.wing_model import WingParameters
@@ -38,7 +39,6 @@ __all__ = [
     "absorber_to_dict",
     "load_section",
     "load_wing",
-    "load_wing_file",
     "reference_wing_path",
     "save_wing",
 ]
@@ -65,16 +65,7 @@ class WingConfig:
 
 def reference_wing_path() -> Path:
     """Path of the packaged reference wing (source tree or installed share directory)."""
-    here = Path(__file__).resolve().parent.parent / "config" / "reference_wing.yaml"
-    if here.is_file():
-        return here
-    try:  # installed with colcon: share/aero_dva_sim/config
-        from ament_index_python.packages import get_package_share_directory
-
-        shared = Path(get_package_share_directory("aero_dva_sim")) / "config"
-        return shared / "reference_wing.yaml"
-    except Exception:  # noqa: BLE001 - any failure means "not installed"
-        return here
+    return config_file("reference_wing.yaml")
 
 
 def _fields(cls, data: dict, where: str) -> dict:
@@ -151,8 +142,6 @@ def load_wing(path=None) -> WingConfig:
         data = yaml.safe_load(fh)
     return config_from_dict(data, str(path))
 
-
-load_wing_file = load_wing
 
 
 def save_wing(path, config: WingConfig) -> None:
