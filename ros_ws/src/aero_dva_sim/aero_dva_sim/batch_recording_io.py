@@ -60,10 +60,10 @@ from mcap.records import (
 
 from aero_dva_sim import cdr_encoding as cdr
 from aero_dva_sim.mcap_io import (
-    METADATA_VERSION,
     BagSummary,
     BagWriter,
     TopicInfo,
+    bag_metadata,
     message_definition,
     normalize_type_name,
     qos_profile_yaml,
@@ -320,42 +320,10 @@ class _ChunkedBag:
 
     def _metadata(self) -> dict:
         # rosbag2 metadata exactly as mcap_io.BagWriter writes it.
-        start = self._t_min or 0
-        duration = 0 if self._t_min is None else self._t_max - self._t_min
-        count = sum(self.counts.values())
-        return {
-            "version": METADATA_VERSION,
-            "storage_identifier": "mcap",
-            "duration": {"nanoseconds": duration},
-            "starting_time": {"nanoseconds_since_epoch": start},
-            "message_count": count,
-            "topics_with_message_count": [
-                {
-                    "topic_metadata": {
-                        "name": topic,
-                        "type": self._schema_name(channel),
-                        "serialization_format": "cdr",
-                        "offered_qos_profiles": self._qos[topic],
-                        "type_description_hash": "",
-                    },
-                    "message_count": self.counts[topic],
-                }
-                for topic, channel in self._channels.items()
-            ],
-            "compression_format": "",
-            "compression_mode": "",
-            "relative_file_paths": [self.mcap_path.name],
-            "files": [
-                {
-                    "path": self.mcap_path.name,
-                    "starting_time": {"nanoseconds_since_epoch": start},
-                    "duration": {"nanoseconds": duration},
-                    "message_count": count,
-                }
-            ],
-            "custom_data": {},
-            "ros_distro": self._ros_distro,
-        }
+        topics = [(topic, self._schema_name(channel), self._qos[topic], self.counts[topic])
+                  for topic, channel in self._channels.items()]
+        return bag_metadata(self.mcap_path.name, topics, self._t_min, self._t_max,
+                            self._ros_distro)
 
     def _schema_name(self, channel: Channel) -> str:
         return next(s.name for s in self._schemas.values() if s.id == channel.schema_id)

@@ -49,6 +49,7 @@ __all__ = [
     "MessageTypeError",
     "TopicInfo",
     "TopicNotFoundError",
+    "bag_metadata",
     "bag_topics",
     "find_message_file",
     "message_definition",
@@ -353,6 +354,51 @@ class BagSummary:
     duration_ns: int
 
 
+def bag_metadata(mcap_name: str, topics: Sequence[tuple[str, str, str, int]],
+                 t_min: int | None, t_max: int | None, ros_distro: str) -> dict:
+    """rosbag2 ``metadata.yaml`` content (version :data:`METADATA_VERSION`) of a one-file bag.
+
+    ``topics`` holds (name, type, offered QoS YAML, message count) per topic; ``t_min`` and
+    ``t_max`` are the first and last log times [ns] (None for an empty bag).
+    """
+    start = t_min or 0
+    duration = 0 if t_min is None else t_max - t_min
+    count = sum(n for *_, n in topics)
+    return {
+        "version": METADATA_VERSION,
+        "storage_identifier": "mcap",
+        "duration": {"nanoseconds": duration},
+        "starting_time": {"nanoseconds_since_epoch": start},
+        "message_count": count,
+        "topics_with_message_count": [
+            {
+                "topic_metadata": {
+                    "name": name,
+                    "type": type_name,
+                    "serialization_format": "cdr",
+                    "offered_qos_profiles": qos,
+                    "type_description_hash": "",
+                },
+                "message_count": n,
+            }
+            for name, type_name, qos, n in topics
+        ],
+        "compression_format": "",
+        "compression_mode": "",
+        "relative_file_paths": [mcap_name],
+        "files": [
+            {
+                "path": mcap_name,
+                "starting_time": {"nanoseconds_since_epoch": start},
+                "duration": {"nanoseconds": duration},
+                "message_count": count,
+            }
+        ],
+        "custom_data": {},
+        "ros_distro": ros_distro,
+    }
+
+
 class BagWriter:
     """Write a rosbag2-layout MCAP bag directory.
 
@@ -553,42 +599,10 @@ class BagWriter:
         self._writer.flush()
 
     def _metadata(self) -> dict:
-        start = self._t_min or 0
-        duration = 0 if self._t_min is None else self._t_max - self._t_min
-        count = sum(self._counts.values())
-        return {
-            "version": METADATA_VERSION,
-            "storage_identifier": "mcap",
-            "duration": {"nanoseconds": duration},
-            "starting_time": {"nanoseconds_since_epoch": start},
-            "message_count": count,
-            "topics_with_message_count": [
-                {
-                    "topic_metadata": {
-                        "name": name,
-                        "type": type_name,
-                        "serialization_format": "cdr",
-                        "offered_qos_profiles": qos,
-                        "type_description_hash": "",
-                    },
-                    "message_count": self._counts[name],
-                }
-                for name, (type_name, qos) in self._topics.items()
-            ],
-            "compression_format": "",
-            "compression_mode": "",
-            "relative_file_paths": [self.mcap_path.name],
-            "files": [
-                {
-                    "path": self.mcap_path.name,
-                    "starting_time": {"nanoseconds_since_epoch": start},
-                    "duration": {"nanoseconds": duration},
-                    "message_count": count,
-                }
-            ],
-            "custom_data": {},
-            "ros_distro": self._ros_distro,
-        }
+        topics = [(name, type_name, qos, self._counts[name])
+                  for name, (type_name, qos) in self._topics.items()]
+        return bag_metadata(self.mcap_path.name, topics, self._t_min, self._t_max,
+                            self._ros_distro)
 
     def close(self) -> BagSummary | None:
         """Finish the MCAP file and write ``metadata.yaml`` atomically. Safe to call again.
