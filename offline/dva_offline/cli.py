@@ -19,6 +19,7 @@ SUBCOMMAND_MODULES = {
     "isolator": "dva_offline.isolator.cli",
     "discrepancy": "dva_offline.discrepancy.cli",
     "control": "dva_offline.control_cli",
+    "train": "dva_offline.train_cli",
 }
 
 
