@@ -1,0 +1,205 @@
+"""``dva discrepancy``: residual -> named missing effect -> augmented model -> error before/after.
+
+``dva discrepancy frf FILE --quantity receptance|accelerance|stiffness [--mass KG]
+[--static-stiffness N_PER_M] [--elements N] [--covariates COL[,COL...]] [--plot-dir DIR] --json``
+prints one JSON object (baseline, verdict, augmented, candidates, residual evidence).
+``dva discrepancy synth`` writes a test CSV that hides one effect (the generator of the tests).
+SI units throughout (kg, N/m, Hz).
+"""
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from dva_offline.isolator import isolator_io
+
+EXIT_OK = 0
+
+
+def _progress():
+    from tqdm import tqdm
+
+    bar = tqdm(file=sys.stderr, desc="discrepancy", unit="fit", leave=False)
+
+    def step(text: str) -> None:
+        bar.set_postfix_str(text)
+        bar.update(1)
+
+    return bar, step
+
+
+def _conditions(args):
+    path = Path(args.file)
+    columns = None
+    if args.covariates:
+        columns = [c.strip() for c in args.covariates.split(",") if c.strip()]
+    if path.suffix.lower() in (".uff", ".unv"):
+        data = isolator_io.read_uff58(path, args.quantity)
+        if columns:
+            raise ValueError("--covariates needs a CSV file (UFF 58 carries no covariates)")
+        return [data], columns
+    return isolator_io.read_frf_csv_conditions(path, args.quantity, columns), columns
+
+
+def _cmd_frf(args) -> int:
+    from dva_offline.discrepancy import engine
+    from dva_offline.discrepancy.frf_domain import FrfDomain
+    from dva_offline.discrepancy.report import plot_result, result_to_dict
+
+    if args.mass is not None and not args.mass > 0:
+        raise ValueError(f"--mass must be > 0 kg, got {args.mass}")
+    if args.static_stiffness is not None and not args.static_stiffness > 0:
+        raise ValueError(f"--static-stiffness must be > 0 N/m, got {args.static_stiffness}")
+    elements = None
+    if args.elements != "auto":
+        try:
+            elements = int(args.elements)
+        except ValueError:
+            raise ValueError(
+                f"--elements must be an integer >= 0 or 'auto', got {args.elements!r}"
+            ) from None
+    conditions, columns = _conditions(args)
+    domain = FrfDomain(conditions, mass=args.mass, static_stiffness=args.static_stiffness,
+                       elements=elements, max_elements=args.max_elements, covariates=columns)
+    rng = None if args.holdout_seed is None else np.random.default_rng(args.holdout_seed)
+    split = engine.holdout_split(domain.observations.groups, args.holdout_every, rng)
+    bar, step = _progress()
+    try:
+        result = engine.run(domain, split=split, progress=step)
+    finally:
+        bar.close()
+    sel = domain.order_selection
+    extra = {
+        "file": str(args.file), "quantity": args.quantity, "n_points": int(domain.omega.size),
+        "conditions": [
+            {"n_points": int(c.frequency_hz.size),
+             "covariates": {n: float(c.covariates[n][0]) for n in domain.observations.covariates}}
+            for c in conditions
+        ],
+        "mass_kg": args.mass, "static_stiffness_n_per_m": args.static_stiffness,
+        "elements": "auto" if elements is None else elements,
+        "order_selection": {
+            "isolator_selected_order": None if sel is None else sel.selected_order,
+            "refined_holdout_errors": {str(k): v for k, v in domain.order_errors.items()},
+            "baseline_order": domain.baseline_order,
+        },
+    }
+    payload = result_to_dict(result, extra)
+    if args.plot_dir:
+        paths = plot_result(result, domain.observations, args.plot_dir, args.quantity,
+                            Path(args.file).name)
+        payload["plots"] = [str(p) for p in paths]
+    if args.json:
+        print(json.dumps(payload))
+    else:
+        v = result.verdict
+        lines = [
+            f"baseline {result.baseline.name}: held-out error {result.baseline.error:.4f} "
+            f"(noise floor {result.noise.sigma:.4f})",
+            f"verdict: {v.status}" + (f" -> {v.effect}" + (f" ({v.label})" if v.label else "")
+                                      if v.effect else ""),
+        ]
+        if result.augmented is not None:
+            a = result.augmented
+            lines.append(f"augmented {a.name}: held-out error {a.error:.4f} "
+                         f"({100 * (1 - a.error / result.baseline.error):.0f} % lower)")
+            lines += [f"  {e.name} = {e.value:.6g} +- {e.std:.2g} {e.unit}" for e in a.added]
+        lines.append(f"evidence: {v.evidence}")
+        lines.append("candidates (held-out error, dBIC):")
+        for c in result.candidates:
+            label = f" ({c.label})" if c.label else ""
+            if c.applicable:
+                lines.append(f"  {c.effect}{label}: {c.fit.error:.4f}, {c.delta_bic:.1f}")
+            else:
+                lines.append(f"  {c.effect}{label}: not applicable: {c.reason}")
+        print("\n".join(lines))
+    return EXIT_OK
+
+
+def _cmd_synth(args) -> int:
+    from dva_offline.discrepancy import synthetic
+
+    effect = None if args.effect == "none" else args.effect
+    case = synthetic.generate_case(
+        effect, np.random.default_rng(args.seed), quantity=args.quantity, sigma=args.sigma,
+        n_points=args.points, system=args.system, clean_covariate=args.clean_covariate,
+    )
+    isolator_io.write_frf_csv(args.out, case.frequency_hz, case.values, case.covariates)
+    payload = {
+        "out": str(args.out), "seed": args.seed, "quantity": case.quantity,
+        "hidden_effect": case.effect, "hidden_parameters": case.parameters,
+        "system": case.system, "mass_kg": case.mass,
+        "static_stiffness_n_per_m": case.static_stiffness, "base_elements": case.n_elements,
+        "noise_sigma": case.sigma, "effect_size": case.effect_size,
+        "covariates": list(case.condition_columns), "n_points": int(case.frequency_hz.size),
+    }
+    from dva_offline.discrepancy.report import _clean
+
+    if args.json:
+        print(json.dumps(_clean(payload)))
+    else:
+        print(f"wrote {payload['n_points']} points to {args.out} (system {case.system}, "
+              f"m = {case.mass:g} kg, k = {case.static_stiffness:.6g} N/m; hidden: "
+              f"{case.effect})")
+    return EXIT_OK
+
+
+def register(subparsers) -> None:
+    """Add the ``discrepancy`` subcommand to the ``dva`` parser."""
+    from dva_offline.discrepancy import synthetic
+
+    parser = subparsers.add_parser(
+        "discrepancy",
+        help="find the effect a model lacks: residual -> named effect -> error before/after",
+        description=__doc__,
+    )
+    sub = parser.add_subparsers(dest="discrepancy_command", metavar="<domain>", required=True)
+
+    p = sub.add_parser("frf", help="isolator / viscoelastic FRF data against the Maxwell model")
+    p.add_argument("file", help="CSV frequency_hz,real,imag[,covariates] (sweeps may be "
+                               "stacked by covariate) or UFF 58")
+    p.add_argument("--quantity", choices=("receptance", "accelerance", "stiffness"),
+                   default="receptance", help="what the file holds (SI units)")
+    p.add_argument("--mass", type=float, default=None,
+                   help="isolated mass [kg] (default: fitted; fixture_mass then not tested)")
+    p.add_argument("--static-stiffness", type=float, default=None,
+                   help="static stiffness [N/m] (default: fitted)")
+    p.add_argument("--elements", default="auto",
+                   help="Maxwell elements of the baseline, or 'auto' (isolator order "
+                        "selection); a fixed order makes maxwell_element a candidate")
+    p.add_argument("--max-elements", type=int, default=3, help="largest order for 'auto'")
+    p.add_argument("--covariates", default=None, metavar="COL[,COL...]",
+                   help="condition columns (temperature, excitation level); default: every "
+                        "extra column with few distinct values")
+    p.add_argument("--holdout-every", type=int, default=4,
+                   help="hold out every Nth point of each condition (default 4)")
+    p.add_argument("--holdout-seed", type=int, default=None,
+                   help="hold out a seeded random 1/N of the points instead")
+    p.add_argument("--plot-dir", default=None, help="write PNG plots into this directory")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.set_defaults(func=_cmd_frf)
+
+    p = sub.add_parser("synth", help="write a synthetic FRF CSV that hides one effect")
+    p.add_argument("--effect", required=True,
+                   choices=("none", *synthetic.LIBRARY_EFFECTS, *synthetic.OUTSIDE_EFFECTS))
+    p.add_argument("--seed", type=int, required=True, help="random seed")
+    p.add_argument("--out", required=True, help="output CSV")
+    p.add_argument("--quantity", choices=("receptance", "accelerance", "stiffness"),
+                   default="receptance")
+    p.add_argument("--sigma", type=float, default=None,
+                   help="noise RMS (default: random 0.005-0.02)")
+    p.add_argument("--points", type=int, default=300, help="points per condition")
+    p.add_argument("--system", choices=sorted(synthetic.BASE_SYSTEMS), default=None)
+    p.add_argument("--clean-covariate", choices=("temperature_c", "excitation_n"),
+                   default=None, help="clean data: stack 3 conditions of this covariate")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.set_defaults(func=_cmd_synth)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    from dva_offline.cli import main
+
+    sys.exit(main(["discrepancy", *sys.argv[1:]]))

@@ -1,0 +1,754 @@
+"""Domain-independent model-discrepancy engine.
+
+Loop: fit the baseline on training points -> error on held-out points -> characterise the
+residual (noise floor, whiteness, localisation, phase trend, covariates) -> fit every candidate
+effect of the domain's library -> score on held-out points with a penalty per added parameter
+-> verdict ``consistent`` / ``explained`` (with the effect's name) / ``unexplained``.
+
+A domain supplies (see :class:`Domain`): the observations (complex values, weights that make
+residuals relative, an ordering axis, groups = test conditions, covariates), the baseline as a
+:class:`ModelSpec` and a candidate library of :class:`ModelSpec` (or :class:`NotApplicable`),
+each a physical extension of the baseline that reduces to it at a null parameter value.
+
+Error on held-out points (reported as ``error``), with weights w_j (w_j = 1 / |y_j| for FRFs):
+
+    e = sqrt( (1 / N_h) sum_{j in held-out} w_j^2 |yhat_j - y_j|^2 )
+
+i.e. the RMS relative error per point. For noise of RMS sigma (relative), a correct model has
+e ~ sigma. ``error_l2`` is the unweighted sqrt(sum |yhat - y|^2 / sum |y|^2) over the same
+points (the isolator tool's FRF error), reported for reference.
+
+Scores and decision (all thresholds in :class:`DecisionRule`):
+
+* Noise floor sigma_hat from the data alone (:func:`.residual.noise_floor`).
+* ``consistent`` when the baseline's held-out error e_0 <= consistency_ratio * sigma_hat and
+  its residual passes the Ljung-Box whiteness test (p >= whiteness_alpha).
+* Each candidate c (p_c added parameters, all parameters refitted on the training points):
+  penalised held-out score dBIC_c = n ln(S_c / S_0) + p_c ln(n), n = 2 N_h real residuals,
+  S = held-out sum of squared weighted residuals; a nested F test on the training points
+  (baseline vs candidate) gives p-value p_c; the explained fraction
+  R_c = (S_0 - S_c) / (S_0 - N_h sigma_hat^2) is the share of the excess (non-noise) held-out
+  residual power that the candidate removes.
+* ``explained`` when the best candidate (lowest dBIC) has p_c < significance,
+  dBIC_c <= -min_bic_gain and R_c >= min_explained, and no other candidate with
+  R >= min_explained comes within ambiguity_margin of its dBIC. Otherwise ``unexplained``.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+from scipy import stats
+from scipy.optimize import least_squares
+from scipy.special import expit
+
+from dva_offline.discrepancy.residual import NoiseFloor, ResidualFeatures, characterise
+
+EFFECT_VOCABULARY = {
+    "maxwell_element": "one more Maxwell element (spring in series with a damper) in the mount",
+    "sensor_delay": "time delay of the response channel (also in-band anti-alias filter phase)",
+    "fixture_mass": "mass error: fixture or accelerometer mass not in the model",
+    "foundation_mode": "compliant foundation/fixture with its own resonance, in series",
+    "amplitude_dependence": "stiffness and damping depending on the excitation level",
+    "covariate_shift": "frequency shift with a covariate (time-temperature superposition)",
+    "actuator_lag": "lag of the damper actuator (flight domain)",
+    "cubic_stiffness": "cubic (hardening) stiffness (flight domain)",
+    "unsteady_aero": "unsteady aerodynamic lag (flight domain)",
+    "parameter_drift": "drift of a structural parameter (flight domain)",
+}
+STATUSES = ("consistent", "explained", "unexplained")
+ERROR_DEFINITION = (
+    "RMS relative error on held-out points: sqrt(mean_j |H_model_j - H_j|^2 / |H_j|^2) over the "
+    "held-out points j (not used in any fit); error_l2 = sqrt(sum |H_model - H|^2 / sum |H|^2) "
+    "over the same points"
+)
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """One free parameter of a model.
+
+    Attributes
+    ----------
+    name : str
+    unit : str
+        SI unit (text).
+    initial : float
+        Starting value [unit].
+    lower, upper : float
+        Bounds [unit]; for ``log`` parameters 0 < lower.
+    log : bool
+        Fit ln(value) (positive parameters spanning decades).
+    scale : float
+        Typical magnitude of a linear parameter (the optimiser works on value / scale).
+    """
+
+    name: str
+    unit: str
+    initial: float
+    lower: float = -np.inf
+    upper: float = np.inf
+    log: bool = False
+    scale: float = 1.0
+
+    def __post_init__(self) -> None:
+        if not self.lower < self.upper:
+            raise ValueError(f"parameter {self.name!r}: lower must be < upper")
+        if self.log and not self.lower > 0:
+            raise ValueError(f"parameter {self.name!r}: log parameters need lower > 0")
+        if not (np.isfinite(self.scale) and self.scale > 0):
+            raise ValueError(f"parameter {self.name!r}: scale must be finite and > 0")
+
+
+@dataclass(frozen=True)
+class ModelSpec:
+    """A parametric model the engine can fit.
+
+    Attributes
+    ----------
+    name : str
+        Human-readable model name, e.g. ``"maxwell(n=2) + sensor_delay"``.
+    effect : str or None
+        Effect name from :data:`EFFECT_VOCABULARY` (None for the baseline).
+    params : tuple of ParamSpec
+        All free parameters; the last ``n_added`` belong to the effect.
+    n_added : int
+        Parameters added to the baseline.
+    predict : callable
+        ``predict(values)`` maps physical parameter values, shape (P,), to model values at
+        all N observation points, shape (N,), complex.
+    starts : tuple of numpy.ndarray
+        Further starting points (physical values, shape (P,)), besides the initial values.
+    signature : str
+        What the effect looks like in the residual (documentation, reported).
+    label : str
+        Extra qualifier, e.g. the covariate a candidate uses.
+    n_priority : int
+        The first ``n_priority`` of ``starts`` are informed guesses (e.g. from the residual's
+        peaks) that always get iterations when the starts are screened.
+    """
+
+    name: str
+    effect: str | None
+    params: tuple[ParamSpec, ...]
+    n_added: int
+    predict: Callable[[np.ndarray], np.ndarray]
+    starts: tuple[np.ndarray, ...] = ()
+    signature: str = ""
+    label: str = ""
+    n_priority: int = 0
+
+    def __post_init__(self) -> None:
+        if self.effect is not None and self.effect not in EFFECT_VOCABULARY:
+            raise ValueError(f"effect must be one of {sorted(EFFECT_VOCABULARY)}, "
+                             f"got {self.effect!r}")
+        if not 0 <= self.n_added <= len(self.params):
+            raise ValueError(f"n_added must be in [0, {len(self.params)}], got {self.n_added}")
+
+
+@dataclass(frozen=True)
+class NotApplicable:
+    """A library entry that cannot be fitted to these data, and why."""
+
+    effect: str
+    reason: str
+    label: str = ""
+
+
+@dataclass(frozen=True)
+class Observations:
+    """The data a domain hands to the engine.
+
+    Attributes
+    ----------
+    values : numpy.ndarray
+        Measured values y, shape (N,), complex.
+    weights : numpy.ndarray
+        w_j > 0, shape (N,); residuals are w_j (yhat_j - y_j) (1 / |y_j| for relative errors).
+    axis : numpy.ndarray
+        Ordering axis, shape (N,) (frequency [Hz]); points sorted along it within each group.
+    groups : numpy.ndarray
+        Test condition of each point, shape (N,), int.
+    covariates : dict of str to numpy.ndarray
+        Condition covariates, each shape (N,).
+    axis_name : str
+    log_axis : bool
+        Bands on a log axis (frequencies) or a linear one.
+    """
+
+    values: np.ndarray
+    weights: np.ndarray
+    axis: np.ndarray
+    groups: np.ndarray
+    covariates: dict = field(default_factory=dict)
+    axis_name: str = "frequency_hz"
+    log_axis: bool = True
+
+    def __post_init__(self) -> None:
+        y = np.asarray(self.values, dtype=complex)
+        w = np.asarray(self.weights, dtype=float)
+        x = np.asarray(self.axis, dtype=float)
+        g = np.asarray(self.groups, dtype=int)
+        if y.ndim != 1 or y.size < 10:
+            raise ValueError(f"values must be 1-D with >= 10 points, got shape {y.shape}")
+        for name, arr in (("weights", w), ("axis", x), ("groups", g)):
+            if arr.shape != y.shape:
+                raise ValueError(f"{name} must have shape {y.shape}, got {arr.shape}")
+        if not (np.all(np.isfinite(y)) and np.all(np.isfinite(w)) and np.all(w > 0)):
+            raise ValueError("values must be finite and weights finite and > 0")
+        for name, col in self.covariates.items():
+            if np.shape(col) != y.shape:
+                raise ValueError(f"covariate {name!r} must have shape {y.shape}")
+        for label in np.unique(g):
+            if np.any(np.diff(x[g == label]) <= 0):
+                raise ValueError(f"axis must be strictly increasing within group {label}")
+        object.__setattr__(self, "values", y)
+        object.__setattr__(self, "weights", w)
+        object.__setattr__(self, "axis", x)
+        object.__setattr__(self, "groups", g)
+
+
+class Domain(Protocol):
+    """What a domain supplies to :func:`run`."""
+
+    name: str
+    observations: Observations
+
+    def baseline(self, train: np.ndarray) -> ModelSpec:
+        """The baseline model, initialised from the training points (mask, shape (N,))."""
+
+    def candidates(
+        self, baseline: ModelFit, features: ResidualFeatures
+    ) -> Sequence[ModelSpec | NotApplicable]:
+        """The candidate library, each started from the fitted baseline."""
+
+    def variants(self, spec: ModelSpec) -> Sequence[ModelSpec]:
+        """Optional: other forms of a promising candidate (e.g. on a richer baseline); the
+        engine keeps the form with the best score. Return [] for none."""
+
+
+@dataclass(frozen=True)
+class HoldoutSplit:
+    """Training and held-out points.
+
+    Attributes
+    ----------
+    train, held : numpy.ndarray
+        Boolean masks, shape (N,), complementary.
+    scheme : str
+        How the held-out points were chosen.
+    """
+
+    train: np.ndarray
+    held: np.ndarray
+    scheme: str
+
+
+def holdout_split(groups, every: int = 4, rng: np.random.Generator | None = None) -> HoldoutSplit:
+    """Hold out every ``every``-th point of each group (from point ``every // 2``), or, with
+    ``rng``, a random 1/``every`` of each group's points.
+
+    Parameters
+    ----------
+    groups : array_like of int, shape (N,)
+        Group of each point (points ordered along the axis within a group).
+    every : int
+        >= 2.
+    rng : numpy.random.Generator, optional
+        ``numpy.random.default_rng(seed)`` for a seeded random split.
+    """
+    g = np.asarray(groups)
+    if not isinstance(every, (int, np.integer)) or every < 2:
+        raise ValueError(f"every must be an integer >= 2, got {every!r}")
+    held = np.zeros(g.size, dtype=bool)
+    for label in np.unique(g):
+        idx = np.nonzero(g == label)[0]
+        if rng is None:
+            held[idx[every // 2:: every]] = True
+        else:
+            held[rng.choice(idx, size=max(1, idx.size // every), replace=False)] = True
+    scheme = (f"every {every}th point of each condition, starting at index {every // 2}"
+              if rng is None else f"seeded random 1/{every} of each condition's points")
+    return HoldoutSplit(~held, held, scheme)
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """A fitted parameter with its standard error (Gauss-Newton, from the Jacobian)."""
+
+    name: str
+    unit: str
+    value: float
+    std: float
+
+
+@dataclass(frozen=True)
+class ModelFit:
+    """A model fitted on the training points and scored on the held-out points.
+
+    Attributes
+    ----------
+    name, effect, label : str, str or None, str
+        From the :class:`ModelSpec`.
+    estimates : tuple of Estimate
+        All parameters; the last ``n_added`` are the effect's.
+    n_added : int
+    prediction : numpy.ndarray
+        Model values at all points, shape (N,), complex.
+    residual : numpy.ndarray
+        w (yhat - y) at all points, shape (N,), complex.
+    error : float
+        Held-out RMS weighted (relative) error [-] (module docstring).
+    error_l2 : float
+        Held-out unweighted relative L2 error [-].
+    train_error : float
+        RMS weighted error on the training points [-].
+    rss_train, rss_held : float
+        Sums of squared weighted residuals on training / held-out points.
+    n_train, n_held : int
+    success : bool
+        Optimiser success of the best start.
+    n_starts : int
+    """
+
+    name: str
+    effect: str | None
+    label: str
+    estimates: tuple[Estimate, ...]
+    n_added: int
+    prediction: np.ndarray
+    residual: np.ndarray
+    error: float
+    error_l2: float
+    train_error: float
+    rss_train: float
+    rss_held: float
+    n_train: int
+    n_held: int
+    success: bool
+    n_starts: int
+
+    @property
+    def n_params(self) -> int:
+        """Number of fitted parameters."""
+        return len(self.estimates)
+
+    @property
+    def added(self) -> tuple[Estimate, ...]:
+        """The effect's parameters."""
+        return self.estimates[len(self.estimates) - self.n_added:]
+
+    def value(self, name: str) -> float:
+        """Fitted value of parameter ``name``."""
+        for est in self.estimates:
+            if est.name == name:
+                return est.value
+        raise KeyError(name)
+
+
+class _Coordinates:
+    """Optimiser coordinates z of the parameters.
+
+    x = ln(value) for log parameters, value / scale otherwise; a parameter with two finite
+    bounds is mapped smoothly, x = lo + (hi - lo) / (1 + exp(-z)), so the bounds hold without
+    clipping (clipping leaves zero gradients and stalls Levenberg-Marquardt at a bound).
+    """
+
+    def __init__(self, params):
+        self.log = np.array([p.log for p in params], dtype=bool)
+        self.scale = np.array([p.scale for p in params], dtype=float)
+        self.lo = np.array([self._x(p, p.lower) for p in params], dtype=float)
+        self.hi = np.array([self._x(p, p.upper) for p in params], dtype=float)
+        self.bounded = np.isfinite(self.lo) & np.isfinite(self.hi)
+
+    @staticmethod
+    def _x(p, value):
+        if not np.isfinite(value):
+            return value
+        return float(np.log(value)) if p.log else value / p.scale
+
+    def to_z(self, values) -> np.ndarray:
+        v = np.asarray(values, dtype=float)
+        with np.errstate(all="ignore"):
+            x = np.where(self.log, np.log(np.where(self.log, v, 1.0)), v / self.scale)
+        span = np.where(self.bounded, self.hi - self.lo, 1.0)
+        # starts on a bound are moved inside, where the mapping still has a gradient
+        t = np.clip((x - self.lo) / span, 0.005, 0.995)
+        return np.where(self.bounded, np.log(t / (1 - t)), np.clip(x, self.lo, self.hi))
+
+    def to_values(self, z) -> np.ndarray:
+        z = np.asarray(z, dtype=float)
+        span = np.where(self.bounded, self.hi - self.lo, 1.0)
+        x = np.where(self.bounded, self.lo + span * expit(z),
+                     np.clip(z, self.lo, self.hi))
+        return np.where(self.log, np.exp(x), x * self.scale)
+
+    def dvalues_dz(self, z) -> np.ndarray:
+        z = np.asarray(z, dtype=float)
+        span = np.where(self.bounded, self.hi - self.lo, 1.0)
+        sig = expit(z)
+        dx = np.where(self.bounded, span * sig * (1 - sig), 1.0)
+        return np.where(self.log, self.to_values(z) * dx, self.scale * dx)
+
+
+def fit_model(spec: ModelSpec, obs: Observations, split: HoldoutSplit,
+              max_nfev: int = 60, n_refine: int = 2, n_screen: int = 10) -> ModelFit:
+    """Weighted nonlinear least squares on the training points, from every start; best wins.
+
+    Parameters
+    ----------
+    spec : ModelSpec
+    obs : Observations
+    split : HoldoutSplit
+    max_nfev : int
+        Limit on residual evaluations per start, not counting those of the finite-difference
+        Jacobian (about the number of Levenberg-Marquardt iterations).
+    n_refine, n_screen : int
+        With more than ``n_refine`` starts, all are screened by their cost; the initial
+        values and the ``n_screen`` cheapest starts get a few iterations, and the
+        ``n_refine`` best of those are fitted to convergence.
+
+    Returns
+    -------
+    ModelFit
+    """
+    params = spec.params
+    n_p = len(params)
+    coords = _Coordinates(params)
+    train = split.train
+    y_tr = obs.values[train]
+    w_tr = obs.weights[train]
+    big = 1e3 * np.sqrt(train.sum())
+
+    def resid(u):
+        with np.errstate(all="ignore"):
+            pred = spec.predict(coords.to_values(u))[train]
+            r = w_tr * (pred - y_tr)
+        out = np.concatenate([r.real, r.imag])
+        if not np.all(np.isfinite(out)):
+            out = np.where(np.isfinite(out), out, big)
+        return out
+
+    starts = [np.array([p.initial for p in params], dtype=float), *map(np.asarray, spec.starts)]
+    internal = []
+    for start in starts:
+        if start.shape != (n_p,):
+            raise ValueError(f"{spec.name}: a start has shape {start.shape}, expected ({n_p},)")
+        internal.append(coords.to_z(start))
+    n_starts = len(internal)
+    if n_p and len(internal) > n_refine:
+        # Screen a grid of starts: cost at each start, a few iterations from the best
+        # n_screen of them (and the initial values), then full fits from the best n_refine.
+        costs = [float(np.sum(resid(u0) ** 2)) for u0 in internal[1:]]
+        keep = np.argsort(costs)[:n_screen] + 1
+        chosen = sorted({0, *range(1, 1 + spec.n_priority), *keep.tolist()})
+        short = [least_squares(resid, internal[i], method="lm", x_scale="jac",
+                               max_nfev=15 if 1 <= i <= spec.n_priority else 6)
+                 for i in chosen]
+        short.sort(key=lambda r: r.cost)
+        internal = [r.x for r in short[:n_refine]]
+    best = None
+    for u0 in internal:
+        if n_p == 0:
+            break
+        # Levenberg-Marquardt (MINPACK) on the optimiser coordinates (bounds built in).
+        res = least_squares(resid, u0, method="lm", x_scale="jac", ftol=1e-7, xtol=1e-7,
+                            max_nfev=max_nfev)
+        if best is None or res.cost < best.cost:
+            best = res
+    if n_p == 0:
+        u = np.zeros(0)
+        jac = np.zeros((2 * int(train.sum()), 0))
+        success = True
+    else:
+        u, jac, success = best.x, best.jac, bool(best.success)
+    values = coords.to_values(u)
+    with np.errstate(all="ignore"):
+        pred = spec.predict(values)
+    residual = obs.weights * (pred - obs.values)
+    if not np.all(np.isfinite(residual)):
+        raise ValueError(f"{spec.name}: model is not finite at the fitted parameters")
+    held = split.held
+    rss_tr = float(np.sum(np.abs(residual[train]) ** 2))
+    rss_h = float(np.sum(np.abs(residual[held]) ** 2))
+    n_tr, n_h = int(train.sum()), int(held.sum())
+    std = np.full(n_p, np.nan)
+    dof = 2 * n_tr - n_p
+    if n_p and dof > 0:
+        s2 = rss_tr / dof
+        cov = np.linalg.pinv(jac.T @ jac) * s2
+        std_u = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+        std = np.abs(coords.dvalues_dz(u)) * std_u  # delta method
+    dy = pred[held] - obs.values[held]
+    return ModelFit(
+        name=spec.name, effect=spec.effect, label=spec.label,
+        estimates=tuple(Estimate(p.name, p.unit, float(v), float(s))
+                        for p, v, s in zip(params, values, std)),
+        n_added=spec.n_added, prediction=pred, residual=residual,
+        error=float(np.sqrt(rss_h / n_h)),
+        error_l2=float(np.linalg.norm(dy) / np.linalg.norm(obs.values[held])),
+        train_error=float(np.sqrt(rss_tr / n_tr)), rss_train=rss_tr, rss_held=rss_h,
+        n_train=n_tr, n_held=n_h, success=success, n_starts=n_starts,
+    )
+
+
+@dataclass(frozen=True)
+class DecisionRule:
+    """Thresholds of the verdict (module docstring).
+
+    Attributes
+    ----------
+    consistency_ratio : float
+        Baseline consistent if held-out error <= this x noise floor (and white).
+    whiteness_alpha : float
+        Ljung-Box p-value below which the residual is called correlated.
+    significance : float
+        F-test p-value a candidate must beat.
+    min_bic_gain : float
+        A candidate must lower the held-out BIC by at least this.
+    min_explained : float
+        Share of the excess residual power the best candidate must remove.
+    ambiguity_margin : float
+        Another candidate that also explains the residual within this BIC margin makes the
+        attribution ambiguous (verdict ``unexplained``).
+    """
+
+    consistency_ratio: float = 1.25
+    whiteness_alpha: float = 1e-3
+    significance: float = 1e-3
+    min_bic_gain: float = 10.0
+    min_explained: float = 0.9
+    ambiguity_margin: float = 10.0
+
+
+@dataclass(frozen=True)
+class CandidateScore:
+    """A library entry's result.
+
+    Attributes
+    ----------
+    effect, label : str
+    applicable : bool
+    reason : str
+        Why not applicable (empty otherwise).
+    fit : ModelFit or None
+    delta_bic : float
+        Penalised held-out score relative to the baseline (negative is better).
+    p_value : float
+        Nested F test on the training points (baseline vs candidate).
+    explained_fraction : float
+        R (module docstring); NaN when the baseline has no excess over the noise floor.
+    signature : str
+    """
+
+    effect: str
+    label: str
+    applicable: bool
+    reason: str
+    fit: ModelFit | None
+    delta_bic: float
+    p_value: float
+    explained_fraction: float
+    signature: str
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """``status`` in :data:`STATUSES`; ``effect`` named only when explained."""
+
+    status: str
+    effect: str | None
+    label: str
+    evidence: str
+
+
+@dataclass(frozen=True)
+class DiscrepancyResult:
+    """Everything the engine found.
+
+    Attributes
+    ----------
+    domain : str
+    split : HoldoutSplit
+    baseline : ModelFit
+    noise : NoiseFloor
+    residual : ResidualFeatures
+        Of the baseline's residual (all points).
+    candidates : tuple of CandidateScore
+        Sorted best first (applicable ones by delta_bic, then the others).
+    verdict : Verdict
+    augmented : ModelFit or None
+        The named effect's fit, when explained.
+    augmented_residual : ResidualFeatures or None
+    rule : DecisionRule
+    error_definition : str
+    """
+
+    domain: str
+    split: HoldoutSplit
+    baseline: ModelFit
+    noise: NoiseFloor
+    residual: ResidualFeatures
+    candidates: tuple[CandidateScore, ...]
+    verdict: Verdict
+    augmented: ModelFit | None
+    augmented_residual: ResidualFeatures | None
+    rule: DecisionRule
+    error_definition: str = ERROR_DEFINITION
+
+    @property
+    def error_reduction(self) -> float | None:
+        """Augmented over baseline held-out error (None unless explained)."""
+        if self.augmented is None:
+            return None
+        return self.augmented.error / self.baseline.error
+
+
+def score_candidate(base: ModelFit, fit: ModelFit, sigma: float) -> tuple[float, float, float]:
+    """(delta_bic, p_value, explained_fraction) of a candidate fit against the baseline fit."""
+    n = 2 * fit.n_held
+    p_add = fit.n_added
+    delta_bic = n * np.log(fit.rss_held / base.rss_held) + p_add * np.log(n)
+    dof = 2 * fit.n_train - fit.n_params
+    if p_add == 0 or dof <= 0 or fit.rss_train >= base.rss_train:
+        p_value = 1.0
+    else:
+        f = ((base.rss_train - fit.rss_train) / p_add) / (fit.rss_train / dof)
+        p_value = float(stats.f.sf(f, p_add, dof))
+    excess = base.rss_held - fit.n_held * sigma**2
+    frac = (base.rss_held - fit.rss_held) / excess if excess > 0 else np.nan
+    return float(delta_bic), p_value, float(frac)
+
+
+def _features(obs: Observations, fit: ModelFit, sigma=None) -> ResidualFeatures:
+    with np.errstate(all="ignore"):
+        ratio = obs.values / fit.prediction
+    if not np.all(np.isfinite(ratio)) or np.any(ratio == 0):
+        ratio = None
+    return characterise(obs.axis, fit.residual, obs.groups, obs.covariates, ratio, sigma,
+                        log=obs.log_axis)
+
+
+def _describe(c: CandidateScore) -> str:
+    label = f" ({c.label})" if c.label else ""
+    return (f"{c.effect}{label}: held-out error {c.fit.error:.4f}, dBIC {c.delta_bic:.1f}, "
+            f"F-test p = {c.p_value:.2g}, explains {100 * c.explained_fraction:.0f} % of the "
+            "excess")
+
+
+def decide(base: ModelFit, noise: NoiseFloor, features: ResidualFeatures,
+           scores: Sequence[CandidateScore], rule: DecisionRule) -> Verdict:
+    """Apply :class:`DecisionRule` (module docstring) to the scored candidates."""
+    sigma = noise.sigma
+    ratio = base.error / sigma if sigma > 0 else np.inf
+    white = features.whiteness
+    head = (f"baseline held-out error {base.error:.4f} = {ratio:.2f} x the noise floor "
+            f"{sigma:.4f}; residual whiteness (Ljung-Box) p = {white.p_value:.2g}")
+    fitted = [c for c in scores if c.applicable and c.fit is not None]
+    if ratio <= rule.consistency_ratio and white.p_value >= rule.whiteness_alpha:
+        return Verdict("consistent", None, "",
+                       f"{head}: the baseline fits within the noise; nothing added")
+    eligible = [c for c in fitted if c.p_value < rule.significance
+                and c.delta_bic <= -rule.min_bic_gain]
+    if not eligible:
+        best = min(fitted, key=lambda c: c.delta_bic) if fitted else None
+        tail = f"; best was {_describe(best)}" if best is not None else ""
+        return Verdict("unexplained", None, "",
+                       f"{head}; no candidate improves the held-out score significantly{tail}")
+    best = min(eligible, key=lambda c: c.delta_bic)
+    frac = best.explained_fraction
+    if not frac >= rule.min_explained:
+        return Verdict(
+            "unexplained", None, "",
+            f"{head}; the best candidate explains too little (< "
+            f"{100 * rule.min_explained:.0f} %): {_describe(best)}",
+        )
+    rivals = [c for c in eligible if c is not best and c.explained_fraction >= rule.min_explained
+              and c.delta_bic - best.delta_bic < rule.ambiguity_margin]
+    if rivals:
+        return Verdict(
+            "unexplained", None, "",
+            f"{head}; ambiguous: {_describe(best)} and {_describe(rivals[0])} explain the "
+            "residual about equally well",
+        )
+    runner = [c for c in fitted if c is not best]
+    tail = (f"; next best {_describe(min(runner, key=lambda c: c.delta_bic))}"
+            if runner else "")
+    return Verdict("explained", best.effect, best.label,
+                   f"{head}; {_describe(best)}; held-out error {base.error:.4f} -> "
+                   f"{best.fit.error:.4f}{tail}")
+
+
+def run(domain: Domain, rule: DecisionRule | None = None, split: HoldoutSplit | None = None,
+        progress: Callable[[str], None] | None = None, n_variants: int = 2) -> DiscrepancyResult:
+    """Run the discrepancy loop on a domain.
+
+    Parameters
+    ----------
+    domain : Domain
+    rule : DecisionRule, optional
+    split : HoldoutSplit, optional
+        Default :func:`holdout_split` with every 4th point held out.
+    progress : callable, optional
+        Called with a short text before each fit (progress bars live in the CLI).
+    n_variants : int
+        How many of the best candidates get the domain's variants tried.
+
+    Returns
+    -------
+    DiscrepancyResult
+    """
+    rule = rule or DecisionRule()
+    obs = domain.observations
+    split = split or holdout_split(obs.groups)
+    if split.train.shape != obs.values.shape or split.held.sum() < 5:
+        raise ValueError("split must have the observations' shape and >= 5 held-out points")
+    if progress:
+        progress("baseline")
+    base = fit_model(domain.baseline(split.train), obs, split)
+    features = _features(obs, base)
+    noise = features.noise
+    scores = []
+    specs = {}
+    for item in domain.candidates(base, features):
+        if isinstance(item, NotApplicable):
+            scores.append(CandidateScore(item.effect, item.label, False, item.reason, None,
+                                         np.nan, np.nan, np.nan, ""))
+            continue
+        if progress:
+            progress(item.effect + (f" ({item.label})" if item.label else ""))
+        specs[(item.effect, item.label)] = item
+        fit = fit_model(item, obs, split)
+        dbic, p, frac = score_candidate(base, fit, noise.sigma)
+        scores.append(CandidateScore(item.effect, item.label, True, "", fit, dbic, p, frac,
+                                     item.signature))
+    # Promising candidates (lowest dBIC, significant) get their variants tried too.
+    variants = getattr(domain, "variants", None)
+    if variants is not None:
+        # (only while they leave residual power above the noise: nothing to gain otherwise)
+        ranked = sorted((c for c in scores if c.applicable and c.delta_bic < 0),
+                        key=lambda c: c.delta_bic)[:n_variants]
+        ranked = [c for c in ranked if c.fit.error > rule.consistency_ratio * noise.sigma]
+        for c in ranked:
+            for spec in variants(specs[(c.effect, c.label)]):
+                if progress:
+                    progress(f"{spec.name}")
+                fit = fit_model(spec, obs, split)
+                dbic, p, frac = score_candidate(base, fit, noise.sigma)
+                if dbic < c.delta_bic:
+                    i = scores.index(c)
+                    c = CandidateScore(c.effect, c.label, True, "", fit, dbic, p, frac,
+                                       c.signature)
+                    scores[i] = c
+    scores.sort(key=lambda c: (not c.applicable, c.delta_bic if c.applicable else 0.0))
+    verdict = decide(base, noise, features, scores, rule)
+    augmented = aug_features = None
+    if verdict.status == "explained":
+        chosen = next(c for c in scores if c.applicable and c.effect == verdict.effect
+                      and c.label == verdict.label)
+        augmented = chosen.fit
+        aug_features = _features(obs, augmented, noise.sigma)
+    return DiscrepancyResult(domain.name, split, base, noise, features, tuple(scores), verdict,
+                             augmented, aug_features, rule)

@@ -1,0 +1,650 @@
+"""Domain 1: frequency responses of isolators and viscoelastic mounts (seed chapters 3-5).
+
+Baseline: the general Maxwell model of the isolator tool, K(w) = k + j w c +
+sum_i j w c_i k_i / (k_i + j w c_i) (eq. 4.8), seen through the measured quantity
+(receptance 1 / (K - m w^2), accelerance -w^2 / (K - m w^2) or the stiffness K itself). Its
+order comes from the isolator's own order selection
+(:func:`dva_offline.isolator.order_selection.select_model_order`, Voigt -> M-V -> M-M-V -> ...,
+on the training points only), or is fixed by the user (``elements``). The isolator fit imposes
+the natural frequency and damping ratio estimated from the data (eq. 4.12); since those are
+estimates, the engine then refits all parameters of that model by weighted least squares
+without the constraint (weights 1/|H_j|, the maximum-likelihood choice for multiplicative
+noise). Mass m and static stiffness k are fixed when given, fitted otherwise.
+
+Several conditions (sweeps at several temperatures or excitation levels) are pooled: the
+baseline has no covariate dependence.
+
+Candidate library (each reduces to the baseline at its null value; all baseline parameters
+are refitted with the effect's):
+
+=====================  =====================================================  ================
+effect                 model                                                  added params
+=====================  =====================================================  ================
+maxwell_element        K + j w c_e k_e / (k_e + j w c_e)                      k_e, c_e
+sensor_delay           H exp(-j w tau) (stiffness data: K exp(+j w tau))      tau
+fixture_mass           K - dm w^2 (receptance: 1 / (K - (m + dm) w^2))        dm
+foundation_mode        K K_f / (K + K_f), K_f = m_f (w_f^2 - w^2 + 2j z_f w_f w)  f_f, z_f, m_f
+amplitude_dependence   Re K (1 + s_k L) + j Im K (1 + s_d L), L = ln(a / a_0)   s_k, s_d
+covariate_shift        K0(w a_T), log10 a_T = -b C2 (T - T0) / (C2 + T - T0)   b, C2
+=====================  =====================================================  ================
+
+``maxwell_element`` is a candidate only when the order is fixed (or the automatic order hit
+its maximum); otherwise extra elements are already part of the baseline. ``a`` and ``T`` are
+condition covariates (any column with several levels; a_0, T0 = the median level).
+covariate_shift is the WLF form of time-temperature superposition with C1 = b C2.
+"""
+from __future__ import annotations
+
+import warnings
+from collections.abc import Sequence
+
+import numpy as np
+
+from dva_offline.discrepancy.engine import (
+    HoldoutSplit,
+    ModelFit,
+    ModelSpec,
+    NotApplicable,
+    Observations,
+    ParamSpec,
+    fit_model,
+)
+from dva_offline.discrepancy.residual import ResidualFeatures, noise_floor
+from dva_offline.isolator.frf_data import FrfData, estimate_modal, to_receptance
+from dva_offline.isolator.maxwell_fit import FitWarning, fit_maxwell_model
+from dva_offline.isolator.maxwell_model import MaxwellModel, maxwell_element_stiffness
+from dva_offline.isolator.order_selection import select_model_order
+
+SIGNATURES = {
+    "maxwell_element": "smooth, broad residual in magnitude and phase around the element's "
+                       "corner frequency 1/(2 pi tau_e); no resonance",
+    "sensor_delay": "phase of H_meas / H_model falls linearly with frequency (slope "
+                    "-2 pi tau per Hz), magnitude unchanged; largest at high frequency",
+    "fixture_mass": "resonance shifted by about -dm/(2m); above resonance the magnitude is off "
+                    "by a constant factor m/(m + dm) (receptance ~ 1/((m+dm) w^2))",
+    "foundation_mode": "narrow resonance/anti-resonance pair at the foundation frequency, above "
+                       "the mount resonance; residual localised in one band",
+    "amplitude_dependence": "residual changes with the excitation-level covariate: stiffness "
+                            "and damping scale with ln(level), at all frequencies",
+    "covariate_shift": "residual changes with the covariate as a shift along log frequency: "
+                       "the relaxation (Maxwell) frequencies move by a_T(T)",
+}
+
+
+def _residual_peaks(f, residual, groups, count: int) -> list[float]:
+    """Frequencies [Hz] of the ``count`` largest local maxima of the residual power
+    (3-point moving average within each condition)."""
+    found = []
+    for g in np.unique(groups):
+        sel = groups == g
+        p = np.convolve(np.abs(residual[sel]) ** 2, np.ones(3) / 3, mode="same")
+        inner = np.nonzero((p[1:-1] >= p[:-2]) & (p[1:-1] >= p[2:]))[0] + 1
+        found += [(p[i], f[sel][i]) for i in inner]
+    found.sort(reverse=True)
+    return [freq for _, freq in found[:count]]
+
+
+def _positive(x, floor):
+    return max(float(x), floor)
+
+
+class FrfDomain:
+    """Isolator FRF data for :func:`dva_offline.discrepancy.engine.run`.
+
+    Parameters
+    ----------
+    conditions : sequence of FrfData
+        One or more sweeps (same quantity), e.g. one per temperature; each sorted by frequency.
+    mass : float, optional
+        Isolated mass m [kg] (weighed). Fitted when omitted (receptance/accelerance); for
+        stiffness data it only sets the natural frequency of the isolator tool's initial fit.
+    static_stiffness : float, optional
+        Static stiffness k [N/m]; fitted when omitted.
+    elements : int, optional
+        Fixed number of Maxwell elements (0 = Voigt); default: the isolator's order selection.
+    max_elements : int
+        Largest order of the automatic selection (>= 1).
+    covariates : sequence of str, optional
+        Condition covariates to analyse (default: every covariate column that varies between
+        conditions).
+    order_tolerance : float
+        Automatic order: the smallest order n whose refined held-out error satisfies
+        e_n^2 <= e_best^2 + order_tolerance * sigma_hat^2 (sigma_hat: noise floor).
+    """
+
+    name = "frf"
+
+    def __init__(self, conditions: Sequence[FrfData], mass: float | None = None,
+                 static_stiffness: float | None = None, elements: int | None = None,
+                 max_elements: int = 3, covariates: Sequence[str] | None = None,
+                 order_tolerance: float = 0.15) -> None:
+        conditions = list(conditions)
+        if not conditions or not all(isinstance(c, FrfData) for c in conditions):
+            raise TypeError("conditions must be a non-empty sequence of FrfData")
+        quantities = {c.quantity for c in conditions}
+        if len(quantities) != 1:
+            raise ValueError(f"all conditions must have the same quantity, got {quantities}")
+        self.quantity = quantities.pop()
+        if mass is not None and not mass > 0:
+            raise ValueError(f"mass must be > 0 kg, got {mass}")
+        if static_stiffness is not None and not static_stiffness > 0:
+            raise ValueError(f"static_stiffness must be > 0 N/m, got {static_stiffness}")
+        if elements is not None and (not isinstance(elements, (int, np.integer)) or elements < 0):
+            raise ValueError(f"elements must be an integer >= 0 or None, got {elements!r}")
+        if not isinstance(max_elements, (int, np.integer)) or max_elements < 1:
+            raise ValueError(f"max_elements must be an integer >= 1, got {max_elements!r}")
+        if not order_tolerance >= 0:
+            raise ValueError(f"order_tolerance must be >= 0, got {order_tolerance}")
+        self.order_tolerance = float(order_tolerance)
+        self.conditions = conditions
+        self.mass = mass
+        self.static_stiffness = static_stiffness
+        self.elements = elements
+        self.max_elements = int(max_elements)
+        f = np.concatenate([c.frequency_hz for c in conditions])
+        if np.any(f <= 0):
+            raise ValueError("frequency_hz must be > 0 Hz (drop the 0 Hz point)")
+        y = np.concatenate([c.values for c in conditions])
+        if np.any(y == 0):
+            raise ValueError("FRF values must be nonzero (relative errors divide by |H|)")
+        groups = np.concatenate([np.full(c.frequency_hz.size, i)
+                                 for i, c in enumerate(conditions)])
+        names = covariates
+        if names is None:
+            common = set.intersection(*(set(c.covariates) for c in conditions))
+            names = [n for n in conditions[0].covariates if n in common]
+        cov = {}
+        for name in names:
+            if not all(name in c.covariates for c in conditions):
+                raise ValueError(f"covariate {name!r} is missing from a condition")
+            col = np.concatenate([np.asarray(c.covariates[name], float) for c in conditions])
+            if not np.all(np.isfinite(col)):
+                raise ValueError(f"covariate {name!r} has NaN values")
+            if covariates is not None or np.unique(col).size > 1:
+                cov[name] = col
+        self.omega = 2 * np.pi * f
+        self.observations = Observations(y, 1.0 / np.abs(y), f, groups, cov)
+        self.reference = self._reference_condition()
+        self._setup = None
+
+    # --- data helpers ----------------------------------------------------------------------
+    def _varying(self) -> dict:
+        return {n: c for n, c in self.observations.covariates.items() if np.unique(c).size > 1}
+
+    def _reference_condition(self) -> int:
+        """The condition at the median level of the first varying covariate (else the first)."""
+        varying = self._varying()
+        if not varying:
+            return 0
+        col = next(iter(varying.values()))
+        per = np.array([col[self.observations.groups == g][0]
+                        for g in range(len(self.conditions))])
+        return int(np.argmin(np.abs(per - np.median(per))))
+
+    def _mass_and_stiffness(self):
+        """(m, k) given or estimated from the reference condition, and whether each is free."""
+        ref = self.conditions[self.reference]
+        w = ref.omega_rad_s
+        free_m = self.mass is None and self.quantity != "stiffness"
+        if self.quantity == "stiffness":
+            stiff = ref.values
+        else:
+            m_guess = self.mass
+            rec = ref.values if self.quantity == "receptance" else ref.values / -(w**2)
+            if m_guess is None:
+                top = w >= np.quantile(w, 0.9)
+                m_guess = float(np.median(np.real(-1.0 / (w[top] ** 2 * rec[top]))))
+                if not m_guess > 0:
+                    raise ValueError("cannot estimate the mass from the FRF; give --mass")
+            stiff = 1.0 / rec + m_guess * w**2
+        k = self.static_stiffness
+        if k is None:
+            k = _positive(np.real(stiff[0]), 1e-12)
+        if self.quantity == "stiffness":
+            if self.mass is not None:
+                m = self.mass
+            else:  # nominal mass: resonance at the band's geometric centre (constraint only)
+                i = w.size // 2
+                m = float(np.abs(stiff[i])) / w[i] ** 2
+        else:
+            m = m_guess
+        return float(m), float(k), free_m, self.static_stiffness is None
+
+    def _modal_estimate(self, m: float):
+        """w_n [rad/s] and zeta of the reference condition (isolator estimate, or a fallback)."""
+        ref = self.conditions[self.reference]
+        if self.quantity == "stiffness":
+            w_ref, rec_ref = ref.omega_rad_s, 1.0 / (ref.values - m * ref.omega_rad_s**2)
+        else:
+            w_ref, rec_ref = to_receptance(ref, m)
+        try:
+            est = estimate_modal(w_ref, rec_ref)
+            wn, zeta = est.natural_frequency_rad_s, est.damping_ratio
+            if not (0 < zeta < 0.9):
+                raise ValueError("damping ratio estimate out of range")
+        except ValueError:
+            wn, zeta = float(w_ref[np.argmax(np.abs(rec_ref))]), 0.1
+        return float(wn), float(zeta)
+
+    def _isolator_models(self, train: np.ndarray, m: float, k: float, wn: float, zeta: float):
+        """The isolator tool's model per order (order selection or the fixed order).
+
+        Returns a dict order -> MaxwellModel (with mass m and stiffness k) and the
+        :class:`OrderSelection` (None when the order is fixed).
+        """
+        omega, h = self.omega[train], self.observations.values[train]
+        c0 = 2.0 * m * zeta * wn
+        models = {0: MaxwellModel(m, k, c0)}
+        sel = None
+        orders = range(1, self.max_elements + 1) if self.elements is None else (
+            [self.elements] if self.elements > 0 else [])
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", FitWarning)
+            warnings.simplefilter("ignore", RuntimeWarning)
+            if self.elements is None:
+                try:
+                    sel = select_model_order(omega, h, m, k, wn, zeta, self.quantity,
+                                             max_elements=self.max_elements, max_iter=15)
+                    for order, model in zip(sel.orders, sel.models):
+                        if order > 0:
+                            models[order] = model
+                except (ValueError, np.linalg.LinAlgError):
+                    sel = None
+            else:
+                for n in orders:
+                    try:
+                        models[n] = fit_maxwell_model(omega, h, m, k, n, wn, zeta,
+                                                      self.quantity, max_iter=15).model
+                    except (ValueError, np.linalg.LinAlgError):
+                        pass
+        for n in orders:  # a failed fit: the seed's initial-guess rule (section 4.3.2)
+            if n not in models:
+                taus = np.logspace(-0.5, 1.0, n) / wn
+                ks = np.full(n, _positive(m * wn**2 - k, 0.1 * k) / n)
+                models[n] = MaxwellModel(m, k, c0, tuple(ks), tuple(taus * ks))
+        return {n: MaxwellModel(m, k, mod.c, mod.maxwell_k, mod.maxwell_c)
+                for n, mod in models.items()}, sel
+
+    # --- model evaluation ------------------------------------------------------------------
+    def _unpack(self, v, n=None):
+        """(m, k, c, k_i, c_i, effect parameters) from a parameter vector."""
+        s = self._setup
+        n = s["n"] if n is None else n
+        i = 0
+        m, k = s["m"], s["k"]
+        if s["free_m"]:
+            m = v[i]
+            i += 1
+        if s["free_k"]:
+            k = v[i]
+            i += 1
+        c = v[i]
+        ks = v[i + 1: i + 1 + n]
+        cs = v[i + 1 + n: i + 1 + 2 * n]
+        return m, k, c, ks, cs, v[i + 1 + 2 * n:]
+
+    def _stiffness(self, k, c, ks, cs, omega=None):
+        """K(w) of eq. 4.8, as :func:`~dva_offline.isolator.maxwell_model.dynamic_stiffness`
+        (tested equal) without its input validation, which dominates inside the fits."""
+        s = 1j * (self.omega if omega is None else omega)
+        total = k + c * s
+        for ki, ci in zip(ks, cs):
+            total = total + ki * ci * s / (ki + ci * s)
+        return total
+
+    def _response(self, stiffness, m):
+        if self.quantity == "stiffness":
+            return stiffness
+        d = stiffness - m * self.omega**2
+        if self.quantity == "receptance":
+            return 1.0 / d
+        return -(self.omega**2) / d
+
+    def _base_predict(self, v, n=None):
+        m, k, c, ks, cs, _ = self._unpack(v, n)
+        return self._response(self._stiffness(k, c, ks, cs), m)
+
+    def _maxwell_params(self, model: MaxwellModel) -> tuple[ParamSpec, ...]:
+        s = self._setup
+        k_ref, c_ref = s["k_ref"], s["c_ref"]
+        params = []
+        if s["free_m"]:
+            params.append(ParamSpec("m", "kg", model.mass, model.mass * 1e-2, model.mass * 1e2,
+                                    log=True))
+        if s["free_k"]:
+            params.append(ParamSpec("k", "N/m", model.k, model.k * 1e-3, model.k * 1e3,
+                                    log=True))
+        params.append(ParamSpec("c", "N s/m", model.c, -100 * c_ref, 100 * c_ref, scale=c_ref))
+        for i, ki in enumerate(model.maxwell_k):
+            params.append(ParamSpec(f"k_{i + 1}", "N/m", ki, k_ref * 1e-3, k_ref * 1e3, log=True))
+        for i, ci in enumerate(model.maxwell_c):
+            params.append(ParamSpec(f"c_{i + 1}", "N s/m", ci, c_ref * 1e-3, c_ref * 1e3,
+                                    log=True))
+        return tuple(params)
+
+    def _order_spec(self, model: MaxwellModel, previous: np.ndarray | None) -> ModelSpec:
+        """Spec of an order-n Maxwell model started at the isolator's fit and, when given, at
+        the refined order n - 1 plus a new element at a few time constants (nested starts)."""
+        n = model.n_elements
+        params = self._maxwell_params(model)
+        starts = []
+        if previous is not None and n > 0:
+            pm, pk, pc, pks, pcs, _ = self._unpack(previous, n - 1)
+            head = [v for v, free in ((pm, self._setup["free_m"]), (pk, self._setup["free_k"]))
+                    if free]
+            f = self.observations.axis
+            wn = self._setup["wn"]
+            for fc in np.geomspace(f.min(), f.max(), 8):
+                for r in (0.3, 1.0, 3.0):
+                    ke = r * self._setup["k"]
+                    ce = ke / (2 * np.pi * fc)
+                    # the primary damper gives up the damping the new element adds at w_n
+                    c_new = pc - float(np.imag(
+                        maxwell_element_stiffness([ke], [ce], [1j * wn])[0, 0])) / wn
+                    starts.append(np.array([*head, c_new, *pks, ke, *pcs, ce]))
+        name = "voigt" if n == 0 else f"maxwell(n={n})"
+        return ModelSpec(name, None, params, 0, lambda v, n=n: self._base_predict(v, n),
+                         tuple(starts))
+
+    # --- Domain protocol -------------------------------------------------------------------
+    def baseline(self, train: np.ndarray) -> ModelSpec:
+        """The Maxwell model of the isolator tool, refined without the w_n/zeta constraint.
+
+        Each order's isolator fit (on the training points) is refitted by weighted least
+        squares on 3/4 of the training points and scored on the other 1/4 (every 4th point,
+        the isolator's own held-out rule). The selected order is the smallest whose squared
+        error exceeds the best order's by less than ``order_tolerance`` x the squared noise
+        floor (an extra element must buy more than noise); with a fixed order only that order
+        is refitted. The returned spec starts at the refined model of the selected order.
+        """
+        train = np.asarray(train, dtype=bool)
+        self._train = train
+        m, k, free_m, free_k = self._mass_and_stiffness()
+        wn, zeta = self._modal_estimate(m)
+        self._setup = dict(m=m, k=k, free_m=free_m, free_k=free_k, n=0, k_ref=m * wn**2,
+                           c_ref=m * wn, wn=wn, order=None, order_errors=None, refined={})
+        models, sel = self._isolator_models(train, m, k, wn, zeta)
+        self._setup["order"] = sel
+        idx = np.nonzero(train)[0]
+        inner_held = np.zeros_like(train)
+        inner_held[idx[2::4]] = True
+        inner = HoldoutSplit(train & ~inner_held, inner_held, "every 4th training point")
+        refined, errors, residuals = {}, {}, {}
+        for n in sorted(models):
+            spec = self._order_spec(models[n], refined.get(n - 1))
+            fit = fit_model(spec, self.observations, inner, n_screen=4)
+            refined[n], errors[n] = np.array([e.value for e in fit.estimates]), fit.error
+            residuals[n] = fit.residual
+        best_n = min(errors, key=errors.get)
+        sigma = noise_floor(residuals[best_n], self.observations.groups).sigma
+        limit = errors[best_n] ** 2 + self.order_tolerance * sigma**2
+        chosen = (self.elements if self.elements is not None else
+                  min(n for n, e in errors.items() if e**2 <= limit))
+        self._setup["n"] = chosen
+        self._setup["order_errors"] = errors
+        self._setup["refined"] = refined
+        m_c, k_c, c_c, ks_c, cs_c, _ = self._unpack(refined[chosen], chosen)
+        model = MaxwellModel(float(m_c), float(k_c), float(c_c), tuple(ks_c), tuple(cs_c))
+        self._base_params = self._maxwell_params(model)
+        name = "voigt" if chosen == 0 else f"maxwell(n={chosen})"
+        return ModelSpec(name, None, self._base_params, 0, self._base_predict)
+
+    @property
+    def order_selection(self):
+        """The isolator's :class:`OrderSelection` (None when the order was fixed)."""
+        return None if self._setup is None else self._setup["order"]
+
+    @property
+    def order_errors(self) -> dict:
+        """Order -> held-out error of the refined model on the training split (after
+        :meth:`baseline`)."""
+        if self._setup is None:
+            raise ValueError("baseline() has not been called")
+        return dict(self._setup["order_errors"])
+
+    @property
+    def baseline_order(self) -> int:
+        """Number of Maxwell elements of the baseline (after :meth:`baseline`)."""
+        if self._setup is None:
+            raise ValueError("baseline() has not been called")
+        return self._setup["n"]
+
+    def _spec(self, effect, added, predict, bases, n, starts=(), label="", extra=0,
+              priority=()):
+        """Spec of baseline order n + effect; starts = every base vector x every effect start
+        (the first base with the effect's initial values is the initial point)."""
+        m, k, c, ks, cs, _ = self._unpack(bases[0], n)
+        model = MaxwellModel(float(m), float(k), float(c), tuple(ks), tuple(cs))
+        params = self._maxwell_params(model) + tuple(added)
+        effect_starts = [np.array([a.initial for a in added]), *starts]
+        full_starts = tuple(np.concatenate([b, e]) for b in bases for e in effect_starts)[1:]
+        informed = tuple(np.concatenate([bases[0], e]) for e in priority)
+        full_starts = informed + full_starts
+        name = ("voigt" if n == 0 else f"maxwell(n={n})") + f" + {effect}" + (
+            f"({label})" if label else "")
+        return ModelSpec(name, effect, params, len(added) + extra, predict, full_starts,
+                         SIGNATURES[effect], label, len(informed))
+
+    def candidates(self, baseline: ModelFit, features: ResidualFeatures):
+        """The candidate library (module docstring), started from the fitted baseline."""
+        self._features = features
+        self._base_residual = baseline.residual
+        self._base_values = np.array([e.value for e in baseline.estimates])
+        self._reference_values = None
+        if self._varying():
+            # The covariate candidates' baseline is the model at the reference condition:
+            # start them also from a fit to that condition's training points alone.
+            ref = self._train & (self.observations.groups == self.reference)
+            split = HoldoutSplit(ref, ~ref, "reference condition")
+            n = self._setup["n"]
+            mm, mk, mc, mks, mcs, _ = self._unpack(self._base_values, n)
+            model = MaxwellModel(float(mm), float(mk), float(mc), tuple(mks), tuple(mcs))
+            spec = self._order_spec(model, self._setup["refined"].get(n - 1))
+            fit = fit_model(spec, self.observations, split, n_screen=4)
+            self._reference_values = np.array([e.value for e in fit.estimates])
+        return self._library([self._base_values], self._setup["n"])
+
+    def variants(self, spec: ModelSpec) -> list[ModelSpec]:
+        """The same effect on a baseline with one more Maxwell element (automatic order only).
+
+        The baseline order is chosen without the effect; an effect can hide the benefit of an
+        element that the augmented model needs. The variant's extra element counts as two
+        added parameters in the score.
+        """
+        s = self._setup
+        n = s["n"]
+        if (self.elements is not None or spec.effect == "maxwell_element"
+                or n + 1 not in s["refined"]):
+            return []
+        # bases: the refined order n + 1, and the baseline plus a fresh element on a grid of
+        # corner frequencies and stiffnesses (the refined n + 1 may have a dormant element)
+        base = self._base_values
+        head = 2 - [s["free_m"], s["free_k"]].count(False)
+        f = self.observations.axis
+        bases = [s["refined"][n + 1]]
+        wn = s["wn"]
+        for fc in np.geomspace(f.min(), f.max(), 8):
+            for r in (0.3, 1.0, 3.0):
+                ke = r * s["k"]
+                ce = ke / (2 * np.pi * fc)
+                # the primary damper gives up the damping the new element adds at w_n
+                c_new = base[head] - float(np.imag(
+                    maxwell_element_stiffness([ke], [ce], [1j * wn])[0, 0])) / wn
+                bases.append(np.concatenate([base[:head], [c_new], base[head + 1: head + 1 + n],
+                                             [ke], base[head + 1 + n:], [ce]]))
+        return [item for item in self._library(bases, n + 1, extra=2,
+                                               only=(spec.effect, spec.label))
+                if isinstance(item, ModelSpec)]
+
+    def _library(self, bases, n, extra=0, only=None):
+        s = self._setup
+        obs = self.observations
+        features = self._features
+        f = obs.axis
+        f_min, f_max = float(f.min()), float(f.max())
+        w = self.omega
+        m_b, k_b, *_ = self._unpack(bases[0], n)
+        out: list[ModelSpec | NotApplicable] = []
+
+        def wanted(effect, label=""):
+            return only is None or only == (effect, label)
+
+        def spec(effect, added, predict, starts=(), label="", more_bases=(), priority=()):
+            return self._spec(effect, added, predict, [*bases, *more_bases], n, starts, label,
+                              extra, priority)
+
+        ref_bases = ([self._reference_values] if extra == 0
+                     and self._reference_values is not None else [])
+
+        # maxwell_element
+        if only is None and (self.elements is not None or n >= self.max_elements):
+            def p_elem(v):
+                m, k, c, ks, cs, (ke, ce) = self._unpack(v, n)
+                stiff = self._stiffness(k, c, ks, cs)
+                stiff = stiff + ke * ce * 1j * w / (ke + ce * 1j * w)
+                return self._response(stiff, m)
+
+            ke0 = 0.3 * k_b
+            tau0 = 1.0 / (2 * np.pi * np.sqrt(f_min * f_max))  # corner in mid-band
+            out.append(spec(
+                "maxwell_element",
+                (ParamSpec("k_e", "N/m", ke0, s["k_ref"] * 1e-3, s["k_ref"] * 1e3, log=True),
+                 ParamSpec("c_e", "N s/m", ke0 * tau0, s["c_ref"] * 1e-3,
+                           s["c_ref"] * 1e3, log=True)),
+                p_elem,
+                starts=[np.array([r * k_b, r * k_b * t]) for t in
+                        1.0 / (2 * np.pi * np.geomspace(f_min, f_max, 12))
+                        for r in (0.1, 0.3, 1.0, 3.0)],
+            ))
+        elif only is None:
+            out.append(NotApplicable(
+                "maxwell_element",
+                f"the order was selected automatically ({n} elements of at most "
+                f"{self.max_elements}); extra elements are part of the baseline (fix the order "
+                "with elements/--elements to test for a missing one)"))
+
+        # sensor_delay
+        sign = 1.0 if self.quantity == "stiffness" else -1.0
+        if wanted("sensor_delay"):
+            def p_delay(v):
+                return self._base_predict(v, n) * np.exp(sign * 1j * w * v[-1])
+
+            tau_eq = features.phase.equivalent_delay_s if features.phase is not None else 0.0
+            tau_eq = -tau_eq if self.quantity == "stiffness" else tau_eq
+            lo_t, hi_t = -0.5 / f_max, 2.0 / f_max
+            starts = [np.array([t]) for t in (tau_eq, *np.linspace(lo_t, hi_t, 41)[1:-1])
+                      if lo_t < t < hi_t]
+            out.append(spec(
+                "sensor_delay", (ParamSpec("tau", "s", 0.0, lo_t, hi_t, scale=0.1 / f_max),),
+                p_delay, starts))
+
+        # fixture_mass
+        m_ref = s["m"]
+        if wanted("fixture_mass") and s["free_m"]:
+            out.append(NotApplicable(
+                "fixture_mass", "the mass is a fitted baseline parameter (give --mass)"))
+        elif wanted("fixture_mass"):
+            def p_mass(v):
+                m, k, c, ks, cs, (dm,) = self._unpack(v, n)
+                stiff = self._stiffness(k, c, ks, cs) - dm * w**2
+                return self._response(stiff, m)
+
+            lower = -0.9 * m_ref if self.quantity != "stiffness" else -100 * m_ref
+            out.append(spec(
+                "fixture_mass",
+                (ParamSpec("dm", "kg", 0.0, lower, 100 * m_ref, scale=0.01 * m_ref),),
+                p_mass, starts=[np.array([r * m_ref]) for r in np.linspace(-0.3, 0.5, 17)]))
+
+        # foundation_mode
+        if wanted("foundation_mode"):
+            def p_found(v):
+                m, k, c, ks, cs, (ff, zf, mf) = self._unpack(v, n)
+                wf = 2 * np.pi * ff
+                stiff = self._stiffness(k, c, ks, cs)
+                kf = mf * (wf**2 - w**2 + 2j * zf * wf * w)
+                return self._response(stiff * kf / (stiff + kf), m)
+
+            # Starts: the residual's strongest peaks, then a grid over the band, each taken
+            # as the coupled resonance f_p of mount + foundation (K + K_f = 0), for several
+            # foundation-to-mount stiffness ratios r = m_f w_p^2 / |K(w_p)|; then
+            # f_f = f_p sqrt(1 - 1/r).
+            _, k_c, c_c, ks_c, cs_c, _ = self._unpack(bases[0], n)
+            f_n = s["wn"] / (2 * np.pi)
+            f_lo = max(f_min, 1.2 * f_n)  # a foundation mode above the mount resonance
+            peaks = [pk for pk in _residual_peaks(f, self._base_residual, obs.groups, 5)
+                     if pk > f_lo][:3]
+            grid = np.geomspace(f_lo, f_max, 40)
+            found_starts = []
+            for fp, zetas in [(pk, (0.005, 0.01, 0.02, 0.05)) for pk in peaks] + [
+                    (g, (0.02, 0.1)) for g in grid]:
+                wp = 2 * np.pi * fp
+                kp = float(np.abs(self._stiffness(k_c, c_c, ks_c, cs_c, np.array([wp]))[0]))
+                for zf in zetas:
+                    for ratio in (1.5, 3.0, 8.0, 30.0):
+                        found_starts.append(np.array([fp * np.sqrt(1.0 - 1.0 / ratio), zf,
+                                                      ratio * kp / wp**2]))
+            informed = []
+            for fp in peaks:
+                wp = 2 * np.pi * fp
+                kp = float(np.abs(self._stiffness(k_c, c_c, ks_c, cs_c, np.array([wp]))[0]))
+                informed += [np.array([fp * np.sqrt(1.0 - 1.0 / r), zf, r * kp / wp**2])
+                             for zf in (0.01, 0.03) for r in (1.5, 3.0, 8.0, 30.0)]
+            first = found_starts[0]
+            out.append(spec(
+                "foundation_mode",
+                (ParamSpec("f_f", "Hz", first[0], max(0.5 * f_n, 0.5 * f_min), 2.0 * f_max,
+                           log=True),
+                 ParamSpec("zeta_f", "-", first[1], 1e-3, 0.15, log=True),
+                 ParamSpec("m_f", "kg", first[2], 1e-5 * m_ref, 1e4 * m_ref, log=True)),
+                p_found, found_starts[1:], priority=informed))
+
+        # covariate candidates
+        varying = self._varying()
+        if not varying and only is None:
+            reason = ("needs sweeps at >= 2 levels of a covariate (e.g. --covariates "
+                      "excitation_n or temperature_c)")
+            out.append(NotApplicable("amplitude_dependence", reason))
+            out.append(NotApplicable("covariate_shift", reason))
+        for name, col in varying.items():
+            ref = float(col[obs.groups == self.reference][0])
+            if wanted("amplitude_dependence", name) and np.all(col > 0):
+                log_level = np.log(col / ref)
+                bound = 0.95 / float(np.max(np.abs(log_level)))
+
+                def p_amp(v, log_level=log_level):
+                    m, k, c, ks, cs, (sk, sd) = self._unpack(v, n)
+                    stiff = self._stiffness(k, c, ks, cs)
+                    stiff = (stiff.real * (1 + sk * log_level)
+                             + 1j * stiff.imag * (1 + sd * log_level))
+                    return self._response(stiff, m)
+
+                out.append(spec(
+                    "amplitude_dependence",
+                    (ParamSpec("s_k", "-", 0.0, -bound, bound, scale=0.05),
+                     ParamSpec("s_d", "-", 0.0, -bound, bound, scale=0.05)),
+                    p_amp, label=name, more_bases=ref_bases,
+                    starts=[np.array([a * bound, b * bound]) for a in np.linspace(-0.8, 0.8, 5)
+                            for b in np.linspace(-0.8, 0.8, 5)]))
+            elif wanted("amplitude_dependence", name):
+                out.append(NotApplicable("amplitude_dependence",
+                                         f"covariate {name!r} has values <= 0 (not a level)",
+                                         name))
+            if wanted("covariate_shift", name):
+                dt = col - ref
+                c2_min = float(max(-dt.min(), 0.0)) + 1.0
+
+                def p_shift(v, dt=dt):
+                    m, k, c, ks, cs, (b, c2) = self._unpack(v, n)
+                    log_at = -b * c2 * dt / (c2 + dt)
+                    stiff = self._stiffness(k, c, ks, cs, w * 10.0**log_at)
+                    return self._response(stiff, m)
+
+                c2_0 = max(100.0, 2 * c2_min)
+                out.append(spec(
+                    "covariate_shift",
+                    (ParamSpec("b", "1/K", 0.02, -1.0, 1.0, scale=0.02),
+                     ParamSpec("C2", "K", c2_0, c2_min, 1e4, log=True)),
+                    p_shift, label=name, more_bases=ref_bases,
+                    starts=[np.array([b, c2]) for b in np.linspace(-0.1, 0.1, 21)
+                            for c2 in (c2_0, 3 * c2_0)]))
+        return out

@@ -1,0 +1,194 @@
+"""Report of a discrepancy run: a JSON-ready dict and PNG plots (matplotlib Agg, lazy).
+
+The dict follows the CLI contract: ``baseline`` {model, error}, ``verdict`` {status, effect,
+evidence}, ``augmented`` {model, error, parameters} or None, ``candidates`` [{effect, error,
+...}], plus the residual evidence and the error definition. NaN and infinities become None.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from dva_offline.discrepancy.engine import CandidateScore, DiscrepancyResult, ModelFit
+from dva_offline.discrepancy.residual import ResidualFeatures
+
+
+def _clean(value):
+    """JSON-safe copy: numpy scalars/arrays to Python, NaN/inf to None."""
+    if isinstance(value, dict):
+        return {str(k): _clean(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_clean(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _clean(value.tolist())
+    if isinstance(value, (np.floating, float)):
+        value = float(value)
+        return value if math.isfinite(value) else None
+    if isinstance(value, (np.integer,)):
+        return int(value)
+    if isinstance(value, np.bool_):
+        return bool(value)
+    return value
+
+
+def _params(estimates) -> list[dict]:
+    return [{"name": e.name, "value": e.value, "std": e.std, "unit": e.unit} for e in estimates]
+
+
+def _fit(fit: ModelFit) -> dict:
+    return {
+        "model": fit.name, "error": fit.error, "error_l2": fit.error_l2,
+        "train_error": fit.train_error, "n_parameters": fit.n_params,
+        "parameters": _params(fit.estimates),
+    }
+
+
+def _features(f: ResidualFeatures) -> dict:
+    loc = f.localisation
+    out = {
+        "rms": f.rms,
+        "whiteness": {"test": "Ljung-Box on real and imaginary parts",
+                      "statistic": f.whiteness.statistic, "dof": f.whiteness.dof,
+                      "p_value": f.whiteness.p_value, "lags": f.whiteness.lags,
+                      "lag1_autocorrelation": f.whiteness.lag1_autocorrelation},
+        "localisation": {"band_edges_hz": loc.edges, "band_rms": loc.rms,
+                         "excess_fraction": loc.excess_fraction,
+                         "peak_band_center_hz": loc.peak_center,
+                         "concentration": loc.concentration},
+        "covariates": [{"name": c.name, "levels": c.levels, "rms_per_level": c.rms_per_level,
+                        "f_statistic": c.f_statistic, "p_value": c.p_value,
+                        "explained_fraction": c.explained_fraction} for c in f.covariates],
+    }
+    if f.phase is not None:
+        out["phase_trend"] = {
+            "phase_slope_rad_per_hz": f.phase.phase_slope,
+            "phase_slope_std": f.phase.phase_slope_std,
+            "equivalent_delay_s": f.phase.equivalent_delay_s,
+            "log_magnitude_slope_per_hz": f.phase.log_magnitude_slope,
+        }
+    return out
+
+
+def _candidate(c: CandidateScore) -> dict:
+    item = {"effect": c.effect, "covariate": c.label or None, "applicable": c.applicable}
+    if not c.applicable:
+        item.update(error=None, reason=c.reason)
+        return item
+    item.update(
+        model=c.fit.name, error=c.fit.error, error_l2=c.fit.error_l2,
+        train_error=c.fit.train_error, delta_bic=c.delta_bic, p_value=c.p_value,
+        explained_fraction=c.explained_fraction, n_added=c.fit.n_added,
+        parameters=_params(c.fit.added), signature=c.signature,
+    )
+    return item
+
+
+def result_to_dict(result: DiscrepancyResult, extra: dict | None = None) -> dict:
+    """The JSON object of the CLI (see module docstring); ``extra`` keys are added first."""
+    v = result.verdict
+    aug = None
+    if result.augmented is not None:
+        a = result.augmented
+        aug = {"model": a.name, "effect": a.effect, "covariate": a.label or None,
+               "error": a.error, "error_l2": a.error_l2, "train_error": a.train_error,
+               "error_ratio": a.error / result.baseline.error,
+               "parameters": _params(a.added), "all_parameters": _params(a.estimates),
+               "residual": _features(result.augmented_residual)}
+    out = dict(extra or {})
+    out.update({
+        "domain": result.domain,
+        "error_definition": result.error_definition,
+        "holdout": {"scheme": result.split.scheme, "n_train": int(result.split.train.sum()),
+                    "n_held_out": int(result.split.held.sum())},
+        "noise_floor": {"sigma": result.noise.sigma, "method": result.noise.method},
+        "baseline": _fit(result.baseline),
+        "residual": _features(result.residual),
+        "verdict": {"status": v.status, "effect": v.effect, "covariate": v.label or None,
+                    "evidence": v.evidence},
+        "augmented": aug,
+        "candidates": [_candidate(c) for c in result.candidates],
+        "decision_rule": {k: getattr(result.rule, k) for k in result.rule.__dataclass_fields__},
+    })
+    return _clean(out)
+
+
+def plot_result(result: DiscrepancyResult, observations, plot_dir, quantity: str,
+                title: str = "") -> list[Path]:
+    """Write ``discrepancy_frf.png`` (measured, baseline, augmented), ``discrepancy_residual.png``
+    (relative residual before/after vs frequency, noise floor) and
+    ``discrepancy_candidates.png`` (held-out error and dBIC per candidate) into ``plot_dir``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out_dir = Path(plot_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    obs = observations
+    f, y, groups = obs.axis, obs.values, obs.groups
+    fits = [("baseline", result.baseline, "b-")]
+    if result.augmented is not None:
+        fits.append((f"+ {result.augmented.effect}", result.augmented, "r-"))
+    written = []
+
+    fig, (ax_m, ax_p) = plt.subplots(2, 1, sharex=True, figsize=(8, 6.5))
+    for g in np.unique(groups):
+        sel = groups == g
+        first = g == groups[0]
+        ax_m.loglog(f[sel], np.abs(y[sel]), "k.", ms=2, label="measured" if first else None)
+        ax_p.semilogx(f[sel], np.degrees(np.angle(y[sel])), "k.", ms=2)
+        for label, fit, style in fits:
+            ax_m.loglog(f[sel], np.abs(fit.prediction[sel]), style, lw=1,
+                        label=label if first else None)
+            ax_p.semilogx(f[sel], np.degrees(np.angle(fit.prediction[sel])), style, lw=1)
+    ax_m.set_ylabel(f"|{quantity}|")
+    ax_p.set_ylabel("phase [deg]")
+    ax_p.set_xlabel("frequency [Hz]")
+    ax_m.legend(fontsize=8)
+    ax_m.set_title(title or f"verdict: {result.verdict.status} {result.verdict.effect or ''}")
+    for ax in (ax_m, ax_p):
+        ax.grid(True, which="both", alpha=0.3)
+    fig.tight_layout()
+    path = out_dir / "discrepancy_frf.png"
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    written.append(path)
+
+    fig, ax = plt.subplots(figsize=(8, 4))
+    for label, fit, style in fits:
+        err = fit.error
+        ax.semilogx(f, np.abs(fit.residual), style[0] + ".", ms=2,
+                    label=f"{label} (held-out error {err:.4f})")
+    ax.axhline(result.noise.sigma, color="k", ls="--",
+               label=f"noise floor {result.noise.sigma:.4f}")
+    ax.set_xlabel("frequency [Hz]")
+    ax.set_ylabel("|relative residual|")
+    ax.set_yscale("log")
+    ax.legend(fontsize=8)
+    ax.grid(True, which="both", alpha=0.3)
+    fig.tight_layout()
+    path = out_dir / "discrepancy_residual.png"
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    written.append(path)
+
+    fitted = [c for c in result.candidates if c.applicable]
+    fig, (ax_e, ax_b) = plt.subplots(1, 2, figsize=(9, 3.5))
+    names = [c.effect + (f"\n({c.label})" if c.label else "") for c in fitted]
+    ax_e.barh(names, [c.fit.error for c in fitted], color="tab:orange")
+    ax_e.axvline(result.baseline.error, color="b", label="baseline")
+    ax_e.axvline(result.noise.sigma, color="k", ls="--", label="noise floor")
+    ax_e.set_xlabel("held-out error")
+    ax_e.legend(fontsize=7)
+    ax_b.barh(names, [c.delta_bic for c in fitted], color="tab:green")
+    ax_b.axvline(-result.rule.min_bic_gain, color="k", ls="--")
+    ax_b.set_xlabel("dBIC vs baseline (lower is better)")
+    ax_b.set_yticklabels([])
+    fig.tight_layout()
+    path = out_dir / "discrepancy_candidates.png"
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    written.append(path)
+    return written

@@ -1,0 +1,185 @@
+"""FRF domain: model pieces, candidate nesting, the generator, a few end-to-end cases, the CLI."""
+import json
+
+import numpy as np
+import pytest
+
+from dva_offline import cli
+from dva_offline.discrepancy import engine, synthetic
+from dva_offline.discrepancy.frf_domain import FrfDomain
+from dva_offline.isolator import isolator_io
+from dva_offline.isolator.frf_data import FrfData, split_conditions
+from dva_offline.isolator.maxwell_model import dynamic_stiffness
+
+
+def domain_for(case, **kw):
+    conditions = split_conditions(case.frequency_hz, case.values, case.quantity, case.covariates,
+                                  list(case.condition_columns))
+    kw.setdefault("mass", case.mass)
+    kw.setdefault("static_stiffness", case.static_stiffness)
+    return FrfDomain(conditions, **kw)
+
+
+def run_case(effect, seed, **kw):
+    case = synthetic.generate_case(effect, np.random.default_rng(seed),
+                                   **{k: v for k, v in kw.items() if k in ("quantity", "sigma",
+                                                                          "clean_covariate")})
+    fixed = case.n_elements if effect == "maxwell_element" else None
+    dom = domain_for(case, elements=fixed)
+    return case, dom, engine.run(dom)
+
+
+def test_fast_stiffness_equals_isolator_dynamic_stiffness():
+    case = synthetic.generate_case(None, np.random.default_rng(0), system="4.1-F")
+    dom = domain_for(case)
+    m = case.model
+    w = 2 * np.pi * np.geomspace(1, 500, 50)
+    np.testing.assert_allclose(dom._stiffness(m.k, m.c, m.maxwell_k, m.maxwell_c, w),
+                               dynamic_stiffness(w, m.k, m.c, m.maxwell_k, m.maxwell_c),
+                               rtol=1e-13)
+
+
+@pytest.mark.parametrize("quantity", ["receptance", "accelerance", "stiffness"])
+def test_every_candidate_reduces_to_the_baseline_at_its_null_value(quantity):
+    case = synthetic.generate_case(None, np.random.default_rng(1), quantity=quantity,
+                                   clean_covariate="temperature_c")
+    dom = domain_for(case, elements=2)
+    split = engine.holdout_split(dom.observations.groups)
+    base = engine.fit_model(dom.baseline(split.train), dom.observations, split)
+    feats = engine._features(dom.observations, base)
+    nulls = {"maxwell_element": [1e-9, 1e-9], "sensor_delay": [0.0], "fixture_mass": [0.0],
+             "foundation_mode": [50.0, 0.05, 1e8], "amplitude_dependence": [0.0, 0.0],
+             "covariate_shift": [0.0, 100.0]}
+    seen = set()
+    for spec in dom.candidates(base, feats):
+        if isinstance(spec, engine.NotApplicable):
+            continue
+        v = np.concatenate([[e.value for e in base.estimates], nulls[spec.effect]])
+        np.testing.assert_allclose(spec.predict(v), base.prediction, rtol=1e-6)
+        seen.add(spec.effect)
+    assert seen == set(nulls)
+
+
+def test_generator_foundation_chain_matches_series_formula():
+    """The generator solves the 2-DOF chain; the engine uses K K_f / (K + K_f): same FRF."""
+    case = synthetic.generate_case("foundation_mode", np.random.default_rng(3), sigma=0.0)
+    p, m = case.parameters, case.model
+    w = 2 * np.pi * case.frequency_hz
+    k0 = dynamic_stiffness(w, m.k, m.c, m.maxwell_k, m.maxwell_c)
+    wf = 2 * np.pi * p["f_f"]
+    kf = p["m_f"] * (wf**2 - w**2 + 2j * p["zeta_f"] * wf * w)
+    np.testing.assert_allclose(case.values, 1 / (k0 * kf / (k0 + kf) - m.mass * w**2),
+                               rtol=1e-9)
+
+
+@pytest.mark.parametrize("effect", [None, *synthetic.LIBRARY_EFFECTS,
+                                    *synthetic.OUTSIDE_EFFECTS])
+def test_generator_is_seeded_and_above_its_threshold(effect):
+    a = synthetic.generate_case(effect, np.random.default_rng(11))
+    b = synthetic.generate_case(effect, np.random.default_rng(11))
+    np.testing.assert_array_equal(a.values, b.values)
+    assert 0.005 <= a.sigma <= 0.02
+    noise = a.values / a.clean_values - 1
+    assert np.sqrt(np.mean(np.abs(noise) ** 2)) == pytest.approx(a.sigma, rel=0.15)
+    if effect is not None:
+        assert a.effect_size >= synthetic.MIN_EFFECT_SNR * a.sigma
+    p = a.parameters
+    if effect == "sensor_delay":
+        assert 1e-4 <= p["tau"] <= 1e-3
+    if effect == "fixture_mass":
+        assert 0.03 <= p["dm_over_m"] <= 0.15
+    if effect == "foundation_mode":
+        assert p["zeta_f"] <= 0.05 and p["m_f"] >= 0.05 * a.mass and p["f_f"] <= 200
+    if effect in ("amplitude_dependence", "covariate_shift", "cubic_stiffness"):
+        assert len(a.condition_columns) == 1
+        assert np.unique(a.covariates[a.condition_columns[0]]).size == 3
+
+
+@pytest.mark.parametrize("effect,seed", [(None, 0), ("sensor_delay", 0), ("fixture_mass", 0),
+                                         ("covariate_shift", 0)])
+def test_end_to_end_small_sample(effect, seed):
+    case, dom, res = run_case(effect, seed)
+    if effect is None:
+        assert res.verdict.status == "consistent"
+        return
+    assert res.verdict.status == "explained" and res.verdict.effect == effect
+    assert res.augmented.error <= 0.5 * res.baseline.error
+    assert res.augmented.error < 2 * case.sigma
+    names = {c.effect for c in res.candidates}
+    assert {"sensor_delay", "fixture_mass", "foundation_mode", "maxwell_element"} <= names
+
+
+def test_delay_parameter_and_uncertainty():
+    case, dom, res = run_case("sensor_delay", 4)
+    tau = res.augmented.added[0]
+    assert tau.name == "tau" and tau.std > 0
+    true_tau = case.parameters["tau"]
+    assert abs(tau.value - true_tau) < max(5 * tau.std, 0.02 * true_tau)
+
+
+def test_domain_validation():
+    f = np.geomspace(3, 300, 50)
+    data = FrfData(f, 1 / (1e4 - (2 * np.pi * f) ** 2 + 1j * f), "receptance")
+    with pytest.raises(ValueError, match="mass"):
+        FrfDomain([data], mass=-1.0)
+    with pytest.raises(ValueError, match="elements"):
+        FrfDomain([data], elements=-1)
+    with pytest.raises(TypeError):
+        FrfDomain([])
+    other = FrfData(f, data.values, "accelerance")
+    with pytest.raises(ValueError, match="quantity"):
+        FrfDomain([data, other])
+
+
+@pytest.fixture
+def only_discrepancy(monkeypatch):
+    monkeypatch.setattr(cli, "SUBCOMMAND_MODULES",
+                        {"discrepancy": "dva_offline.discrepancy.cli"})
+
+
+def test_cli_synth_then_frf_json(tmp_path, capsys, only_discrepancy):
+    csv_path = tmp_path / "delay.csv"
+    assert cli.main(["discrepancy", "synth", "--effect", "sensor_delay", "--seed", "2",
+                     "--out", str(csv_path), "--json"]) == 0
+    truth = json.loads(capsys.readouterr().out)
+    assert truth["hidden_effect"] == "sensor_delay"
+    code = cli.main(["discrepancy", "frf", str(csv_path), "--quantity", "receptance",
+                     "--mass", str(truth["mass_kg"]), "--static-stiffness",
+                     str(truth["static_stiffness_n_per_m"]), "--json",
+                     "--plot-dir", str(tmp_path / "plots")])
+    out = capsys.readouterr().out
+    assert code == 0
+    payload = json.loads(out)  # one JSON object
+    assert payload["verdict"]["status"] == "explained"
+    assert payload["verdict"]["effect"] == "sensor_delay"
+    assert payload["augmented"]["error"] < payload["baseline"]["error"]
+    assert {"model", "error"} <= set(payload["baseline"])
+    assert all("effect" in c and "error" in c for c in payload["candidates"])
+    assert "held-out" in payload["error_definition"]
+    assert all((tmp_path / "plots" / n).is_file() for n in
+               ("discrepancy_frf.png", "discrepancy_residual.png", "discrepancy_candidates.png"))
+
+
+def test_cli_reads_stacked_conditions(tmp_path, capsys, only_discrepancy):
+    case = synthetic.generate_case(None, np.random.default_rng(5),
+                                   clean_covariate="temperature_c")
+    path = tmp_path / "temps.csv"
+    isolator_io.write_frf_csv(path, case.frequency_hz, case.values, case.covariates)
+    conditions = isolator_io.read_frf_csv_conditions(path, "receptance")
+    assert len(conditions) == 3
+    assert cli.main(["discrepancy", "frf", str(path), "--mass", str(case.mass),
+                     "--static-stiffness", str(case.static_stiffness),
+                     "--covariates", "temperature_c", "--json"]) == 0
+    payload = json.loads(capsys.readouterr().out)
+    assert len(payload["conditions"]) == 3
+    assert payload["verdict"]["status"] == "consistent"
+    assert payload["augmented"] is None
+
+
+def test_cli_bad_column_is_one_line_error(tmp_path, capsys, only_discrepancy):
+    case = synthetic.generate_case(None, np.random.default_rng(6))
+    path = tmp_path / "c.csv"
+    isolator_io.write_frf_csv(path, case.frequency_hz, case.values)
+    code = cli.main(["discrepancy", "frf", str(path), "--covariates", "temperature_c"])
+    err = capsys.readouterr().err
+    assert code == 2 and "temperature_c" in err and "Traceback" not in err
