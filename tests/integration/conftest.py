@@ -20,6 +20,8 @@ try:
     from domain_coordinator import domain_id
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
+
+    from aero_dva_sim.flight_runner import die_with_parent
 except ImportError as exc:  # pragma: no cover - environment problem, reported clearly
     raise pytest.UsageError(
         f"integration tests need rclpy and the built workspace ({exc}); run ./test.sh, or "
@@ -91,7 +93,9 @@ class NodeProcess:
         env = dict(os.environ, ROS_DOMAIN_ID=str(domain), PYTHONUNBUFFERED="1")
         self.log_path = log_path
         self._log = open(log_path, "wb")  # noqa: SIM115 - closed in stop()
-        self.proc = subprocess.Popen(argv, env=env, stdout=self._log, stderr=subprocess.STDOUT)
+        # A node must not outlive the test run (it would talk on a domain no longer reserved).
+        self.proc = subprocess.Popen(argv, env=env, stdout=self._log, stderr=subprocess.STDOUT,
+                                     preexec_fn=die_with_parent)
 
     def stop(self, timeout: float = 10.0) -> int:
         """SIGINT, wait up to ``timeout`` s (then kill); return the exit code."""

@@ -87,6 +87,17 @@ def build_commands(args, bag: Path) -> dict[str, list[str]]:
     return commands
 
 
+def die_with_parent() -> None:
+    """In a child before exec: on Linux, get SIGTERM when the runner dies (even by SIGKILL), so
+    no node outlives its run and talks on a ROS_DOMAIN_ID that is no longer reserved."""
+    try:
+        import ctypes
+
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass  # not Linux: the runner's finally-block still stops the nodes
+
+
 def _stop(process: subprocess.Popen, timeout: float) -> int:
     if process.poll() is None:
         process.send_signal(signal.SIGINT)
@@ -118,7 +129,8 @@ def run(args) -> dict:
         for name, argv in commands.items():
             with open(logs / f"{name}.log", "wb") as log:
                 processes[name] = subprocess.Popen(argv, env=env, stdout=log,
-                                                   stderr=subprocess.STDOUT)
+                                                   stderr=subprocess.STDOUT,
+                                                   preexec_fn=die_with_parent)
         simulator = processes["simulator"]
         try:
             simulator.wait(timeout=args.timeout)
