@@ -30,6 +30,10 @@ replaced when the input has moved by more than ``quantum`` (relative) from it, s
 needs a few hundred cached discretisations instead of one per hold period, while constant
 inputs stay exact; ``quantum = 0`` takes every new value.
 
+Short calls (up to :data:`STREAM_MAX_PERIODS` hold periods, such as the simulator node's
+blocks) step the flight one hold period at a time with matrices cached per held condition;
+longer calls take the batch machinery below. Both give the same run up to rounding.
+
 Whole flights
 -------------
 :func:`simulate_flights` runs a batch of flights at once (vectorised across flights and across
@@ -452,6 +456,122 @@ class _Engine:
         return _run_partial(self.cache, y, keys, force[:, a:b], out[:, :, a:b])
 
 
+STREAM_MAX_PERIODS = 128
+""":meth:`BlockSimulator.advance` calls spanning at most this many hold periods step the flight
+period by period (:class:`_Stream`); longer calls take the batch machinery, whose vectorised
+carry across periods is cheaper from a few hundred periods on."""
+
+
+def _input(value, name: str, allow_inf: bool = False):
+    """A flight input as a float (scalar) or a 1-D float array, checked as :meth:`_Engine.params`
+    checks it."""
+    arr = real_array(value, name, allow_inf=allow_inf)
+    if arr.ndim == 0:
+        x = float(arr)
+        if x < 0:
+            raise ValueError(f"{name} must be >= 0")
+        return x
+    if arr.size and arr.min() < 0:
+        raise ValueError(f"{name} must be >= 0")
+    return arr
+
+
+class _Stream:
+    """One flight advanced in short calls: the streaming path of :class:`BlockSimulator`.
+
+    For a 50-sample block the batch machinery (deduplicating parameter rows with np.unique,
+    gathering and broadcasting per-condition matrices) costs far more than the arithmetic.
+    Here a held condition is looked up by its exact parameter tuple in a dict that holds, per
+    condition, two matrices acting on ``[state; forces]``:
+
+    - ``step`` (n + 7, n + 1): one sample, giving ``[next state; 7 outputs]``;
+    - ``period`` (n + 7 h, n + h): a whole hold period, giving ``[end state; outputs]`` with
+      output ``o`` at sample ``j`` in row ``n + o h + j``;
+
+    so a full hold period is one matrix-vector product. Conditions first met in a call are
+    discretised together (one vectorised call for all of them). The hold rule is the batch
+    path's (:func:`_hold_values`), so both give the same run up to rounding.
+    """
+
+    def __init__(self, model: AeroelasticModel, dt: float, hold: int, quantum: float,
+                 max_size: int = 2048):
+        self.model, self.dt, self.hold, self.quantum = model, dt, hold, quantum
+        self.max_size = max_size  # ~11 kB per condition
+        self.maps: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
+
+    def run(self, y, start, force, airspeed, density, damping, held):
+        """Simulate samples ``start .. start + len(force) - 1``.
+
+        ``y`` (n_states,) is the state at ``start``; ``airspeed``, ``density``, ``damping``
+        are floats or (len(force),) arrays; ``held`` the (airspeed, density, damping) in force
+        before ``start`` (NaN: none). Returns the outputs (7, len(force)), the end state and
+        the parameters in force at the end.
+        """
+        total, h, ns = force.size, self.hold, self.model.n_states
+        first = min((h - start % h) % h, total)  # samples left in the current hold period
+        count = len(range(first, total, h))
+        values = [v[first::h].tolist() if isinstance(v, np.ndarray) else [v] * count
+                  for v in (airspeed, density, damping)]
+        segments = [(0, first, held)] if first else []
+        quantum = self.quantum
+        for p, raw in enumerate(zip(*values)):
+            if quantum == 0.0:
+                held = raw
+            else:  # keep a value until its input moves by more than quantum (relative)
+                held = tuple(cur if abs(v - cur) <= quantum * abs(cur) else v
+                             for v, cur in zip(raw, held))
+            a = first + p * h
+            segments.append((a, min(a + h, total), held))
+        if len(self.maps) > self.max_size:
+            self.maps.clear()
+        missing = list(dict.fromkeys(key for _, _, key in segments if key not in self.maps))
+        if missing:
+            self._discretise(missing)
+        out = np.empty((7, total))
+        for a, b, key in segments:
+            step, period = self.maps[key]
+            if b - a == h:
+                r = period @ np.concatenate((y, force[a:b]))
+                y = r[:ns]
+                out[:, a:b] = r[ns:].reshape(7, h)
+                continue
+            x = np.empty(ns + 1)
+            for j in range(a, b):
+                x[:ns] = y
+                x[ns] = force[j]
+                r = step @ x
+                y = r[:ns]
+                out[:, j] = r[ns:]
+        return out, np.array(y), held
+
+    def _discretise(self, keys: list) -> None:
+        """Add the ``step`` and ``period`` matrices of the conditions ``keys``."""
+        model, h, ns, k = self.model, self.hold, self.model.n_states, len(keys)
+        p = np.array(keys, dtype=float)
+        a, b = model.matrices(p[:, 0], p[:, 1], p[:, 2] if model.absorber is not None else None)
+        phi, gam = zoh(a, b, self.dt)
+        cacc, dacc = model.acceleration_output(a, b)
+        step = np.zeros((k, ns + 7, ns + 1))
+        step[:, :ns, :ns], step[:, :ns, ns] = phi, gam
+        step[:, ns:ns + 4, :ns] = model.c_displacement
+        step[:, ns + 4:, :ns], step[:, ns + 4:, ns] = cacc, dacc
+        # The period map is h steps of the one-sample map applied to [state; forces] as a
+        # linear function of (start state, the period's h forces): ``x`` holds the state's
+        # map and, in its last row, the selector of the force acting at that sample.
+        outputs = np.empty((k, 7, h, ns + h))
+        x = np.zeros((k, ns + 1, ns + h))
+        x[:, :ns, :ns] = np.eye(ns)
+        for j in range(h):
+            x[:, ns] = 0.0
+            x[:, ns, ns + j] = 1.0
+            r = step @ x
+            outputs[:, :, j] = r[:, ns:]
+            x[:, :ns] = r[:, :ns]
+        period = np.concatenate([x[:, :ns], outputs.reshape(k, 7 * h, ns + h)], axis=1)
+        for i, key in enumerate(keys):
+            self.maps[key] = (step[i], period[i])
+
+
 class BlockSimulator:
     """Streaming simulator of the wing (see the module docstring for the contract).
 
@@ -479,6 +599,8 @@ class BlockSimulator:
                  hold: int = DEFAULT_HOLD, quantum: float = 0.0, divergence_limit=None):
         self.model = AeroelasticModel(wing, absorber, aero)
         self._engine = _Engine(self.model, sample_rate, hold, quantum)
+        self._stream = _Stream(self.model, self._engine.dt, self._engine.hold,
+                               self._engine.quantum)
         if divergence_limit is None:
             divergence_limit = 0.5 * wing.chord
         self.divergence_limit = positive(divergence_limit, "divergence_limit")
@@ -523,7 +645,7 @@ class BlockSimulator:
                 raise ValueError(f"x0 must have shape ({n},), got {y.shape}")
         self._y = y[None, :].copy()
         self._index = 0
-        self._held = np.full((1, 3), np.nan)
+        self._held = (np.nan, np.nan, np.nan)  # (airspeed, density, damping) in force
         self._diverged = False
 
     def advance(self, force, airspeed, density, damping=None) -> SimulationBlock:
@@ -544,26 +666,36 @@ class BlockSimulator:
                 raise ValueError(f"{name} must be a scalar or have shape ({n},), "
                                  f"got {np.shape(v)}")
         eng = self._engine
-        u, rho, c = eng.params(airspeed, density, damping, (1, n))
+        if damping is None:
+            damping = 0.0 if self.model.absorber is None else self.model.absorber.damping
+        u, rho = _input(airspeed, "airspeed"), _input(density, "density")
+        c = _input(damping, "damping", allow_inf=True)
         if not self._checked and n:
-            a, _ = self.model.matrices(u[0, 0], rho[0, 0],
-                                       c[0, 0] if self.model.absorber is not None else None)
+            u0, rho0, c0 = (float(v) if np.ndim(v) == 0 else float(v[0]) for v in (u, rho, c))
+            a, _ = self.model.matrices(u0, rho0, c0 if self.model.absorber is not None else None)
             check_sampling(a, eng.dt)
             self._checked = True
-        out = np.empty((1, 7, n))
-        y, held = eng.run(self._y, self._index, f[None, :], u, rho, c, self._held, out,
-                          np.empty((1, n, 3)))
-        disp, acc = out[:, :4], out[:, 4:]
-        self._y, self._held = y, held
+        if -(-n // eng.hold) <= STREAM_MAX_PERIODS:
+            out, y, self._held = self._stream.run(self._y[0], self._index, f, u, rho, c,
+                                                  self._held)
+            self._y = y[None, :]
+        else:
+            out = np.empty((1, 7, n))
+            shape = (1, n)
+            y, held = eng.run(self._y, self._index, f[None, :], np.broadcast_to(u, shape),
+                              np.broadcast_to(rho, shape), np.broadcast_to(c, shape),
+                              np.array([self._held]), out, np.empty((1, n, 3)))
+            self._y, self._held, out = y, tuple(held[0].tolist()), out[0]
+        disp, acc = out[:4], out[4:]
         time = (self._index + np.arange(n)) / eng.sample_rate
         self._index += n
         if not self._diverged:
             self._diverged = bool(
-                not np.all(np.isfinite(y))
+                not np.all(np.isfinite(self._y))
                 or not np.all(np.isfinite(disp))
-                or (n and np.max(np.abs(disp[0, 2])) > self.divergence_limit)
+                or (n and np.max(np.abs(disp[2])) > self.divergence_limit)
             )
-        return SimulationBlock(time=time, displacements=disp[0], accelerations=acc[0],
+        return SimulationBlock(time=time, displacements=disp, accelerations=acc,
                                diverged=self._diverged)
 
 

@@ -62,6 +62,7 @@ from dva_msgs.msg import (
     ForceBlock,
 )
 
+POLL_PERIOD = 0.005  # [s] wall time between checks before the start and while held
 DATA_TOPICS = ("wing/acceleration", "wing/displacement", "wing/excitation", "flight/condition",
                "dva/damper_state")
 
@@ -103,7 +104,14 @@ class Simulator(Node):
         self._started_wall: float | None = None
         self._waiting_since = time.monotonic()
         self._last_status = None
-        self._timer = self.create_timer(self._period(), self._step, clock=self._wall)
+        # The step timer runs only while the flight does. Before the start and while the flight
+        # waits for the controller, a slow timer polls instead: spinning at the step rate (10 kHz
+        # as fast as possible) would take CPU from the very nodes the simulator waits for. The
+        # command that lets the flight go on steps it at once (_on_command).
+        self._timer = self.create_timer(self._period(), self._step, clock=self._wall,
+                                        autostart=False)
+        self._poll = self.create_timer(POLL_PERIOD, self._step, clock=self._wall)
+        self._stepping = False
         info = self.runtime.describe()
         self.get_logger().info(
             f"scenario '{info['scenario']}': {info['duration_s']:g} s at "
@@ -141,6 +149,8 @@ class Simulator(Node):
             self._latencies.append(self.runtime.time - stamp)
             self._last_command_stamp = max(stamp, self._last_command_stamp or 0.0)
             self._controller_silent = False
+            if not self._stepping and self._started_wall is not None:
+                self._step()
         if result is not None and not result.accepted:
             self._diagnose("warn", f"rejected damper command {msg.damping!r} N s/m from "
                            f"'{msg.source}': {result.rejection.value}",
@@ -185,6 +195,7 @@ class Simulator(Node):
                 return
             self._started_wall = time.monotonic()
         if self._waiting_for_controller():
+            self._set_stepping(False)
             return
         block = self.runtime.step()
         self._publish(block)
@@ -202,6 +213,17 @@ class Simulator(Node):
         elif self.runtime.done:
             self._diagnose("ok", "flight completed", self._summary())
             self._finish("completed")
+        else:
+            # As fast as possible the flight mostly has to wait for the controller right away:
+            # pause now rather than on the next tick. A paced flight waits for its tick.
+            self._set_stepping(self._rtf > 0 or not self._waiting_for_controller())
+
+    def _set_stepping(self, stepping: bool) -> None:
+        """Step on the timer, or poll slowly until the flight may go on."""
+        if stepping != self._stepping:
+            self._stepping = stepping
+            (self._poll if stepping else self._timer).cancel()
+            (self._timer if stepping else self._poll).reset()
 
     def _publish(self, block) -> None:
         fs, i0, t0 = self.runtime.sample_rate, block.first_index, block.t0
@@ -247,6 +269,7 @@ class Simulator(Node):
 
     def _finish(self, outcome: str) -> None:
         self._timer.cancel()
+        self._poll.cancel()
         if not self.finished.done():
             self.finished.set_result(outcome)
 
