@@ -64,6 +64,7 @@ from aero_dva_sim.mcap_io import (
     BagWriter,
     TopicInfo,
     bag_metadata,
+    create_bag_directory,
     message_definition,
     normalize_type_name,
     qos_profile_yaml,
@@ -151,13 +152,7 @@ class _ChunkedBag:
             raise ValueError(f"compression must be one of {_COMPRESSIONS}, got {compression!r}")
         self._compress = _compressor(compression)
         self._compression = "" if compression == "none" else compression
-        self.directory = Path(directory)
-        if self.directory.exists() and (
-            not self.directory.is_dir() or any(self.directory.iterdir())
-        ):
-            raise FileExistsError(f"bag directory {str(self.directory)!r} exists and is not empty")
-        self.directory.mkdir(parents=True, exist_ok=True)
-        self.mcap_path = self.directory / f"{self.directory.name}_0.mcap"
+        self.directory, self.mcap_path = create_bag_directory(directory)
         self._chunk_size = chunk_size
         self._ros_distro = ros_distro or os.environ.get("ROS_DISTRO") or "jazzy"
         self._stream = open(self.mcap_path, "wb")

@@ -50,6 +50,7 @@ __all__ = [
     "TopicInfo",
     "TopicNotFoundError",
     "bag_metadata",
+    "create_bag_directory",
     "bag_topics",
     "find_message_file",
     "message_definition",
@@ -354,6 +355,18 @@ class BagSummary:
     duration_ns: int
 
 
+def create_bag_directory(directory) -> tuple[Path, Path]:
+    """Create a new bag directory; return it and its MCAP file's path (``<name>_0.mcap``).
+
+    Raises FileExistsError if it exists and is not empty: a bag is never overwritten.
+    """
+    directory = Path(directory)
+    if directory.exists() and (not directory.is_dir() or any(directory.iterdir())):
+        raise FileExistsError(f"bag directory {str(directory)!r} exists and is not empty")
+    directory.mkdir(parents=True, exist_ok=True)
+    return directory, directory / f"{directory.name}_0.mcap"
+
+
 def bag_metadata(mcap_name: str, topics: Sequence[tuple[str, str, str, int]],
                  t_min: int | None, t_max: int | None, ros_distro: str) -> dict:
     """rosbag2 ``metadata.yaml`` content (version :data:`METADATA_VERSION`) of a one-file bag.
@@ -441,13 +454,7 @@ class BagWriter:
             )
         if isinstance(chunk_size, bool) or not isinstance(chunk_size, int) or chunk_size < 1:
             raise ValueError(f"chunk_size must be a positive integer, got {chunk_size!r}")
-        self.directory = Path(directory)
-        if self.directory.exists() and (
-            not self.directory.is_dir() or any(self.directory.iterdir())
-        ):
-            raise FileExistsError(f"bag directory {str(self.directory)!r} exists and is not empty")
-        self.directory.mkdir(parents=True, exist_ok=True)
-        self.mcap_path = self.directory / f"{self.directory.name}_0.mcap"
+        self.directory, self.mcap_path = create_bag_directory(directory)
         self._msg_dirs = tuple(msg_dirs)
         self._ros_distro = ros_distro or os.environ.get("ROS_DISTRO") or "jazzy"
         self._stream = open(self.mcap_path, "wb")
