@@ -127,7 +127,7 @@ else
     colcon_args=(build --symlink-install --event-handlers console_cohesion- summary+
       --cmake-args -DPython3_EXECUTABLE="$VPY" -DBUILD_TESTING=OFF)
     mkdir -p "$WS/log"
-    if ! "$VENV/bin/colcon" "${colcon_args[@]}" > "$WS/log/colcon-build.txt" 2>&1; then
+    if ! "$VPY" -m colcon "${colcon_args[@]}" > "$WS/log/colcon-build.txt" 2>&1; then
       tail -n 40 "$WS/log/colcon-build.txt" >&2
       die "colcon build failed; the full output is in $WS/log/colcon-build.txt"
     fi
