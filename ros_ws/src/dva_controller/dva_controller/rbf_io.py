@@ -17,13 +17,12 @@ Loading uses ``allow_pickle=False`` and checks every field; a problem raises
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 import zipfile
 from pathlib import Path
 
 import numpy as np
 
+from .atomic_io import atomic_output
 from .rbf_network import InputScaling, RBFNetwork
 
 __all__ = ["FILE_FORMAT", "FILE_VERSION", "RBFFileError", "load_rbf_network", "save_rbf_network"]
@@ -80,19 +79,13 @@ def save_rbf_network(network: RBFNetwork, path, description: str = "") -> Path:
         },
         "description": description,
     }
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as stream:
-            np.savez(
-                stream,
-                header=np.array(json.dumps(header, allow_nan=False)),
-                centres=np.ascontiguousarray(network.centres, dtype=np.float64),
-                output_weights=np.ascontiguousarray(network.output_weights, dtype=np.float64),
-            )
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with atomic_output(path, "wb") as stream:
+        np.savez(
+            stream,
+            header=np.array(json.dumps(header, allow_nan=False)),
+            centres=np.ascontiguousarray(network.centres, dtype=np.float64),
+            output_weights=np.ascontiguousarray(network.output_weights, dtype=np.float64),
+        )
     return path
 
 

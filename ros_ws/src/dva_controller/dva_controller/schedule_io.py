@@ -22,11 +22,10 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import tempfile
 from pathlib import Path
 
 from .airspeed_schedule import AirspeedSchedule
+from .atomic_io import atomic_output
 
 __all__ = [
     "FILE_FORMAT",
@@ -109,14 +108,8 @@ def save_schedule(schedule: AirspeedSchedule, path, description: str = "") -> Pa
     """Write a schedule as JSON, atomically (temporary file + rename). Returns the path."""
     text = json.dumps(schedule_to_dict(schedule, description), indent=2, allow_nan=False)
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as stream:
-            stream.write(text + "\n")
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with atomic_output(path) as stream:
+        stream.write(text + "\n")
     return path
 
 
