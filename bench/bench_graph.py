@@ -7,14 +7,18 @@ Run (after ./test.sh or ./run.sh has set everything up)::
 Measures, in one run:
 - baseline: the flight engine alone (FlightRuntime stepping blocks, no ROS, no publishing);
 - the graph: simulator, airspeed_controller and mcap_recorder as separate processes over DDS
-  (run_flight with --real-time-factor 0, i.e. as fast as the graph goes);
-and prints real-time factors, their ratio, message rates (from the recorded bag), and the
+  (run_flight with --real-time-factor 0, i.e. as fast as the graph goes), once with the nodes on
+  rclpy's default executor and once on the events executor they use (aero_dva_sim.ros_executor);
+and prints real-time factors, their ratios, the CPU seconds the node processes used (robust to
+other load on the machine, unlike wall time), message rates (from the recorded bag), and the
 sim-time latency from a flight-condition sample to the damper command derived from it taking
 effect (measured by the simulator).
 """
 from __future__ import annotations
 
 import argparse
+import os
+import resource
 import tempfile
 import time
 from pathlib import Path
@@ -25,6 +29,7 @@ from aero_dva_sim.dva_design import best_damping_curve
 from aero_dva_sim.flight_runner import main as run_flight
 from aero_dva_sim.flight_runtime import FlightRuntime, load_runtime_config
 from aero_dva_sim.mcap_io import bag_topics
+from aero_dva_sim.ros_executor import ENV_VAR
 from aero_dva_sim.wing_io import load_wing
 from aero_dva_sim.wing_model import AeroelasticModel
 from dva_controller.airspeed_schedule import fit_airspeed_schedule
@@ -51,35 +56,54 @@ def schedule_file(directory: Path) -> Path:
     return save_schedule(fit.schedule, directory / "schedule.json")
 
 
+def fly_graph(root: Path, name: str, schedule: Path, executor: str) -> dict | None:
+    """One ramp flight through the graph with the nodes on ``executor``; None if it failed."""
+    bag = root / name
+    os.environ[ENV_VAR] = executor  # the node processes inherit it
+    cpu_before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    started = time.perf_counter()
+    code = run_flight(["--controller", "schedule", "--schedule", str(schedule),
+                       "--real-time-factor", "0", "--output", str(bag)])
+    total = time.perf_counter() - started
+    cpu_after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if code != 0:
+        print(f"run_flight ({executor}) failed")
+        return None
+    from aero_dva_sim.flight_log_io import load_flight_log
+
+    final = load_flight_log(bag).diagnostics[-1]["values"]
+    cpu = (cpu_after.ru_utime - cpu_before.ru_utime) + (cpu_after.ru_stime - cpu_before.ru_stime)
+    return {"bag": bag, "sim": float(final["sim_time_s"]), "wall": float(final["wall_time_s"]),
+            "total": total, "cpu": cpu, "final": final}
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--keep", help="directory to keep the bag in (default: temporary)")
+    parser.add_argument("--keep", help="directory to keep the bags in (default: temporary)")
     args = parser.parse_args()
     sim_s, wall_s = baseline_engine()
     print(f"baseline engine alone : {sim_s:.2f} s sim in {wall_s:.3f} s wall = "
           f"{sim_s / wall_s:.1f}x real time")
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(args.keep or tmp)
-        bag = root / "bench_graph_bag"
-        started = time.perf_counter()
-        code = run_flight(["--controller", "schedule", "--schedule", str(schedule_file(root)),
-                           "--real-time-factor", "0", "--output", str(bag)])
-        total = time.perf_counter() - started
-        if code != 0:
-            print("run_flight failed")
-            return code
-        from aero_dva_sim.flight_log_io import load_flight_log
-
-        log = load_flight_log(bag)
-        final = log.diagnostics[-1]["values"]
-        graph_sim, graph_wall = float(final["sim_time_s"]), float(final["wall_time_s"])
-        print(f"graph (3 processes)   : {graph_sim:.2f} s sim in {graph_wall:.3f} s wall = "
-              f"{graph_sim / graph_wall:.1f}x real time (run_flight total {total:.1f} s with "
-              "process start and stop)")
-        print(f"ratio graph / engine  : {(graph_sim / graph_wall) / (sim_s / wall_s):.3f}")
-        for topic, info in sorted(bag_topics(bag).items()):
+        schedule = schedule_file(root)
+        runs = {kind: fly_graph(root, f"bench_graph_{kind}", schedule, kind)
+                for kind in ("single_threaded", "events")}
+        if None in runs.values():
+            return 1
+        for kind, run in runs.items():
+            print(f"graph, {kind + ' executor':<24}: {run['sim']:.2f} s sim in "
+                  f"{run['wall']:.3f} s wall = {run['sim'] / run['wall']:.1f}x real time, "
+                  f"ratio to the engine alone {(run['sim'] / run['wall']) / (sim_s / wall_s):.3f}"
+                  f"; CPU of all nodes incl. start-up {run['cpu']:.1f} s "
+                  f"(run_flight total {run['total']:.1f} s wall)")
+        old, new = runs["single_threaded"], runs["events"]
+        print(f"events / single_threaded: real-time factor x{old['wall'] / new['wall']:.2f}, "
+              f"node CPU x{new['cpu'] / old['cpu']:.2f}")
+        for topic, info in sorted(bag_topics(new["bag"]).items()):
             print(f"  {topic:<24} {info.message_count:6d} messages, "
-                  f"{info.message_count / graph_wall:8.0f} /s wall")
+                  f"{info.message_count / new['wall']:8.0f} /s wall (events executor)")
+        final = new["final"]
         print("sample -> command in effect, sim time (the simulator's own measurement): median "
               f"{float(final['command_latency_median_s']) * 1e3:.0f} ms, 95 % "
               f"{float(final['command_latency_p95_s']) * 1e3:.0f} ms, max "

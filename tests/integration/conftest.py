@@ -97,10 +97,10 @@ class NodeProcess:
         self.proc = subprocess.Popen(argv, env=env, stdout=self._log, stderr=subprocess.STDOUT,
                                      preexec_fn=die_with_parent)
 
-    def stop(self, timeout: float = 10.0) -> int:
-        """SIGINT, wait up to ``timeout`` s (then kill); return the exit code."""
+    def stop(self, timeout: float = 10.0, signal_number: int = signal.SIGINT) -> int:
+        """SIGINT (or ``signal_number``), wait up to ``timeout`` s (then kill); the exit code."""
         if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGINT)
+            self.proc.send_signal(signal_number)
             try:
                 self.proc.wait(timeout=timeout)
             except subprocess.TimeoutExpired:

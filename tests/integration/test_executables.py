@@ -3,12 +3,14 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import subprocess
 
 import pytest
 from rclpy.node import Node
 
 from aero_dva_sim.flight_log_io import load_flight_log
+from dva_msgs.msg import DamperCommand
 
 from .conftest import ros2_run_path
 
@@ -22,8 +24,10 @@ NODES = {
 
 
 @pytest.mark.parametrize(("package", "executable"), sorted(NODES))
-def test_node_starts_joins_the_graph_and_stops_cleanly(package, executable, executor, spin,
-                                                       ros_context, start_process, tmp_path):
+@pytest.mark.parametrize("stop_signal", [signal.SIGINT, signal.SIGTERM], ids=["INT", "TERM"])
+def test_node_starts_joins_the_graph_and_stops_cleanly(package, executable, stop_signal, executor,
+                                                       spin, ros_context, start_process,
+                                                       tmp_path):
     path = ros2_run_path(package, executable)
     assert path.is_file() and os.access(path, os.X_OK), path
     args = [a.format(tmp=tmp_path) for a in NODES[(package, executable)]]
@@ -32,7 +36,35 @@ def test_node_starts_joins_the_graph_and_stops_cleanly(package, executable, exec
     executor.add_node(observer)
     joined = spin(executor, lambda: "under_test" in observer.get_node_names(), timeout=30.0)
     assert joined, proc.output()
+    # The nodes spin on the events executor, which only notices a shutdown between its slices.
+    assert proc.stop(signal_number=stop_signal) == 0, proc.output()
+
+
+@pytest.mark.parametrize("kind", ["single_threaded", "events"])
+def test_executor_choice_by_environment(kind, executor, spin, ros_context, start_process,
+                                        monkeypatch):
+    monkeypatch.setenv("DVA_EXECUTOR", kind)
+    proc = start_process([ros2_run_path("dva_controller", "fixed_controller"), "--ros-args",
+                          "-r", "__node:=under_test", "-p", "damping:=321.0"])
+    observer = Node("observer", context=ros_context)
+    executor.add_node(observer)
+    got = []
+    observer.create_subscription(DamperCommand, "dva/damper_command", got.append, 10)
+    assert spin(executor, lambda: len(got) >= 3, timeout=30.0), proc.output()
+    assert got[-1].damping == pytest.approx(321.0)
     assert proc.stop() == 0, proc.output()
+
+
+@pytest.mark.parametrize("executable", ["mcap_recorder", "fixed_controller"])
+def test_unknown_executor_is_a_clear_error(executable, start_process, monkeypatch, tmp_path):
+    monkeypatch.setenv("DVA_EXECUTOR", "turbo")
+    package = "aero_dva_sim" if executable == "mcap_recorder" else "dva_controller"
+    proc = start_process([ros2_run_path(package, executable), "--ros-args",
+                          "-p", f"output:={tmp_path}/bag"] if executable == "mcap_recorder"
+                         else [ros2_run_path(package, executable)])
+    assert proc.proc.wait(timeout=30) == 2
+    assert "DVA_EXECUTOR='turbo' is not one of" in proc.output()
+    assert not (tmp_path / "bag").exists()  # nothing written before the error
 
 
 def test_every_console_script_is_installed_where_ros2_run_looks():

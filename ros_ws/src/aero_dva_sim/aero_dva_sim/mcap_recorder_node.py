@@ -32,6 +32,7 @@ from rclpy.node import Node
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile, QoSReliabilityPolicy
 
 from aero_dva_sim.mcap_io import BagWriter, MessageDefinitionNotFound, qos_profile_yaml
+from aero_dva_sim.ros_executor import RCLError, make_executor, spin
 
 
 def message_class(type_name: str):
@@ -58,11 +59,16 @@ class McapRecorder(Node):
         self._recorded: dict[str, object] = {}
         self._skipped: set[str] = set()
         self.received = 0
-        wall = Clock(clock_type=ClockType.STEADY_TIME)
-        self.create_timer(float(self.get_parameter("discovery_period").value), self._discover,
-                          clock=wall)
-        self.create_timer(float(self.get_parameter("flush_period").value), self._flush, clock=wall)
-        self._discover()
+        try:
+            wall = Clock(clock_type=ClockType.STEADY_TIME)
+            self.create_timer(float(self.get_parameter("discovery_period").value),
+                              self._discover, clock=wall)
+            self.create_timer(float(self.get_parameter("flush_period").value), self._flush,
+                              clock=wall)
+            self._discover()
+        except BaseException:  # e.g. a signal while starting: still leave a valid, empty bag
+            self._writer.close()
+            raise
         self.get_logger().info(f"recording to {self.output}")
 
     def _strings(self, name: str) -> list[str]:
@@ -129,10 +135,15 @@ def main(args=None) -> int:
     rclpy.init(args=args)
     node = None
     try:
+        executor = make_executor()  # first: a bad choice must not leave a bag behind
         node = McapRecorder()
-        rclpy.spin(node)
+        executor.add_node(node)
+        spin(executor)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except RCLError:
+        if rclpy.ok():
+            raise  # otherwise a signal arrived while the node was starting: a clean stop
     except (FileExistsError, ValueError) as exc:
         print(f"mcap_recorder: error: {exc}", file=sys.stderr)
         return 2

@@ -53,6 +53,7 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 from aero_dva_sim import messages
 from aero_dva_sim.damper import DamperStatus
 from aero_dva_sim.flight_runtime import FlightRuntime, load_runtime_config
+from aero_dva_sim.ros_executor import RCLError, make_executor, spin
 from dva_msgs.msg import (
     AccelerationBlock,
     DamperCommand,
@@ -278,12 +279,17 @@ def main(args=None) -> int:
     rclpy.init(args=args)
     node = None
     try:
+        executor = make_executor()  # first: a bad choice must not leave a bag behind
         node = Simulator()
-        rclpy.spin_until_future_complete(node, node.finished)
-        if node.finished.done() and not node._exit_on_end:
-            rclpy.spin(node)
+        executor.add_node(node)
+        spin(executor, node.finished)
+        if not node._exit_on_end:
+            spin(executor)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except RCLError:
+        if rclpy.ok():
+            raise  # otherwise a signal arrived while the node was starting: a clean stop
     except (ValueError, FileNotFoundError) as exc:
         print(f"simulator: error: {exc}", file=sys.stderr)
         return 2

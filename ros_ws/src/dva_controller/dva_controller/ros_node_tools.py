@@ -11,6 +11,7 @@ diagnostic_period : float, default 1.0
 """
 from __future__ import annotations
 
+import os
 import sys
 import time
 from collections.abc import Callable, Collection, Mapping
@@ -19,8 +20,10 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
 from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
+from rclpy.task import Future
 
 from dva_controller import messages
 
@@ -117,6 +120,29 @@ class InputHealth:
         self._pub.publish(messages.diagnostic_array(stamp, level, self.name, text, values))
 
 
+def make_executor() -> Executor:
+    """The executor the nodes spin in: rclpy's C++ ``EventsExecutor`` (Jazzy) unless
+    ``DVA_EXECUTOR=single_threaded``; see aero_dva_sim.ros_executor, which reads the same
+    variable, for why (the Python executor's per-callback cost) and why :func:`spin` slices."""
+    kind = os.environ.get("DVA_EXECUTOR") or "events"
+    if kind not in ("events", "single_threaded"):
+        raise ValueError(f"DVA_EXECUTOR={kind!r} is not one of events, single_threaded")
+    try:
+        from rclpy.experimental import EventsExecutor
+    except ImportError:  # an rclpy older than Jazzy
+        kind = "single_threaded"
+    return EventsExecutor() if kind == "events" else SingleThreadedExecutor()
+
+
+def spin(executor: Executor) -> None:
+    """Spin until the context is shut down, then raise ExternalShutdownException (Jazzy's events
+    executor does not notice a shutdown inside an unbounded spin: spin in 0.1 s slices)."""
+    never = Future()
+    while rclpy.ok():
+        executor.spin_until_future_complete(never, timeout_sec=0.1)
+    raise ExternalShutdownException()
+
+
 def run_node(node_class: Callable[[], Node], node_name: str, args=None) -> int:
     """Body of a node's ``main``: the exit code (2 with a one-line error for bad parameters).
 
@@ -126,13 +152,18 @@ def run_node(node_class: Callable[[], Node], node_name: str, args=None) -> int:
     node = None
     try:
         try:
+            executor = make_executor()
             node = node_class()
         except (ValueError, ParameterException) as exc:  # file errors are ValueErrors too
             print(f"{node_name}: error: {exc}", file=sys.stderr)
             return 2
-        rclpy.spin(node)
+        executor.add_node(node)
+        spin(executor)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass  # Ctrl-C or SIGTERM: a clean exit
+    except _rclpy.RCLError:
+        if rclpy.ok():
+            raise  # otherwise a signal arrived while the node was starting: a clean exit
     finally:
         if node is not None:
             node.destroy_node()
