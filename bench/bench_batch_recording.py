@@ -8,6 +8,9 @@ flight condition, damper state; 1 kHz, 50-sample blocks) in the same run through
 2. ``bagwriter``: :mod:`aero_dva_sim.cdr_encoding` bytes, one ``BagWriter.write`` per message;
 3. ``numpy``: :class:`~aero_dva_sim.batch_recording_io.BatchRecorder` (block runs encoded and
    chunked with numpy, the batch path's default),
+4. ``samples``: :meth:`BatchRecorder.write_samples` with the same samples as whole arrays (no
+   FlightBlock objects; what ``record_sweep`` writes), and ``samples-nocrc`` without chunk
+   CRCs,
 
 and prints, per path, wall and CPU time and throughput as "x real time" (sim seconds recorded
 per wall second = samples per second / 1000), plus the ratios to the baseline. The blocks are
@@ -106,6 +109,31 @@ def record_batch(path: Path, blocks, states, compression: str, engine: str,
             recorder.write_blocks(blocks[i:i + batch], states[i:i + batch])
 
 
+def sample_batches(blocks, states, batch: int = 5000) -> list[dict]:
+    """The blocks as write_samples arguments, ``batch`` blocks per call (made before timing)."""
+    out = []
+    for i in range(0, len(blocks), batch):
+        part, snaps = blocks[i:i + batch], states[i:i + batch]
+        damper = {"time": np.array([b.t0 for b in part]),
+                  **{k: np.array([float(getattr(s, k)) for s in snaps]) for k in (
+                      "commanded_damping", "applied_damping", "min_damping", "max_damping",
+                      "command_age", "status")}}
+        out.append({"first_index": part[0].first_index,
+                    "accelerations": np.concatenate([b.accelerations for b in part], axis=1),
+                    "displacements": np.concatenate([b.displacements for b in part], axis=1),
+                    "force": np.concatenate([b.force for b in part]),
+                    "block_size": N, "airspeed": np.array([b.airspeed[0] for b in part]),
+                    "density": np.array([b.density[0] for b in part]), "damper": damper,
+                    "source": snaps[0].source})
+    return out
+
+
+def record_samples(path: Path, batches: list[dict], compression: str, chunk_crc: bool) -> None:
+    with BatchRecorder(path, RATE, compression=compression, chunk_crc=chunk_crc) as recorder:
+        for arguments in batches:
+            recorder.write_samples(**arguments)
+
+
 def timed(fn, *args) -> tuple[float, float]:
     wall, cpu = time.perf_counter(), time.process_time()
     fn(*args)
@@ -129,6 +157,7 @@ def main() -> None:
 
     blocks, states = make_blocks(max(args.blocks, args.reference_blocks,
                                      args.baseline_blocks), args.seed)
+    batches = sample_batches(blocks[:args.blocks], states[:args.blocks])
     root = Path(tempfile.mkdtemp(prefix="bench_batch_", dir=args.dir))
     rows = []
     try:
@@ -139,6 +168,10 @@ def main() -> None:
              lambda p, b, s: record_batch(p, b, s, args.compression, "bagwriter")),
             ("numpy", args.blocks,
              lambda p, b, s: record_batch(p, b, s, args.compression, "numpy")),
+            ("samples", args.blocks,
+             lambda p, b, s: record_samples(p, batches, args.compression, True)),
+            ("samples-nocrc", args.blocks,
+             lambda p, b, s: record_samples(p, batches, args.compression, False)),
         ):
             path = root / name
             wall, cpu = timed(run, path, blocks[:count], states[:count])
@@ -150,17 +183,17 @@ def main() -> None:
 
     print(f"{N}-sample blocks at {RATE:g} Hz, 6 messages per block, compression "
           f"{args.compression}, written under {args.dir or tempfile.gettempdir()}")
-    print(f"{'path':>10} {'blocks':>7} {'sim [s]':>8} {'wall [s]':>9} {'cpu [s]':>8} "
+    print(f"{'path':>13} {'blocks':>7} {'sim [s]':>8} {'wall [s]':>9} {'cpu [s]':>8} "
           f"{'MB':>7} {'x real time':>12} {'ratio':>8}")
     base = None
     for name, count, wall, cpu, size in rows:
         sim = count * N / RATE
         speed = sim / wall  # = samples per second / 1000
         base = base or speed
-        print(f"{name:>10} {count:7d} {sim:8.1f} {wall:9.3f} {cpu:8.3f} {size / 1e6:7.1f} "
+        print(f"{name:>13} {count:7d} {sim:8.1f} {wall:9.3f} {cpu:8.3f} {size / 1e6:7.1f} "
               f"{speed:12.0f} {speed / base:8.1f}")
     sweep = 6840.0
-    name, count, wall, _, _ = rows[-1]
+    name, count, wall, _, _ = rows[2]
     print(f"full sweep data set ({sweep:g} s): recording through the batch path takes "
           f"{sweep / (count * N / RATE / wall):.2f} s at this rate "
           f"({'measured' if count >= sweep * RATE / N else 'extrapolated'})")

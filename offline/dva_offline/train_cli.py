@@ -115,7 +115,7 @@ def _sweep(args) -> int:
     from tqdm import tqdm
 
     from aero_dva_sim import paths
-    from aero_dva_sim.batch_recording_io import record_runtime
+    from aero_dva_sim.batch_recording_io import record_sweep
     from aero_dva_sim.flight_runtime import FlightRuntime, load_runtime_config
     from aero_dva_sim.flutter import flutter_speed, growth_rate
     from aero_dva_sim.wing_model import AeroelasticModel
@@ -152,7 +152,7 @@ def _sweep(args) -> int:
         bar.update(done - bar.n)
 
     try:
-        recorded = record_runtime(out, runtime, progress)
+        recorded = record_sweep(out, runtime, progress)  # parallel in time where it can
     finally:
         bar.close()
     speeds = np.asarray(scenario.airspeed.values)
@@ -166,6 +166,7 @@ def _sweep(args) -> int:
         "real_time_factor": recorded.sim_time / recorded.wall_time,
         "samples": recorded.samples,
         "blocks": recorded.blocks,
+        "method": recorded.method,
         "bag_bytes": bag_bytes,
         "critical_airspeed_no_dva": u_cr,
         "airspeeds": int(speeds.size),

@@ -9,6 +9,8 @@ import numpy as np
 import pytest
 import yaml
 from mcap.reader import make_reader
+from mcap.records import Chunk
+from mcap.stream_reader import StreamReader
 
 from aero_dva_sim import batch_recording_io as br
 from aero_dva_sim.damper import DamperSnapshot, DamperStatus
@@ -444,3 +446,256 @@ def test_record_runtime_warns_once_when_the_damper_goes_stale(tmp_path, flight):
     with open(tmp_path / "bag" / "bag_0.mcap", "rb") as stream:
         order = [c.topic for _, c, _ in make_reader(stream).iter_messages(log_time_order=False)]
     assert order[6 * 4] == "/diagnostics" and order[6 * 4 + 1] == "/clock"
+
+
+# --------------------------------------------------------------------------------------------
+# record_sweep: the sweep simulated parallel in time (aero_dva_sim.sweep_batch)
+# --------------------------------------------------------------------------------------------
+
+# 3 airspeeds x 3 c2 x 0.6 s = 5.4 s. The airspeed steps (0.05 U_cr) are above the runtime's
+# 0.1 % hold quantum, so every dwell is its own segment; 1.0 U_cr with c2 = 60 N s/m grows, but
+# not for long enough to diverge.
+SWEEP = """name: mini
+duration: auto
+sample_rate: 1000.0
+block_size: 50
+airspeed: {kind: steps, ratios: [0.9, 0.95, 1.0]}
+density: {base: 1.2}
+excitation: {force_std: 1000.0, seed: 5}
+sweep: {dwell: 0.6, damping: [60.0, 400.0, 1100.0]}
+"""
+
+
+def _stepped(runtime):
+    blocks, states = [], []
+    while not runtime.done:
+        blocks.append(runtime.step())
+        states.append(runtime.damper_snapshot())
+    return blocks, states
+
+
+def _raw_messages(bag: Path):
+    (path,) = bag.glob("*.mcap")
+    with open(path, "rb") as stream:
+        return [(c.topic, m.log_time, m.sequence, m.data)
+                for _, c, m in make_reader(stream).iter_messages(log_time_order=False)]
+
+
+def test_parallel_sweep_equals_the_stepped_runtime_sample_by_sample(tmp_path):
+    from aero_dva_sim import sweep_batch
+
+    runtime = _runtime(_scenario(tmp_path, SWEEP))
+    plan = sweep_batch.plan_sweep(runtime.config, runtime.scenario)
+    assert plan.lengths.tolist() == [600] * 9  # one segment per dwell
+    chunks = list(sweep_batch.simulate_sweep(runtime.config, plan, chunk_samples=1300))
+    assert [c.first_index for c in chunks] == [0, 1200, 2400, 3600, 4800]
+    blocks, _ = _stepped(_runtime(_scenario(tmp_path, SWEEP)))
+    force = np.concatenate([b.force for b in blocks])
+    np.testing.assert_array_equal(np.concatenate([c.force for c in chunks]), force)
+    for name in ("displacements", "accelerations"):
+        fast = np.concatenate([getattr(c, name) for c in chunks], axis=1)
+        ref = np.concatenate([getattr(b, name) for b in blocks], axis=1)
+        scale = np.abs(ref).max(axis=1, keepdims=True)
+        assert np.all(scale > 0)
+        assert np.max(np.abs(fast - ref) / scale) < 1e-9, name
+
+
+def test_record_sweep_writes_the_runtimes_bag(tmp_path):
+    scenario = _scenario(tmp_path, SWEEP)
+    seen = []
+    fast = br.record_sweep(tmp_path / "fast", _runtime(scenario),
+                           progress=lambda done, total: seen.append((done, total)))
+    ref = br.record_runtime(tmp_path / "ref", _runtime(scenario))
+    assert (fast.method, ref.method) == ("parallel", "stepped")
+    assert (fast.outcome, fast.samples, fast.blocks) == ("completed", 5400, 108)
+    assert (fast.sim_time, fast.blocks) == (ref.sim_time, ref.blocks)
+    assert seen[-1] == (5400, 5400)
+    a, b = _raw_messages(tmp_path / "fast"), _raw_messages(tmp_path / "ref")
+    assert [m[:3] for m in a] == [m[:3] for m in b]  # topics, log times, sequence numbers
+    for (topic, _, _, data), (_, _, _, ref_data) in zip(a, b):
+        if topic in ("/clock", "/wing/excitation", "/flight/condition", "/dva/damper_state"):
+            assert data == ref_data, topic  # byte for byte
+        else:
+            assert len(data) == len(ref_data), topic
+    log, ref_log = load_flight_log(tmp_path / "fast"), load_flight_log(tmp_path / "ref")
+    np.testing.assert_array_equal(log.force, ref_log.force)
+    np.testing.assert_array_equal(log.applied_damping, ref_log.applied_damping)
+    np.testing.assert_array_equal(log.airspeed, ref_log.airspeed)
+    scale = np.abs(ref_log.displacements).max(axis=1, keepdims=True)
+    assert np.max(np.abs(log.displacements - ref_log.displacements) / scale) < 1e-9
+    (diagnostic,) = log.diagnostics
+    (ref_diagnostic,) = ref_log.diagnostics
+    assert diagnostic["message"] == ref_diagnostic["message"] == "flight completed"
+    assert diagnostic["values"].keys() == ref_diagnostic["values"].keys()
+    for key, value in ref_diagnostic["values"].items():
+        if key not in ("wall_time_s", "real_time_factor"):
+            assert diagnostic["values"][key] == value, key
+
+
+def test_record_sweep_blocks_across_chunk_boundaries(tmp_path):
+    # 70-sample blocks do not divide the 600-sample dwells: blocks straddle the chunks.
+    scenario = _scenario(tmp_path, SWEEP.replace("block_size: 50", "block_size: 70"))
+    fast = br.record_sweep(tmp_path / "fast", _runtime(scenario), chunk_samples=1300)
+    ref = br.record_runtime(tmp_path / "ref", _runtime(scenario))
+    assert fast.method == "parallel" and fast.blocks == ref.blocks == 78
+    a, b = _raw_messages(tmp_path / "fast"), _raw_messages(tmp_path / "ref")
+    assert [m[:3] for m in a] == [m[:3] for m in b]
+    assert [m[3] for m in a if m[0] == "/wing/excitation"] == \
+        [m[3] for m in b if m[0] == "/wing/excitation"]
+    assert [m[3] for m in a if m[0] == "/dva/damper_state"] == \
+        [m[3] for m in b if m[0] == "/dva/damper_state"]
+    log, ref_log = load_flight_log(tmp_path / "fast"), load_flight_log(tmp_path / "ref")
+    scale = np.abs(ref_log.accelerations).max(axis=1, keepdims=True)
+    assert np.max(np.abs(log.accelerations - ref_log.accelerations) / scale) < 1e-9
+
+
+def test_record_sweep_with_dwell_sized_blocks_keeps_the_samples(tmp_path):
+    scenario = _scenario(tmp_path, SWEEP)
+    result = br.record_sweep(tmp_path / "big", _runtime(scenario), block_size=600)
+    assert result.blocks == 9
+    counts = {t.name: t.message_count for t in result.summary.topics}
+    assert counts["/wing/acceleration"] == counts["/dva/damper_state"] == 9
+    small = load_flight_log(tmp_path / "big")
+    br.record_sweep(tmp_path / "small", _runtime(scenario))
+    np.testing.assert_array_equal(small.displacements,
+                                  load_flight_log(tmp_path / "small").displacements)
+    np.testing.assert_array_equal(small.applied_damping, np.repeat(
+        np.tile([60.0, 400.0, 1100.0], 3), 600))
+    with pytest.raises(ValueError, match="must divide the dwell"):
+        br.record_sweep(tmp_path / "odd", _runtime(scenario), block_size=250)
+
+
+def test_record_sweep_stops_at_divergence_like_the_runtime(tmp_path):
+    text = SWEEP.replace("ratios: [0.9, 0.95, 1.0]", "ratios: [0.9, 1.3]").replace(
+        "dwell: 0.6", "dwell: 2.0")
+    scenario = _scenario(tmp_path, text)
+    fast = br.record_sweep(tmp_path / "fast", _runtime(scenario))
+    ref = br.record_runtime(tmp_path / "ref", _runtime(scenario))
+    assert fast.outcome == ref.outcome == "diverged"
+    assert (fast.samples, fast.blocks) == (ref.samples, ref.blocks)
+    (diagnostic,) = load_flight_log(tmp_path / "fast").diagnostics
+    (ref_diagnostic,) = load_flight_log(tmp_path / "ref").diagnostics
+    assert diagnostic["message"] == ref_diagnostic["message"]
+    assert diagnostic["level"] == 2
+
+
+def test_record_sweep_steps_what_it_does_not_model(tmp_path):
+    from aero_dva_sim import sweep_batch
+
+    varying = SWEEP.replace("density: {base: 1.2}",
+                            "density: {base: 1.2, variation: 0.05, frequency: 1.0}")
+    runtime = _runtime(_scenario(tmp_path, varying))
+    assert "density varies" in sweep_batch.unsupported_reason(runtime.config, runtime.scenario)
+    with pytest.raises(ValueError, match="density varies"):
+        sweep_batch.plan_sweep(runtime.config, runtime.scenario)
+    result = br.record_sweep(tmp_path / "bag", runtime)
+    assert result.method == "stepped" and result.samples == 5400
+    ramp = _runtime(_scenario(tmp_path, RAMP))
+    assert "not a stepped sweep" in sweep_batch.unsupported_reason(ramp.config, ramp.scenario)
+
+
+def test_sweep_damper_states_equal_the_damper_model(tmp_path):
+    from aero_dva_sim.damper import DamperConfig
+
+    t0 = np.arange(40) * 0.05
+    c2 = np.repeat([300.0, 2400.0, 900.0, 3000.0], 10)
+    for config in (DamperConfig(0.0, 2500.0, 500.0),
+                   DamperConfig(0.0, 2500.0, 500.0, time_constant=0.08)):
+        from aero_dva_sim.damper import DamperModel
+
+        model = DamperModel(config)
+        expected = []
+        for t, c in zip(t0, c2):
+            model.command(float(c), float(t), "sweep")
+            model.update(float(t))
+            s = model.snapshot()
+            expected.append((s.time, s.commanded_damping, s.applied_damping, s.min_damping,
+                             s.max_damping, s.command_age, int(s.status)))
+        got = br._sweep_damper_states(config, t0, c2)
+        np.testing.assert_array_equal(np.column_stack([got[k] for k in (
+            "time", "commanded_damping", "applied_damping", "min_damping", "max_damping",
+            "command_age", "status")]), np.array(expected))
+    ideal = br._sweep_damper_states(DamperConfig(0.0, 2500.0, 500.0), t0[:10], c2[:10])
+    assert np.all(ideal["status"] == 0) and np.all(ideal["applied_damping"] == 300.0)
+
+
+def test_write_samples_equals_write_blocks(tmp_path, monkeypatch, flight):
+    blocks, states = flight
+    blocks, states = blocks[:-1], [replace(s, source="sweep") for s in states[:-1]]
+    acc = np.concatenate([b.accelerations for b in blocks], axis=1)
+    disp = np.concatenate([b.displacements for b in blocks], axis=1)
+    force = np.concatenate([b.force for b in blocks])
+    columns = br._snapshot_values(states)
+    # Blocks of 50 with t0 = index / rate: make the reference blocks follow that convention.
+    ref_blocks = [replace(b, t0=b.first_index / RATE, t_end=(b.first_index + 50) / RATE)
+                  for b in blocks]
+    for engine in ("numpy", "bagwriter"):
+        with br.BatchRecorder(tmp_path / engine, RATE, engine=engine) as recorder:
+            recorder.write_samples(0, acc[:, :2000], disp[:, :2000], force[:2000],
+                                   block_size=50,
+                                   airspeed=[b.airspeed[0] for b in blocks[:40]],
+                                   density=[b.density[0] for b in blocks[:40]],
+                                   damper={k: v[:40] for k, v in columns.items()},
+                                   source="sweep")
+            count = recorder.write_samples(
+                2000, acc[:, 2000:], disp[:, 2000:], force[2000:], block_size=50,
+                airspeed=[b.airspeed[0] for b in blocks[40:]],
+                density=[b.density[0] for b in blocks[40:]],
+                damper={k: v[40:] for k, v in columns.items()}, source="sweep")
+            assert count == len(blocks) - 40
+    with br.BatchRecorder(tmp_path / "ref", RATE) as recorder:
+        recorder.write_blocks(ref_blocks, states)
+    ref = _raw_messages(tmp_path / "ref")
+    assert _raw_messages(tmp_path / "numpy") == ref
+    assert _raw_messages(tmp_path / "bagwriter") == ref
+
+
+def test_write_samples_ends_with_a_shorter_block_and_checks_input(tmp_path):
+    rng = np.random.default_rng(3)
+    acc, disp, force = rng.standard_normal((3, 130)), rng.standard_normal((4, 130)), \
+        rng.standard_normal(130)
+    with br.BatchRecorder(tmp_path / "bag", RATE, damper_state=False) as recorder:
+        assert recorder.write_samples(100, acc, disp, force, block_size=50,
+                                      airspeed=[80.0, 81.0, 82.0], density=[1.2] * 3) == 3
+        with pytest.raises(ValueError, match=r"accelerations must have shape \(3, T\)"):
+            recorder.write_samples(0, acc[:2], disp, force, block_size=50, airspeed=[1.0] * 3,
+                                   density=[1.2] * 3)
+        with pytest.raises(ValueError, match=r"airspeed must have shape \(3,\)"):
+            recorder.write_samples(0, acc, disp, force, block_size=50, airspeed=[1.0],
+                                   density=[1.2] * 3)
+        with pytest.raises(ValueError, match="block_size"):
+            recorder.write_samples(0, acc, disp, force, block_size=0, airspeed=[1.0],
+                                   density=[1.2])
+        with pytest.raises(ValueError, match="no dva/damper_state"):
+            recorder.write_samples(0, acc, disp, force, block_size=50, airspeed=[1.0] * 3,
+                                   density=[1.2] * 3, damper={})
+    log = load_flight_log(tmp_path / "bag")
+    np.testing.assert_array_equal(log.force[100:], force)
+    np.testing.assert_array_equal(log.accelerations[:, 100:], acc)
+    assert np.all(np.isnan(log.force[:100]))
+    conditions = [m.message for m in read_messages(tmp_path / "bag", ["/flight/condition"])]
+    assert [c.airspeed for c in conditions] == [80.0, 81.0, 82.0]
+    blocks = [m.message for m in read_messages(tmp_path / "bag", ["/wing/excitation"])]
+    assert [(b.first_sample_index, len(b.aileron_force)) for b in blocks] == [
+        (100, 50), (150, 50), (200, 30)]
+
+
+def test_chunk_crc_can_be_left_out(tmp_path, flight):
+    blocks, states = flight
+    for crc in (True, False):
+        with br.BatchRecorder(tmp_path / f"c{crc}", RATE, chunk_crc=crc,
+                              chunk_size=20_000) as recorder:
+            recorder.write_blocks(blocks, states)
+    with open(tmp_path / "cTrue" / "cTrue_0.mcap", "rb") as stream:
+        reader = make_reader(stream, validate_crcs=True)
+        assert sum(1 for _ in reader.iter_messages()) == 6 * len(blocks)
+    crcs = {}
+    for name in ("cTrue", "cFalse"):
+        with open(tmp_path / name / f"{name}_0.mcap", "rb") as stream:
+            records = StreamReader(stream, emit_chunks=True).records
+            crcs[name] = [r.uncompressed_crc for r in records if isinstance(r, Chunk)]
+    assert len(crcs["cFalse"]) > 3 and set(crcs["cFalse"]) == {0}
+    assert len(crcs["cTrue"]) == len(crcs["cFalse"]) and 0 not in crcs["cTrue"]
+    assert _raw_messages(tmp_path / "cFalse") == _raw_messages(tmp_path / "cTrue")
+    with pytest.raises(ValueError, match="chunk_crc"):
+        br.BatchRecorder(tmp_path / "x", RATE, engine="bagwriter", chunk_crc=False)

@@ -87,7 +87,9 @@ def test_sweep_summary(mini):
 
 def test_recorded_data_equal_the_direct_simulation(mini):
     _, le = _direct_rms(mini["scenario"])
-    np.testing.assert_array_equal(mini["log"].displacements[2], le.ravel())
+    # The batch path computes the sweep parallel in time: equal to round-off, not bit for bit.
+    np.testing.assert_allclose(mini["log"].displacements[2], le.ravel(), rtol=0,
+                               atol=1e-9 * np.abs(le).max())
 
 
 def test_dwells_come_from_the_recorded_changes(mini):

@@ -1,0 +1,372 @@
+"""The stepped (U, c2) sweep simulated parallel in time: FlightRuntime's flight, all at once.
+
+:class:`~aero_dva_sim.flight_runtime.FlightRuntime` steps a flight in 50-sample blocks, one
+hold period (10 samples) after the other. A sweep is piecewise constant: its held airspeed,
+density and c2 (the same hold grid and 0.1 % hysteresis as
+:class:`~aero_dva_sim.flight_sim.BlockSimulator`) change only at dwell boundaries, so each
+dwell is one linear time-invariant system and the whole flight can be computed exactly with
+large array operations:
+
+1. the force is the runtime's: ``force_std * default_rng(seed).standard_normal`` over the flight
+   (the generator yields the same numbers in one call as in 50-sample calls);
+2. every distinct held condition is discretised in one batched call (exact ZOH,
+   :func:`~aero_dva_sim.discretize.zoh`);
+3. the forced state at the end of every dwell from rest is computed for all dwells at once
+   (sub-blocks of ``L`` samples, grouped ``R`` at a time, so the sequential part is short);
+4. a scan over the dwells gives their initial states, ``x0[k+1] = Phi_k^M x0[k] + xf_k``;
+5. per chunk of dwells, the states at every sub-block start follow (two short recurrences,
+   vectorised over the dwells), and the outputs come from one batched product per output
+   channel with the sub-block map ``y = [C Phi^j | Toeplitz(C Phi^i Gamma, D)] [x; u]``,
+   written straight into time order.
+
+Same seed -> same data as stepping the runtime, to round-off (a test compares them sample by
+sample). Supported: ``steps`` scenarios with constant density and the nominal plant
+(:func:`unsupported_reason` names what is not); anything else is flown by FlightRuntime.
+Pure numerics (no ROS, no files).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+import numpy as np
+
+from aero_dva_sim.discretize import check_sampling, zoh
+from aero_dva_sim.flight_runtime import QUANTUM, RuntimeConfig
+from aero_dva_sim.flight_sim import DEFAULT_HOLD
+from aero_dva_sim.scenario import Scenario, airspeed_at, density_at, sweep_damping_at
+from aero_dva_sim.wing_model import AeroelasticModel
+
+__all__ = ["SweepChunk", "SweepPlan", "plan_sweep", "simulate_sweep", "unsupported_reason"]
+
+SUBBLOCK = 10  # [samples] L: outputs cost 7 (n + L) multiply-adds per sample
+CHUNK_SAMPLES = 1 << 18  # samples per output chunk (about 15 MB of outputs): cache-friendly
+_KNOWN_CONFIG = {"scenario", "wing", "aero", "absorber", "damper"}
+
+
+@dataclass(frozen=True)
+class SweepPlan:
+    """The sweep as segments of constant held parameters, with their discretisations.
+
+    Attributes
+    ----------
+    scenario : Scenario
+        Resolved (airspeeds in m/s).
+    n_samples : int
+    sample_rate : float
+        [Hz]
+    starts, lengths : (S,) int
+        First sample and length of each segment (a run of hold periods with one condition).
+    condition : (S,) int
+        Index of each segment's condition into ``params``.
+    params : (K, 3)
+        Distinct held (airspeed [m/s], density [kg/m^3], c2 [N s/m]) conditions.
+    subblock : int
+        L, samples per sub-block (divides every segment length).
+    """
+
+    scenario: Scenario
+    n_samples: int
+    sample_rate: float
+    starts: np.ndarray
+    lengths: np.ndarray
+    condition: np.ndarray
+    params: np.ndarray
+    subblock: int
+
+
+@dataclass(frozen=True)
+class SweepChunk:
+    """Consecutive samples of the flight (time on the last axis).
+
+    Attributes
+    ----------
+    first_index : int
+        Index of the chunk's first sample since the start of the flight.
+    force : (T,) [N]
+    displacements : (4, T) plunge [m], pitch [rad], leading edge [m], DVA stroke [m]
+    accelerations : (3, T) plunge [m/s^2], pitch [rad/s^2], leading edge [m/s^2]
+    """
+
+    first_index: int
+    force: np.ndarray
+    displacements: np.ndarray
+    accelerations: np.ndarray
+
+
+def unsupported_reason(config: RuntimeConfig, scenario: Scenario) -> str | None:
+    """Why this flight cannot take the parallel-in-time path (None: it can).
+
+    ``scenario`` is the runtime's resolved scenario.
+    """
+    extra = {f.name for f in dataclasses.fields(config)} - _KNOWN_CONFIG
+    if extra:
+        return f"runtime options {sorted(extra)} are not modelled here"
+    if scenario.airspeed.kind != "steps":
+        return f"airspeed kind {scenario.airspeed.kind!r} is not a stepped sweep"
+    if scenario.density_variation != 0.0:
+        return "the density varies within the dwells"
+    plant = getattr(scenario, "plant", None)
+    if plant is not None and getattr(plant, "active", True):
+        return "the scenario flies a hidden plant"
+    # Options added to Scenario later are flown by FlightRuntime only, unless left at default.
+    changed = [f.name for f in dataclasses.fields(scenario)
+               if f.name not in _SCENARIO_FIELDS and getattr(scenario, f.name) != _default(f)]
+    if changed:
+        return f"scenario options {changed} are not modelled here"
+    return None
+
+
+_SCENARIO_FIELDS = {"name", "duration", "sample_rate", "block_size", "airspeed", "density",
+                    "density_variation", "density_frequency", "force_std", "seed", "dwell",
+                    "sweep_damping", "plant"}
+
+
+def _default(f: dataclasses.Field):
+    if f.default_factory is not dataclasses.MISSING:
+        return f.default_factory()
+    return f.default
+
+
+def _held_runs(raw: tuple[np.ndarray, ...], quantum: float) -> tuple[np.ndarray, np.ndarray]:
+    """Held parameters of the hold periods, as runs: (first period of each run, values).
+
+    ``raw`` = (airspeed, density, c2), each (P,), the inputs at the periods' first samples.
+    The rule is BlockSimulator's: a held value is replaced only when its input differs from it
+    by more than ``quantum`` relative (NaN before the first period). Inputs that are constant
+    over a run of periods give one decision per run, so the loop runs over the input's changes.
+    """
+    change = np.zeros(len(raw[0]), dtype=bool)
+    change[0] = True
+    for column in raw:
+        change[1:] |= column[1:] != column[:-1]
+    first = np.flatnonzero(change)
+    held = []
+    cur = (math.nan, math.nan, math.nan)
+    for row in np.column_stack([column[first] for column in raw]).tolist():
+        cur = tuple(c if abs(v - c) <= quantum * abs(c) else v for v, c in zip(row, cur))
+        held.append(cur)
+    held = np.array(held, dtype=float).reshape(-1, 3)
+    keep = np.ones(len(first), dtype=bool)  # runs whose held values did not change merge
+    keep[1:] = np.any(held[1:] != held[:-1], axis=1)
+    return first[keep], held[keep]
+
+
+def plan_sweep(config: RuntimeConfig, scenario: Scenario, *, hold: int = DEFAULT_HOLD,
+               quantum: float = QUANTUM, subblock: int = SUBBLOCK) -> SweepPlan:
+    """Cut the runtime's flight into segments of constant held parameters.
+
+    Parameters
+    ----------
+    config : RuntimeConfig
+    scenario : Scenario
+        The runtime's resolved scenario (``FlightRuntime.scenario``).
+    hold, quantum : as the runtime's BlockSimulator (defaults: the runtime's values).
+    subblock : int
+        Largest sub-block length L; the one used divides every segment length.
+
+    Raises
+    ------
+    ValueError
+        The flight is not supported (:func:`unsupported_reason`), or the sample rate is below
+        the Nyquist rate of a mode at the first condition (as BlockSimulator).
+    """
+    reason = unsupported_reason(config, scenario)
+    if reason is not None:
+        raise ValueError(f"the parallel-in-time sweep cannot fly this: {reason}")
+    n = scenario.n_samples
+    rate = scenario.sample_rate
+    grid = np.arange(0, n, hold)
+    t = grid / rate  # == sample_times(scenario)[grid], bit for bit
+    c2 = sweep_damping_at(scenario, t) if config.absorber is not None else np.zeros(t.size)
+    raw = (airspeed_at(scenario, t), density_at(scenario, t), c2)
+    first, held = _held_runs(raw, quantum)
+    starts = first * hold
+    lengths = np.diff(np.append(starts, n))
+    params, condition = np.unique(held, axis=0, return_inverse=True)
+    model = AeroelasticModel(config.wing, config.absorber, config.aero)
+    a, _ = model.matrices(raw[0][0], raw[1][0], c2[0] if config.absorber is not None else None)
+    check_sampling(a, 1.0 / rate)
+    g = int(np.gcd.reduce(lengths))
+    sub = max(d for d in range(1, min(subblock, g) + 1) if g % d == 0)
+    return SweepPlan(scenario=scenario, n_samples=n, sample_rate=rate, starts=starts,
+                     lengths=lengths, condition=condition.reshape(-1), params=params,
+                     subblock=sub)
+
+
+class _Maps:
+    """Per-condition discrete maps over one sample, a sub-block and groups of sub-blocks."""
+
+    def __init__(self, model: AeroelasticModel, params: np.ndarray, dt: float, sub: int):
+        self.n = n = model.n_states
+        damping = params[:, 2] if model.absorber is not None else None
+        a, b = model.matrices(params[:, 0], params[:, 1], damping)
+        phi, gam = zoh(a, b, dt)
+        cacc, dacc = model.acceleration_output(a, b)
+        k = len(params)
+        c = np.concatenate([np.broadcast_to(model.c_displacement, (k, 4, n)), cacc], axis=1)
+        d = np.concatenate([np.zeros((k, 4)), dacc], axis=1)
+        # powers[j] = Phi^j, j = 0..L; obs[j] = C Phi^j; markov[j] = C Phi^j Gamma.
+        powers = np.empty((sub + 1, k, n, n))
+        powers[0] = np.eye(n)
+        for j in range(sub):
+            powers[j + 1] = phi @ powers[j]
+        obs = c[None] @ powers[:sub]  # (L, K, 7, n)
+        markov = (obs @ gam[None, :, :, None])[..., 0]  # (L, K, 7)
+        # Sub-block map per output o, transposed: [x; u_0..u_{L-1}] (n + L) -> y_o (L).
+        qt = np.zeros((k, 7, n + sub, sub))
+        qt[:, :, :n] = obs.transpose(1, 2, 3, 0)
+        for j in range(sub):
+            qt[:, :, n + j, j] = d
+            for i in range(j):
+                qt[:, :, n + i, j] = markov[j - 1 - i]
+        self.qt = qt
+        self.phi_l = powers[sub]  # (K, n, n)
+        # ctrb_l[:, :, i] = Phi^(L-1-i) Gamma: the end state of a sub-block from its forces.
+        self.ctrb_l = (powers[sub - 1::-1] @ gam[None, :, :, None])[..., 0].transpose(1, 2, 0)
+        self.sub = sub
+        self._groups: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+
+    def group(self, r: int) -> tuple[np.ndarray, np.ndarray]:
+        """(Phi^(L r), ctrb over L r samples (K, n, L r)) for groups of ``r`` sub-blocks."""
+        if r not in self._groups:
+            parts = [self.ctrb_l]
+            power = self.phi_l
+            for _ in range(r - 1):
+                parts.append(power @ self.ctrb_l)
+                power = self.phi_l @ power
+            self._groups[r] = (power, np.concatenate(parts[::-1], axis=2))
+        return self._groups[r]
+
+
+def _power(m: np.ndarray, e: int) -> np.ndarray:
+    """m^e for a stack of matrices (binary powering)."""
+    out = np.broadcast_to(np.eye(m.shape[-1]), m.shape).copy()
+    while e:
+        if e & 1:
+            out = m @ out
+        e >>= 1
+        if e:
+            m = m @ m
+    return out
+
+
+def _split(b: int) -> int:
+    """R: the divisor of ``b`` closest to sqrt(b) (sub-blocks per group)."""
+    root = math.isqrt(b)
+    return max(d for d in range(1, root + 1) if b % d == 0) if b > 1 else 1
+
+
+def _segment_forces(force: np.ndarray, starts: np.ndarray, m: int) -> np.ndarray:
+    """(S, m) forces of segments of length ``m`` (a view when they are back to back)."""
+    if len(starts) > 1 and np.all(np.diff(starts) == m):
+        return force[starts[0]:starts[0] + m * len(starts)].reshape(len(starts), m)
+    return force[starts[:, None] + np.arange(m)]
+
+
+def _matvec(m: np.ndarray, x: np.ndarray) -> np.ndarray:
+    return (m @ x[..., None])[..., 0]
+
+
+def simulate_sweep(config: RuntimeConfig, plan: SweepPlan, *,
+                   chunk_samples: int = CHUNK_SAMPLES) -> Iterator[SweepChunk]:
+    """Yield the flight in chunks of whole segments, in time order.
+
+    The force is drawn first (the whole flight, from the scenario's seed), then the
+    segment-initial states (steps 3-4 of the module docstring); each chunk is computed when
+    it is asked for, so a consumer that stops early (divergence) saves the rest.
+    """
+    s = plan.scenario
+    n_all = plan.n_samples
+    force = s.force_std * np.random.default_rng(s.seed).standard_normal(n_all)
+    model = AeroelasticModel(config.wing, config.absorber, config.aero)
+    maps = _Maps(model, plan.params, 1.0 / plan.sample_rate, plan.subblock)
+    nst, sub = maps.n, plan.subblock
+    # Per segment length: R and its group maps; the segments' end states from rest.
+    with np.errstate(over="ignore", invalid="ignore"):  # a diverging flight may overflow
+        lengths = np.unique(plan.lengths)
+        layout = {}
+        x_free_end = np.empty((len(plan.starts), nst))  # end state from rest (forced part)
+        phi_seg = np.empty((len(plan.starts), nst, nst))  # Phi^M: carries the initial state
+        for m in lengths.tolist():
+            sel = np.flatnonzero(plan.lengths == m)
+            r = _split(m // sub)
+            groups = m // (sub * r)
+            phi_g, ctrb_g = maps.group(r)
+            layout[m] = (r, groups)
+            cond = plan.condition[sel]
+            u = _segment_forces(force, plan.starts[sel], m).reshape(len(sel), groups, sub * r)
+            g = ctrb_g[cond] @ u.transpose(0, 2, 1)  # (S, n, G) forced end of each group
+            x = np.zeros((len(sel), nst))
+            p = phi_g[cond]
+            for j in range(groups):
+                x = _matvec(p, x) + g[:, :, j]
+            x_free_end[sel] = x
+            phi_seg[sel] = _power(phi_g, groups)[cond]
+        # The sequential scan over segments (a few microseconds each).
+        x0 = np.empty((len(plan.starts), nst))
+        x = np.zeros(nst)
+        for k in range(len(plan.starts)):
+            x0[k] = x
+            x = phi_seg[k] @ x + x_free_end[k]
+    k = 0
+    while k < len(plan.starts):
+        stop = k + 1
+        total = int(plan.lengths[k])
+        while stop < len(plan.starts) and total + plan.lengths[stop] <= chunk_samples:
+            total += int(plan.lengths[stop])
+            stop += 1
+        first = int(plan.starts[k])
+        out = np.empty((7, total))
+        with np.errstate(over="ignore", invalid="ignore"):
+            for m in np.unique(plan.lengths[k:stop]).tolist():
+                sel = k + np.flatnonzero(plan.lengths[k:stop] == m)
+                _outputs(maps, layout[m], plan.condition[sel], x0[sel],
+                         _segment_forces(force, plan.starts[sel], m), plan.starts[sel] - first,
+                         out)
+        yield SweepChunk(first_index=first, force=force[first:first + total],
+                         displacements=out[:4], accelerations=out[4:])
+        k = stop
+
+
+def _outputs(maps: _Maps, layout: tuple[int, int], cond: np.ndarray, x0: np.ndarray,
+             u: np.ndarray, offsets: np.ndarray, out: np.ndarray) -> None:
+    """Outputs of segments of one length into ``out`` (7, T) at ``offsets``.
+
+    ``x0`` (S, n) initial states, ``u`` (S, M) forces. States at group starts (G steps), then
+    at sub-block starts (R steps, vectorised over groups), then one batched product.
+    """
+    r, groups = layout
+    nseg, m = u.shape
+    nst, sub = maps.n, maps.sub
+    phi_g, ctrb_g = maps.group(r)
+    blocks = u.reshape(nseg, groups * r, sub)
+    g = ctrb_g[cond] @ u.reshape(nseg, groups, sub * r).transpose(0, 2, 1)  # (S, n, G)
+    starts_g = np.empty((nseg, nst, groups))
+    x = x0
+    p = phi_g[cond]
+    for j in range(groups):
+        starts_g[:, :, j] = x
+        x = _matvec(p, x) + g[:, :, j]
+    # Within groups: y[r'] for all groups at once.
+    gl = (maps.ctrb_l[cond] @ blocks.transpose(0, 2, 1)).reshape(nseg, nst, groups, r)
+    xs = np.empty((nseg, groups, r, nst + sub))  # [state; forces] of every sub-block
+    xs[..., nst:] = blocks.reshape(nseg, groups, r, sub)
+    p = maps.phi_l[cond]
+    y = starts_g
+    for j in range(r):
+        xs[:, :, j, :nst] = y.transpose(0, 2, 1)
+        y = p @ y + gl[:, :, :, j]
+    xs = xs.reshape(nseg, groups * r, nst + sub)
+    # One product per output channel writes time-ordered samples straight into ``out``.
+    back_to_back = nseg == 1 or bool(np.all(np.diff(offsets) == m))
+    for o in range(7):
+        q = maps.qt[cond, o]  # (S, n + L, L)
+        if back_to_back:
+            row = out[o, offsets[0]:offsets[0] + nseg * m].reshape(nseg, groups * r, sub)
+            np.matmul(xs, q, out=row)
+        else:
+            for i, off in enumerate(offsets.tolist()):
+                out[o, off:off + m] = (xs[i] @ q[i]).reshape(m)
