@@ -27,7 +27,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.special import hankel2
 
 from aero_dva_sim.wing_checks import positive
 
@@ -124,6 +123,10 @@ def theodorsen_function(k):
     k_arr = np.asarray(k, dtype=float)
     if np.any(~np.isfinite(k_arr)) or np.any(k_arr < 0):
         raise ValueError("k must be finite and >= 0")
+    # Imported here: scipy.special costs about a second of start-up for every node process, and
+    # only the frequency-domain analyses need C(k).
+    from scipy.special import hankel2
+
     safe = np.where(k_arr > 0, k_arr, 1.0)
     h1 = hankel2(1, safe)
     h0 = hankel2(0, safe)
