@@ -11,6 +11,12 @@ from pathlib import Path
 
 import numpy as np
 
+from aero_dva_sim.cdr_decoding import (
+    CdrDecodeError,
+    decode_damper_state_applied,
+    decode_flight_condition,
+    decode_sample_block,
+)
 from aero_dva_sim.mcap_io import BagReadError, bag_topics, read_messages
 
 TOPIC_TYPES = {
@@ -21,6 +27,7 @@ TOPIC_TYPES = {
     "/dva/damper_state": "dva_msgs/msg/DamperState",
 }
 REQUIRED = ("/wing/displacement", "/flight/condition")
+SAMPLE_CHANNELS = {"/wing/acceleration": 3, "/wing/displacement": 4, "/wing/excitation": 1}
 
 
 @dataclass(frozen=True)
@@ -56,9 +63,10 @@ class FlightLog:
     diagnostics: tuple[dict, ...]
 
 
-def _fill(target: np.ndarray, blocks: list[tuple[int, np.ndarray]]) -> None:
-    for index, values in blocks:
-        target[..., index:index + values.shape[-1]] = values
+def _fill(target: np.ndarray, blocks: list[tuple[int, tuple[np.ndarray, ...]]]) -> None:
+    for index, channels in blocks:
+        for row, values in zip(target, channels):
+            row[index:index + values.size] = values
 
 
 def load_flight_log(bag: str | Path, namespace: str = "") -> FlightLog:
@@ -83,31 +91,37 @@ def load_flight_log(bag: str | Path, namespace: str = "") -> FlightLog:
     blocks: dict[str, list] = {t: [] for t in topics}  # sample topics -> [(index, values)]
     rates = set()
     conditions, damper, diagnostics = [], [], []
-    for record in read_messages(bag, wanted, expected_types={t: topics[t] for t in wanted}):
-        msg = record.message
+    flight_topics = [t for t in wanted if t != "/diagnostics"]
+    # The flight topics are decoded here (cdr_decoding: numpy views of the sample arrays, ~50x
+    # faster than the generic decoder on a sweep's 10^6 blocks); /diagnostics generically.
+    for record in read_messages(bag, flight_topics, decode=False, log_time_order=False,
+                                expected_types={t: topics[t] for t in flight_topics}):
         name = record.topic[len(prefix):] if record.topic.startswith(prefix) else record.topic
-        if name in ("/wing/acceleration", "/wing/displacement", "/wing/excitation"):
-            rates.add(float(msg.sample_rate))
-            fields = {"/wing/acceleration": ("plunge", "pitch", "leading_edge"),
-                      "/wing/displacement": ("plunge", "pitch", "leading_edge",
-                                             "absorber_stroke"),
-                      "/wing/excitation": ("aileron_force",)}[name]
-            values = np.array([np.asarray(getattr(msg, f), dtype=float) for f in fields])
-            blocks[record.topic].append((int(msg.first_sample_index), values))
-        elif name == "/flight/condition":
-            conditions.append((_stamp(msg), msg.airspeed, msg.air_density))
-        elif name == "/dva/damper_state":
-            damper.append((_stamp(msg), msg.applied_damping))
-        elif record.topic == "/diagnostics":
+        try:
+            if name in SAMPLE_CHANNELS:
+                block = decode_sample_block(record.message, SAMPLE_CHANNELS[name],
+                                            record.type_name)
+                rates.add(block.sample_rate)
+                blocks[record.topic].append((block.first_index, block.channels))
+            elif name == "/flight/condition":
+                conditions.append(decode_flight_condition(record.message))
+            elif name == "/dva/damper_state":
+                damper.append(decode_damper_state_applied(record.message))
+        except CdrDecodeError as exc:
+            raise BagReadError(f"{bag}: a message on {record.topic} does not decode: "
+                               f"{exc}") from None
+    if "/diagnostics" in wanted:
+        for record in read_messages(bag, ["/diagnostics"],
+                                    expected_types={"/diagnostics": topics["/diagnostics"]}):
             diagnostics.extend(
                 {"name": st.name, "message": st.message, "level": _level(st.level),
                  "values": {kv.key: kv.value for kv in st.values}}
-                for st in msg.status)
+                for st in record.message.status)
     if len(rates) != 1:
         raise BagReadError(f"{bag}: sample rate must be one value over the flight, got {rates}")
     rate = rates.pop()
     disp_blocks = blocks[prefix + "/wing/displacement"]
-    n = max(i + v.shape[-1] for i, v in disp_blocks)
+    n = max(i + v[0].size for i, v in disp_blocks)
     displacements = np.full((4, n), np.nan)
     _fill(displacements, disp_blocks)
     accelerations = np.full((3, n), np.nan)
@@ -129,10 +143,6 @@ def load_flight_log(bag: str | Path, namespace: str = "") -> FlightLog:
 def _level(level) -> int:
     # diagnostic_msgs declares ``byte level``; decoders give bytes or int.
     return level[0] if isinstance(level, (bytes, bytearray)) else int(level)
-
-
-def _stamp(msg) -> float:
-    return msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
 
 
 def _held(time: np.ndarray, records: list, width: int) -> list[np.ndarray]:
