@@ -20,6 +20,8 @@ SUBCOMMAND_MODULES = {
     "discrepancy": "dva_offline.discrepancy.cli",
     "control": "dva_offline.control_cli",
     "train": "dva_offline.train_cli",
+    "evaluate": "dva_offline.evaluation_cli",
+    "report": "dva_offline.run_report_cli",
 }
 
 
