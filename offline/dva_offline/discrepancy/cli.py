@@ -4,7 +4,10 @@
 [--static-stiffness N_PER_M] [--elements N] [--covariates COL[,COL...]] [--plot-dir DIR] --json``
 prints one JSON object (baseline, verdict, augmented, candidates, residual evidence).
 ``dva discrepancy synth`` writes a test CSV that hides one effect (the generator of the tests).
-SI units throughout (kg, N/m, Hz).
+``dva discrepancy flight RUN.mcap [--wing FILE] [--plot-dir DIR] --json`` does the same for a
+flight log (MCAP bag of the simulator node or the batch recorder) against the wing + Maxwell
+DVA model; ``dva discrepancy synth-flight --effect E --seed S OUT`` records a test flight that
+hides one plant effect. SI units throughout (kg, N/m, Hz).
 """
 from __future__ import annotations
 
@@ -147,6 +150,122 @@ def _cmd_synth(args) -> int:
     return EXIT_OK
 
 
+def _flight_summary(result, domain) -> list[str]:
+    v = result.verdict
+    lines = [
+        f"baseline {result.baseline.name}: held-out error {result.baseline.error:.4f} "
+        f"(noise floor {result.noise.sigma:.4f}; {len(domain.segments)} segments, "
+        f"{result.split.held.sum()} held-out points)",
+        f"verdict: {v.status}" + (f" -> {v.effect}" + (f" ({v.label})" if v.label else "")
+                                  if v.effect else ""),
+    ]
+    if result.augmented is not None:
+        a = result.augmented
+        lines.append(f"augmented {a.name}: held-out error {a.error:.4f} "
+                     f"({100 * (1 - a.error / result.baseline.error):.0f} % lower)")
+        lines += [f"  {e.name} = {e.value:.6g} +- {e.std:.2g} {e.unit}" for e in a.added]
+    lines.append(f"evidence: {v.evidence}")
+    lines.append("candidates (held-out error, dBIC):")
+    for c in result.candidates:
+        label = f" ({c.label})" if c.label else ""
+        if c.applicable:
+            lines.append(f"  {c.effect}{label}: {c.fit.error:.4f}, {c.delta_bic:.1f}")
+        else:
+            lines.append(f"  {c.effect}{label}: not applicable: {c.reason}")
+    return lines
+
+
+def _cmd_flight(args) -> int:
+    from aero_dva_sim.flight_log_io import load_flight_log
+    from aero_dva_sim.wing_io import load_wing
+    from dva_offline.discrepancy import engine
+    from dva_offline.discrepancy.flight_domain import (
+        FlightDomain,
+        FlightSettings,
+        arrays_from_log,
+    )
+    from dva_offline.discrepancy.report import plot_result, result_to_dict
+
+    path = Path(args.file)
+    if not path.exists():
+        raise FileNotFoundError(f"flight log not found: {path}")
+    try:
+        band = tuple(float(x) for x in args.band.split(","))
+    except ValueError:
+        raise ValueError(f"--band must be LOW,HIGH in Hz, got {args.band!r}") from None
+    if len(band) != 2:
+        raise ValueError(f"--band must be LOW,HIGH in Hz, got {args.band!r}")
+    settings = FlightSettings(band=band, window_s=args.window,
+                              segment_windows=args.segment_windows)
+    print(f"reading {path} ...", file=sys.stderr, flush=True)
+    log = load_flight_log(path, namespace=args.namespace)
+    wing = load_wing(args.wing)
+    domain = FlightDomain(arrays_from_log(log), wing, settings)
+    rng = None if args.holdout_seed is None else np.random.default_rng(args.holdout_seed)
+    split = engine.holdout_split(domain.observations.groups, args.holdout_every, rng)
+    bar, step = _progress()
+    try:
+        result = engine.run(domain, rule=domain.decision_rule, split=split, progress=step)
+    finally:
+        bar.close()
+    fs = domain.data.sample_rate
+    extra = {
+        "file": str(path), "wing": args.wing or "reference",
+        "n_points": int(domain.observations.values.size),
+        "observations": {
+            "quantity": "H1 estimate, aileron force -> plunge [m/s^2/N] and pitch "
+                        "[rad/s^2/N] acceleration",
+            "band_hz": list(settings.band), "resolution_hz": fs / domain.n_window,
+            "window": f"Hann, {domain.n_window} samples, 50 % overlap",
+            "channels": ["plunge", "pitch"],
+        },
+        "segments": [
+            {"start_s": s.start / fs, "stop_s": s.stop / fs, "windows": len(s.windows),
+             "airspeed_mps": float(np.mean(domain.data.airspeed[s.start:s.stop])),
+             "density": float(np.mean(domain.data.density[s.start:s.stop])),
+             "damper_c2": float(np.mean(domain.data.damping[s.start:s.stop])),
+             "pitch_rms_rad": float(domain.seg_pitch_rms[i])}
+            for i, s in enumerate(domain.segments)
+        ],
+    }
+    payload = result_to_dict(result, extra)
+    if args.plot_dir:
+        paths = plot_result(result, domain.observations, args.plot_dir,
+                            "H (force -> acceleration)", path.name)
+        payload["plots"] = [str(p) for p in paths]
+    if args.json:
+        print(json.dumps(payload))
+    else:
+        print("\n".join(_flight_summary(result, domain)))
+    return EXIT_OK
+
+
+def _cmd_synth_flight(args) -> int:
+    from dva_offline.discrepancy import flight_synthetic
+
+    effect = None if args.effect == "none" else args.effect
+    if Path(args.out).exists():
+        raise ValueError(f"output {args.out} exists; choose a new bag directory")
+    if not args.dwell > 0:
+        raise ValueError(f"--dwell must be > 0 s, got {args.dwell}")
+    print(f"flying and recording {12 * args.dwell:g} s ...", file=sys.stderr, flush=True)
+    case = flight_synthetic.generate_flight(effect, args.seed, args.out, dwell=args.dwell)
+    payload = {
+        "out": str(case.path), "seed": case.seed, "hidden_effect": case.effect,
+        "hidden_parameters": case.parameters, "airspeed_ratios": list(case.airspeed_ratios),
+        "damper_c2": list(case.damping), "accelerometer_noise": list(case.noise),
+        "outcome": case.outcome, "wall_time_s": case.wall_time,
+    }
+    from dva_offline.discrepancy.report import _clean
+
+    if args.json:
+        print(json.dumps(_clean(payload)))
+    else:
+        print(f"wrote {case.path} ({case.outcome}; hidden: {case.effect} "
+              f"{case.parameters})")
+    return EXIT_OK
+
+
 def register(subparsers) -> None:
     """Add the ``discrepancy`` subcommand to the ``dva`` parser."""
     from dva_offline.discrepancy import synthetic
@@ -197,6 +316,38 @@ def register(subparsers) -> None:
                    default=None, help="clean data: stack 3 conditions of this covariate")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(func=_cmd_synth)
+
+    from dva_offline.discrepancy.flight_synthetic import LIBRARY_EFFECTS, OUTSIDE_EFFECTS
+
+    p = sub.add_parser("flight", help="flight log (MCAP) against the wing + Maxwell DVA model")
+    p.add_argument("file", help="rosbag2 directory or .mcap file of a flight (simulator node "
+                               "or batch recorder)")
+    p.add_argument("--wing", default=None, help="wing file (default: the reference wing)")
+    p.add_argument("--namespace", default="", help="topic namespace of the flight")
+    p.add_argument("--band", default="2,20", help="frequency band LOW,HIGH [Hz] (default 2,20)")
+    p.add_argument("--window", type=float, default=1.0,
+                   help="DFT window [s] (Hann, 50 %% overlap; default 1)")
+    p.add_argument("--segment-windows", type=int, default=7,
+                   help="windows per segment of constant condition (default 7)")
+    p.add_argument("--holdout-every", type=int, default=4,
+                   help="hold out every Nth point of each segment and channel (default 4)")
+    p.add_argument("--holdout-seed", type=int, default=None,
+                   help="hold out a seeded random 1/N of the points instead")
+    p.add_argument("--plot-dir", "--plot", dest="plot_dir", default=None,
+                   help="write PNG plots into this directory")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.set_defaults(func=_cmd_flight)
+
+    p = sub.add_parser("synth-flight",
+                       help="record a test flight (MCAP) that hides one plant effect")
+    p.add_argument("--effect", required=True,
+                   choices=("none", *LIBRARY_EFFECTS, *OUTSIDE_EFFECTS))
+    p.add_argument("--seed", type=int, required=True, help="random seed")
+    p.add_argument("--dwell", type=float, default=4.0,
+                   help="seconds per (airspeed, c2) pair; 12 of them (default 4)")
+    p.add_argument("out", help="bag directory to create")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.set_defaults(func=_cmd_synth_flight)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -513,6 +513,12 @@ class DecisionRule:
     ambiguity_margin : float
         Another candidate that also explains the residual within this BIC margin makes the
         attribution ambiguous (verdict ``unexplained``).
+    strict_consistency : bool
+        If True, ``consistent`` also needs that no candidate is significant (F-test p <
+        significance and dBIC <= -min_bic_gain), and the noise level in the explained
+        fraction R is capped by the best candidate's held-out error (a noise floor estimate
+        that is too high, e.g. from correlated estimation noise, must not hide a clear
+        effect). Off by default (domain 1); the flight domain uses it.
     """
 
     consistency_ratio: float = 1.25
@@ -521,6 +527,7 @@ class DecisionRule:
     min_bic_gain: float = 10.0
     min_explained: float = 0.9
     ambiguity_margin: float = 10.0
+    strict_consistency: bool = False
 
 
 @dataclass(frozen=True)
@@ -647,11 +654,12 @@ def decide(base: ModelFit, noise: NoiseFloor, features: ResidualFeatures,
     head = (f"baseline held-out error {base.error:.4f} = {ratio:.2f} x the noise floor "
             f"{sigma:.4f}; residual whiteness (Ljung-Box) p = {white.p_value:.2g}")
     fitted = [c for c in scores if c.applicable and c.fit is not None]
-    if ratio <= rule.consistency_ratio and white.p_value >= rule.whiteness_alpha:
-        return Verdict("consistent", None, "",
-                       f"{head}: the baseline fits within the noise; nothing added")
     eligible = [c for c in fitted if c.p_value < rule.significance
                 and c.delta_bic <= -rule.min_bic_gain]
+    if (ratio <= rule.consistency_ratio and white.p_value >= rule.whiteness_alpha
+            and not (rule.strict_consistency and eligible)):
+        return Verdict("consistent", None, "",
+                       f"{head}: the baseline fits within the noise; nothing added")
     if not eligible:
         best = min(fitted, key=lambda c: c.delta_bic) if fitted else None
         tail = f"; best was {_describe(best)}" if best is not None else ""
@@ -679,6 +687,24 @@ def decide(base: ModelFit, noise: NoiseFloor, features: ResidualFeatures,
     return Verdict("explained", best.effect, best.label,
                    f"{head}; {_describe(best)}; held-out error {base.error:.4f} -> "
                    f"{best.fit.error:.4f}{tail}")
+
+
+def _capped_fractions(base: ModelFit, scores: list, sigma: float) -> list:
+    """Explained fractions with the noise level capped by the best candidate's held-out RMS
+    error (see ``DecisionRule.strict_consistency``)."""
+    fits = [c.fit for c in scores if c.applicable and c.fit is not None]
+    if not fits:
+        return scores
+    best_rms = min(np.sqrt(f.rss_held / f.n_held) for f in fits)
+    capped = min(sigma, best_rms)
+    out = []
+    for c in scores:
+        if c.applicable and c.fit is not None:
+            _, _, frac = score_candidate(base, c.fit, capped)
+            c = CandidateScore(c.effect, c.label, True, c.reason, c.fit, c.delta_bic, c.p_value,
+                               frac, c.signature)
+        out.append(c)
+    return out
 
 
 def run(domain: Domain, rule: DecisionRule | None = None, split: HoldoutSplit | None = None,
@@ -742,6 +768,8 @@ def run(domain: Domain, rule: DecisionRule | None = None, split: HoldoutSplit | 
                     c = CandidateScore(c.effect, c.label, True, "", fit, dbic, p, frac,
                                        c.signature)
                     scores[i] = c
+    if rule.strict_consistency:
+        scores = _capped_fractions(base, scores, noise.sigma)
     scores.sort(key=lambda c: (not c.applicable, c.delta_bic if c.applicable else 0.0))
     verdict = decide(base, noise, features, scores, rule)
     augmented = aug_features = None
@@ -750,5 +778,7 @@ def run(domain: Domain, rule: DecisionRule | None = None, split: HoldoutSplit | 
                       and c.label == verdict.label)
         augmented = chosen.fit
         aug_features = _features(obs, augmented, noise.sigma)
+    # a domain whose weights are not plain 1/|y| states its own definition
+    definition = getattr(domain, "error_definition", ERROR_DEFINITION)
     return DiscrepancyResult(domain.name, split, base, noise, features, tuple(scores), verdict,
-                             augmented, aug_features, rule)
+                             augmented, aug_features, rule, definition)

@@ -3,7 +3,9 @@
 :class:`FlightRuntime` ties a scenario, the wing with its tunable Maxwell DVA, the damper model
 and the seeded excitation together. The simulator node calls :meth:`FlightRuntime.step` and
 publishes what it returns; the batch path and the tests call the same code, so a seed gives the
-same data through either route.
+same data through either route. A scenario with an active ``plant`` section flies the hidden
+plant of :mod:`aero_dva_sim.hidden_plant` instead of the nominal model; what is published (and
+the damper state) stays the same in kind, so the log does not reveal the plant options.
 """
 from __future__ import annotations
 
@@ -17,10 +19,12 @@ from aero_dva_sim.absorbers import MaxwellAbsorber
 from aero_dva_sim.damper import CommandResult, DamperConfig, DamperModel, DamperSnapshot
 from aero_dva_sim.flight_sim import BlockSimulator
 from aero_dva_sim.flutter import flutter_speed
+from aero_dva_sim.hidden_plant import PlantSimulator
 from aero_dva_sim.scenario import (
     Scenario,
     airspeed_at,
     density_at,
+    force_scale_at,
     resolve_airspeeds,
     sample_times,
     sweep_damping_at,
@@ -143,8 +147,15 @@ class FlightRuntime:
         self.block_duration = self.block_size / self.sample_rate
         # Held airspeed/density/c2 are rounded to a 0.1 % relative grid so a ramp reuses cached
         # discretisations (eigenvalue shifts ~1e-3 relative, far below the model's accuracy).
-        self._sim = BlockSimulator(config.wing, config.absorber, sample_rate=self.sample_rate,
-                                   aero=config.aero, quantum=QUANTUM)
+        plant = self.scenario.plant
+        if plant is not None and plant.active:
+            # Hidden plant: the wing flown differs from the model the log implies.
+            self._sim = PlantSimulator(config.wing, config.absorber, self.sample_rate,
+                                       config.aero, plant, seed=self.scenario.seed)
+        else:
+            self._sim = BlockSimulator(config.wing, config.absorber,
+                                       sample_rate=self.sample_rate, aero=config.aero,
+                                       quantum=QUANTUM)
         self._damper = DamperModel(config.damper, start_time=0.0)
         self._rng = np.random.default_rng(self.scenario.seed)
         self._index = 0
@@ -186,6 +197,8 @@ class FlightRuntime:
             # The damper is updated once per block: commands arrive between blocks.
             damping = np.full(n, self._damper.update(float(t[0])))
         force = self.scenario.force_std * self._rng.standard_normal(n)
+        if self.scenario.force_levels:
+            force *= force_scale_at(self.scenario, t)
         out = self._sim.advance(force, airspeed, density,
                                 damping if self.config.absorber is not None else None)
         block = FlightBlock(

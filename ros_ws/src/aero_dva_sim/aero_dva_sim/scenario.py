@@ -14,7 +14,9 @@ Profiles
   ``dwell`` seconds, one per c2 value (seed sec. 7.2.1 training experiment).
 - density: rho(t) = rho0 (1 + mu sin(2 pi f t)) (seed eq. 7.2, with f = 1 Hz there).
 - excitation: zero-mean white Gaussian aileron force with standard deviation ``force_std``
-  (1 kN in the seed), drawn per sample from ``numpy.random.default_rng(seed)``.
+  (1 kN in the seed), drawn per sample from ``numpy.random.default_rng(seed)``; optionally
+  scaled by ``force_levels`` taken in turn for ``level_dwell`` seconds each (a flight test at
+  several excitation levels, which shows amplitude-dependent behaviour).
 """
 from __future__ import annotations
 
@@ -22,6 +24,8 @@ import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+
+from aero_dva_sim.hidden_plant import PlantOptions
 
 AIRSPEED_KINDS = ("constant", "ramp", "steps")
 
@@ -76,6 +80,13 @@ class Scenario:
         Seconds each (U, c2) pair of a sweep is held [s].
     sweep_damping : tuple of float
         c2 values [N s/m] applied in turn at each sweep airspeed (empty unless ``steps``).
+    force_levels : tuple of float
+        Multipliers of ``force_std`` applied in turn, each for ``level_dwell`` [s] (empty:
+        one level).
+    level_dwell : float
+        [s] how long each of ``force_levels`` is held.
+    plant : PlantOptions or None
+        Hidden plant effects (:mod:`aero_dva_sim.hidden_plant`); None flies the nominal model.
     """
 
     name: str
@@ -90,6 +101,9 @@ class Scenario:
     seed: int = 0
     dwell: float = 2.0
     sweep_damping: tuple[float, ...] = ()
+    force_levels: tuple[float, ...] = ()
+    level_dwell: float = 1.0
+    plant: PlantOptions | None = None
 
     def __post_init__(self) -> None:
         validate(self)
@@ -149,6 +163,19 @@ def validate(s: Scenario) -> None:
             )
     elif s.sweep_damping:
         raise ScenarioError("sweep_damping is only meaningful with airspeed kind 'steps'")
+    if s.force_levels:
+        _positive("level_dwell", s.level_dwell)
+        if not all(isinstance(v, (int, float)) and math.isfinite(v) and 0 < v <= 100
+                   for v in s.force_levels):
+            raise ScenarioError(f"force levels must be in (0, 100], got {s.force_levels}")
+    if s.plant is not None:
+        if not isinstance(s.plant, PlantOptions):
+            raise ScenarioError(
+                f"plant must be PlantOptions or None, got {type(s.plant).__name__}")
+        try:
+            s.plant.check_duration(s.duration)
+        except ValueError as exc:
+            raise ScenarioError(str(exc)) from None
 
 
 def sweep_duration(n_airspeeds: int, n_damping: int, dwell: float) -> float:
@@ -205,7 +232,19 @@ def density_at(s: Scenario, t: np.ndarray) -> np.ndarray:
     return s.density * (1.0 + s.density_variation * np.sin(2.0 * np.pi * s.density_frequency * t))
 
 
+def force_scale_at(s: Scenario, t: np.ndarray) -> np.ndarray:
+    """Multiplier of ``force_std`` at times ``t`` [s] (1 without ``force_levels``)."""
+    t = np.asarray(t, dtype=float)
+    if not s.force_levels:
+        return np.ones_like(t)
+    index = np.clip((t // s.level_dwell).astype(int), 0, None) % len(s.force_levels)
+    return np.asarray(s.force_levels, dtype=float)[index]
+
+
 def excitation(s: Scenario, rng: np.random.Generator | None = None) -> np.ndarray:
     """The whole flight's aileron force [N], shape (n_samples,), from ``default_rng(s.seed)``."""
     rng = np.random.default_rng(s.seed) if rng is None else rng
-    return s.force_std * rng.standard_normal(s.n_samples)
+    force = s.force_std * rng.standard_normal(s.n_samples)
+    if s.force_levels:
+        force *= force_scale_at(s, sample_times(s))
+    return force

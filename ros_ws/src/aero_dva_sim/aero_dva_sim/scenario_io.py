@@ -14,9 +14,19 @@ Format (every key optional except ``duration`` and ``airspeed``; SI units)::
       # steps: values: [...] | ratios: [...] | start_ratio/end_ratio/step_ratio
     density: {base: 1.2, variation: 0.05, frequency: 1.0}   # eq. 7.2: mu = variation, f [Hz]
     excitation: {force_std: 1000.0, seed: 1}                # [N], seed of default_rng
+    # optional: levels: [1.0, 3.0], level_dwell: 8.0  (force_std multipliers held in turn)
     sweep: {dwell: 2.0, damping: [0.0, 100.0, ...]}         # steps only: c2 values [N s/m]
+    plant:                       # optional hidden plant effects (aero_dva_sim.hidden_plant)
+      actuator_lag: {time_constant: 0.8}                 # [s] first-order lag of c2
+      sensor_delay: {delay: 0.004}                       # [s] accelerometers delayed
+      cubic_stiffness: {kappa: 1.0e5}                    # [1/rad^2] k_alpha (a + kappa a^3)
+      unsteady_aero: {scale: 1.0}                        # Wagner/Jones lag, amplitudes x scale
+      drift: {parameter: pitch_stiffness, rate: -0.003}  # [1/s] p(t) = p0 (1 + rate t)
+      sensor_noise: {plunge: 0.5, pitch: 0.2, leading_edge: 0.5}  # accelerometer noise std
+      sensor_gain: {plunge: 1.0, pitch: 1.05, leading_edge: 1.0}  # calibration factors
 
-For ``steps``, ``duration: auto`` takes the sweep length.
+For ``steps``, ``duration: auto`` takes the sweep length. Nothing recorded names the plant
+options: they are what a model-discrepancy analysis has to find.
 """
 from __future__ import annotations
 
@@ -26,6 +36,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from aero_dva_sim.hidden_plant import CHANNELS, PlantOptions
 from aero_dva_sim.scenario import (
     AirspeedProfile,
     Scenario,
@@ -34,7 +45,17 @@ from aero_dva_sim.scenario import (
 )
 
 _TOP_KEYS = {"name", "duration", "sample_rate", "block_size", "airspeed", "density", "excitation",
-             "sweep"}
+             "sweep", "plant"}
+# plant section: effect -> (its keys, the PlantOptions field each key sets)
+_PLANT_KEYS = {
+    "actuator_lag": {"time_constant": "actuator_lag"},
+    "sensor_delay": {"delay": "sensor_delay"},
+    "cubic_stiffness": {"kappa": "cubic_stiffness"},
+    "unsteady_aero": {"scale": "unsteady_aero"},
+    "drift": {"parameter": "drift_parameter", "rate": "drift_rate"},
+    "sensor_noise": {ch: None for ch in CHANNELS},
+    "sensor_gain": {ch: None for ch in CHANNELS},
+}
 
 
 def _number(section: str, key: str, value: Any) -> float:
@@ -74,6 +95,43 @@ def _airspeed(raw: Any) -> AirspeedProfile:
     return AirspeedProfile(kind, values, relative=relative)
 
 
+def _plant(raw: Any) -> PlantOptions | None:
+    """The ``plant`` section -> :class:`PlantOptions` (None when absent or empty)."""
+    if raw is None:
+        return None
+    if not isinstance(raw, dict):
+        raise ScenarioError("plant must be a mapping of effects, e.g. "
+                            "{actuator_lag: {time_constant: 0.5}}")
+    unknown = set(raw) - set(_PLANT_KEYS)
+    if unknown:
+        raise ScenarioError(f"unknown plant effects {sorted(unknown)}; known: "
+                            f"{sorted(_PLANT_KEYS)}")
+    fields: dict[str, Any] = {}
+    for effect, section in raw.items():
+        keys = _PLANT_KEYS[effect]
+        if not isinstance(section, dict):
+            raise ScenarioError(f"plant.{effect} must be a mapping with keys {sorted(keys)}")
+        bad = set(section) - set(keys)
+        if bad:
+            raise ScenarioError(f"unknown keys {sorted(bad)} in plant.{effect}; known: "
+                                f"{sorted(keys)}")
+        if effect in ("sensor_noise", "sensor_gain"):
+            default = 0.0 if effect == "sensor_noise" else 1.0
+            fields[effect] = tuple(
+                _number(f"plant.{effect}", ch, section.get(ch, default)) for ch in CHANNELS)
+            continue
+        for key, target in keys.items():
+            if key not in section:
+                raise ScenarioError(f"plant.{effect} needs '{key}'")
+            value = section[key]
+            fields[target] = (str(value) if key == "parameter"
+                              else _number(f"plant.{effect}", key, value))
+    try:
+        return PlantOptions(**fields)
+    except ValueError as exc:
+        raise ScenarioError(str(exc)) from None
+
+
 def scenario_from_dict(raw: Any, default_name: str = "scenario") -> Scenario:
     """Build and validate a :class:`Scenario` from parsed YAML; errors name the bad key."""
     if not isinstance(raw, dict):
@@ -92,6 +150,11 @@ def scenario_from_dict(raw: Any, default_name: str = "scenario") -> Scenario:
     duration = raw.get("duration")
     if duration == "auto" and airspeed.kind == "steps":
         duration = sweep_duration(len(airspeed.values), len(damping), dwell)
+    unknown = set(excitation) - {"force_std", "seed", "levels", "level_dwell"}
+    if unknown:
+        raise ScenarioError(f"unknown keys {sorted(unknown)} in excitation; known: "
+                            "force_std, seed, levels, level_dwell")
+    levels = tuple(_number("excitation", "levels", v) for v in excitation.get("levels", []))
     seed = excitation.get("seed", 0)
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise ScenarioError(f"excitation.seed must be a non-negative integer, got {seed!r}")
@@ -111,6 +174,9 @@ def scenario_from_dict(raw: Any, default_name: str = "scenario") -> Scenario:
         seed=seed,
         dwell=dwell,
         sweep_damping=damping,
+        force_levels=levels,
+        level_dwell=_number("excitation", "level_dwell", excitation.get("level_dwell", 1.0)),
+        plant=_plant(raw.get("plant")),
     )
 
 

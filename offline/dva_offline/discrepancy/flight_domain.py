@@ -1,0 +1,425 @@
+"""Domain 2 of the discrepancy engine: flight logs (MCAP) against the wing + Maxwell DVA model.
+
+Observations: H1 estimates of the frequency response from the measured aileron force to the
+measured plunge and pitch accelerations, per flight segment (airspeed, density and reported
+c2 nearly constant; a few boxcar windows each, see :mod:`.flight_frf`), at the DFT bins of a
+band (default 2-20 Hz). One group per segment and channel. Covariates per point: segment time,
+airspeed, reported c2, pitch displacement RMS, time since the last c2 change.
+
+Weights: w_j = 1 / (|H_j| eps_j / median(eps)), eps_j the expected random relative error of
+the estimate from the run's coherence, so the residual w_j (H_model,j - H_j) is the relative
+error scaled to the median point's noise, and a correct model leaves residuals of about equal
+size everywhere (the engine's noise floor and consistency test assume that).
+
+Model values: the exact expectation of the same estimator for the model (boxcar window,
+sampled system), per window of the segment at that window's condition, averaged with the
+windows' force power, so leakage and resolution bias are in the model, not in the residual.
+
+Baseline: :class:`~aero_dva_sim.wing_model.AeroelasticModel` of the wing file (reference wing
+by default) with its Maxwell DVA and aerodynamics, calibrated by three parameters: pitch
+stiffness k_alpha, plunge stiffness k and the structural damping factor beta (each within a
+factor 1.5 of the file's value).
+
+Candidates (each the baseline plus its parameters):
+
+- ``actuator_lag`` T [s]: the c2 acting is the logged c2 through a first-order lag.
+- ``sensor_delay`` tau [s]: accelerations delayed, H e^{-j w tau}.
+- ``cubic_stiffness`` kappa [1/rad^2]: pitch moment k_alpha (alpha + kappa alpha^3), by
+  statistical linearisation k_alpha (1 + 3 kappa sigma_alpha^2) with sigma_alpha the segment's
+  measured pitch RMS.
+- ``unsteady_aero`` s [-]: Wagner/Jones finite-state aerodynamics, lag amplitudes x s.
+- ``parameter_drift`` (absorber_stiffness | pitch_stiffness | plunge_stiffness) r [1/s]:
+  p(t) = p_0 (1 + r t), t from the start of the log (for the wing's stiffnesses beta K
+  follows, C = beta K; p_0 is the calibrated value, the DVA spring's is the wing file's).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.signal import lfilter
+
+from aero_dva_sim.aerodynamics import QuasiSteadyAero, TheodorsenAero, WagnerAero
+from aero_dva_sim.hidden_plant import pitch_moment_input
+from aero_dva_sim.wing_model import AeroelasticModel
+from dva_offline.discrepancy.engine import (
+    DecisionRule,
+    ModelSpec,
+    NotApplicable,
+    Observations,
+    ParamSpec,
+)
+from dva_offline.discrepancy.flight_frf import (
+    estimate_segments,
+    hann,
+    runs_of_constant_condition,
+    taper,
+    windowed_frf,
+)
+
+CHANNELS = ("plunge", "pitch")  # accelerometer channels used (leading edge = their combination)
+CALIBRATION = ("pitch_stiffness", "plunge_stiffness", "damping_factor")
+CALIBRATION_RANGE = 1.5  # calibrated parameters stay within a factor of the file's values
+DRIFT_PARAMETERS = ("absorber_stiffness", "pitch_stiffness", "plunge_stiffness")
+SIGNATURES = {
+    "actuator_lag": "residual in the segments right after c2 steps (depends on the time since "
+                    "the last c2 change), none in steady segments",
+    "sensor_delay": "phase of H_meas/H_model falls linearly with frequency in every segment, "
+                    "magnitude unchanged",
+    "cubic_stiffness": "pitch mode stiffer in segments with larger pitch response (depends "
+                       "on the response level)",
+    "unsteady_aero": "airspeed-dependent change of the aeroelastic modes' frequency and "
+                     "damping (circulatory lift lags the motion)",
+    "parameter_drift": "modes shift steadily with flight time (depends on time, not on "
+                       "level or c2)",
+}
+
+
+class FlightDataError(ValueError):
+    """The log cannot be analysed (missing topic, too short, no usable segments)."""
+
+
+@dataclass(frozen=True)
+class FlightSettings:
+    """How the log is turned into observations.
+
+    Attributes
+    ----------
+    band : (float, float)
+        [Hz] frequency band of the observations.
+    window_s : float
+        [s] DFT window (boxcar) length: the frequency resolution is 1 / window_s.
+    segment_windows : int
+        Windows per segment (segments shorter than 2 windows are dropped).
+    tolerance : float
+        Relative change of airspeed, density or c2 that starts a new run.
+    """
+
+    band: tuple[float, float] = (2.0, 20.0)
+    window_s: float = 1.0
+    segment_windows: int = 7
+    tolerance: float = 0.02
+
+    def __post_init__(self):
+        lo, hi = self.band
+        if not 0 < lo < hi:
+            raise ValueError(f"band must satisfy 0 < low < high [Hz], got {self.band}")
+        if not self.window_s > 0:
+            raise ValueError(f"window must be > 0 s, got {self.window_s}")
+        if self.segment_windows < 2:
+            raise ValueError(f"segment_windows must be >= 2, got {self.segment_windows}")
+
+
+@dataclass(frozen=True)
+class FlightArrays:
+    """What the domain needs from a log (time on the last axis, SI units)."""
+
+    sample_rate: float
+    force: np.ndarray
+    accelerations: np.ndarray  # (2, n) plunge, pitch
+    pitch: np.ndarray
+    airspeed: np.ndarray
+    density: np.ndarray
+    damping: np.ndarray
+
+
+def arrays_from_log(log) -> FlightArrays:
+    """Check a :class:`~aero_dva_sim.flight_log_io.FlightLog` and take the needed channels.
+
+    Raises FlightDataError naming what is missing.
+    """
+    missing = []
+    if np.all(np.isnan(log.accelerations)):
+        missing.append("/wing/acceleration (accelerations)")
+    if np.all(np.isnan(log.force)):
+        missing.append("/wing/excitation (aileron force)")
+    if np.all(np.isnan(log.applied_damping)):
+        missing.append("/dva/damper_state (c2)")
+    if missing:
+        raise FlightDataError("the log lacks " + ", ".join(missing)
+                              + "; a flight log needs force, accelerations, flight condition "
+                                "and damper state")
+    return FlightArrays(
+        sample_rate=float(log.sample_rate), force=np.asarray(log.force, dtype=float),
+        accelerations=np.asarray(log.accelerations[:2], dtype=float),
+        pitch=np.asarray(log.displacements[1], dtype=float),
+        airspeed=np.asarray(log.airspeed, dtype=float),
+        density=np.asarray(log.density, dtype=float),
+        damping=np.asarray(log.applied_damping, dtype=float))
+
+
+class FlightDomain:
+    """The flight-log domain (module docstring) for :func:`.engine.run`.
+
+    Parameters
+    ----------
+    data : FlightArrays
+    wing_file : WingConfig
+        From :func:`aero_dva_sim.wing_io.load_wing` (its wing, Maxwell absorber, aerodynamics).
+    settings : FlightSettings, optional
+    """
+
+    name = "flight"
+    # H1 estimates of neighbouring segments share windows and the noise floor from second
+    # differences is only approximate here: a clearly significant candidate is not hidden by
+    # a high noise floor estimate (engine.DecisionRule.strict_consistency).
+    decision_rule = DecisionRule(strict_consistency=True)
+    error_definition = (
+        "RMS over held-out points j (not used in any fit) of w_j |H_model_j - H_j|, "
+        "w_j = median(eps) / (|H_j| eps_j): the relative error of each H1 estimate scaled by "
+        "its expected random error eps_j (from the coherence) relative to the median point's; "
+        "H_model is the estimator's expectation for the model; error_l2 = "
+        "sqrt(sum |H_model - H|^2 / sum |H|^2) over the same points")
+
+    def __init__(self, data: FlightArrays, wing_file, settings: FlightSettings | None = None):
+        self.settings = settings or FlightSettings()
+        self.data = data
+        self.wing = wing_file.wing
+        self.absorber = wing_file.maxwell_design
+        self.aero = wing_file.aero
+        if isinstance(self.aero, TheodorsenAero):
+            raise ValueError("the wing file's aerodynamics must have a time-domain form "
+                             "(quasi-steady or wagner), not theodorsen")
+        fs = data.sample_rate
+        self.dt = 1.0 / fs
+        n_window = int(round(self.settings.window_s * fs))
+        lo, hi = self.settings.band
+        df = fs / n_window
+        # every other bin: Hann-windowed estimates of neighbouring bins are correlated
+        bins = np.arange(int(np.ceil(lo / df)), int(np.floor(hi / df)) + 1, 2)
+        if bins.size < 5 or hi >= fs / 2:
+            raise FlightDataError(f"band {lo:g}-{hi:g} Hz holds {bins.size} bins at "
+                                  f"{df:g} Hz resolution (need >= 5, below {fs / 2:g} Hz)")
+        self.n_window, self.bins = n_window, bins
+        self.taper = taper(hann(n_window))
+        self.omega_dt = 2 * np.pi * bins / n_window
+        finite = np.isfinite(data.force) & np.all(np.isfinite(data.accelerations), axis=0)
+        cols = [np.where(finite, c, np.nan) for c in (data.airspeed, data.density, data.damping)]
+        runs = runs_of_constant_condition(cols, self.settings.tolerance, 2 * n_window)
+        segs = estimate_segments(data.force, data.accelerations, runs, self.taper, bins,
+                                 self.settings.segment_windows)
+        if len(segs) < 2:
+            raise FlightDataError(
+                f"too short a log: {len(segs)} segment(s) of >= 2 windows of "
+                f"{self.settings.window_s:g} s with airspeed, density and c2 within "
+                f"{100 * self.settings.tolerance:g} % (need >= 2; fly a few seconds per "
+                "condition, e.g. a stepped or constant-airspeed flight: a ramp changes the "
+                "airspeed too fast)")
+        self.segments = segs
+        self._build_tables()
+        self.observations = self._observations()
+
+    # -- tables ----------------------------------------------------------------------------
+    def _build_tables(self):
+        d, segs = self.data, self.segments
+        wins = np.concatenate([s.windows for s in segs])
+        self.win_segment = np.concatenate([np.full(len(s.windows), i)
+                                           for i, s in enumerate(segs)])
+        power = np.concatenate([s.window_force_power for s in segs])
+        total = np.bincount(self.win_segment, power)
+        self.win_weight = power / total[self.win_segment]
+        self.win_start, self.win_stop = wins[:, 0], wins[:, 1]
+        csum = {name: np.concatenate([[0.0], np.cumsum(np.nan_to_num(arr))])
+                for name, arr in (("U", d.airspeed), ("rho", d.density), ("c2", d.damping))}
+        length = self.win_stop - self.win_start
+
+        def window_mean(name):
+            return (csum[name][self.win_stop] - csum[name][self.win_start]) / length
+
+        self.win_u, self.win_rho, self.win_c2 = (window_mean(k) for k in ("U", "rho", "c2"))
+        fs = d.sample_rate
+        self.win_time = 0.5 * (self.win_start + self.win_stop) / fs
+        seg_time = np.array([0.5 * (sg.start + sg.stop) / fs for sg in segs])
+        self.win_seg_time = seg_time[self.win_segment]  # drift is resolved per segment
+        self.t_mid = 0.5 * (self.win_time.min() + self.win_time.max())
+        pitch = np.nan_to_num(d.pitch)
+        seg_var = np.array([np.var(pitch[s.start:s.stop]) for s in segs])
+        self.seg_pitch_rms = np.sqrt(seg_var)
+        self.win_pitch_var = seg_var[self.win_segment]
+        # time since the last change of the reported c2 (covariate of the actuator lag)
+        c2 = d.damping
+        change = np.flatnonzero(np.abs(np.diff(np.nan_to_num(c2))) > 1e-9 * np.nanmax(
+            np.abs(c2)).clip(1e-12)) + 1
+        seg_start = np.array([s.start for s in segs])
+        last = np.searchsorted(change, seg_start, side="right") - 1
+        since = np.where(last >= 0, (seg_start - change[np.clip(last, 0, None)]) / fs,
+                         seg_start / fs)
+        self.seg_since_change = since
+        self.has_c2_steps = change.size > 0
+        # the logged c2 per sample, and window sample ranges for the lag candidate
+        self._c2_samples = np.nan_to_num(c2, nan=float(np.nanmean(c2)))
+        self._moment_cache: dict = {}
+
+    def _observations(self) -> Observations:
+        segs = self.segments
+        n_ch, n_f = len(CHANNELS), self.bins.size
+        values, eps, groups, freq = [], [], [], []
+        cov = {k: [] for k in ("time_s", "airspeed_mps", "damper_c2", "pitch_rms_rad",
+                               "since_c2_change_s")}
+        fs = self.data.sample_rate
+        for i, s in enumerate(segs):
+            w = self.win_segment == i
+            for ch in range(n_ch):
+                values.append(s.h[ch])
+                eps.append(s.eps[ch])
+                groups.append(np.full(n_f, i * n_ch + ch))
+                freq.append(self.bins * fs / self.n_window)
+                for key, val in (("time_s", 0.5 * (s.start + s.stop) / fs),
+                                 ("airspeed_mps", self.win_u[w].mean()),
+                                 ("damper_c2", self.win_c2[w].mean()),
+                                 ("pitch_rms_rad", self.seg_pitch_rms[i]),
+                                 ("since_c2_change_s", self.seg_since_change[i])):
+                    cov[key].append(np.full(n_f, float(val)))
+        y = np.concatenate(values)
+        e = np.concatenate(eps)
+        e = np.maximum(e, 0.2 * np.median(e))  # coherence ~ 1: do not trust eps -> 0
+        self.eps = e
+        weights = np.median(e) / (np.abs(y) * e)
+        return Observations(y, weights, np.concatenate(freq), np.concatenate(groups),
+                            {k: np.concatenate(v) for k, v in cov.items()})
+
+    # -- the model -------------------------------------------------------------------------
+    def _model(self, cal, aero=None) -> AeroelasticModel:
+        wing = self.wing.replace(pitch_stiffness=cal[0], plunge_stiffness=cal[1],
+                                 damping_factor=cal[2])
+        return AeroelasticModel(wing, self.absorber, self.aero if aero is None else aero)
+
+    def _predict(self, cal, *, lag=0.0, delay=0.0, kappa=0.0, aero_scale=None,
+                 drift=None) -> np.ndarray:
+        """Model values at every observation point (order of :attr:`observations`)."""
+        aero = None
+        if aero_scale is not None:
+            jones = WagnerAero()
+            aero = WagnerAero(a1=jones.a1 * aero_scale, b1=jones.b1,
+                              a2=jones.a2 * aero_scale, b2=jones.b2)
+        model = self._model(cal, aero)
+        c2 = self.win_c2
+        if lag > 0:
+            g = np.exp(-self.dt / lag)
+            x = self._c2_samples
+            true, _ = lfilter([1.0 - g], [1.0, -g], x, zi=[g * x[0]])
+            csum = np.concatenate([[0.0], np.cumsum(true)])
+            c2 = (csum[self.win_stop] - csum[self.win_start]) / (self.win_stop - self.win_start)
+        # Windows of one run share a condition: evaluate each distinct one once.
+        cols = [self.win_u, self.win_rho, c2]
+        if drift is not None:
+            cols.append(self.win_seg_time)
+        if kappa > 0:
+            cols.append(self.win_pitch_var)
+        keys, inverse = np.unique(np.stack(cols, axis=1), axis=0, return_inverse=True)
+        inverse = inverse.reshape(-1)
+        u, rho, c = keys[:, 0], keys[:, 1], keys[:, 2]
+        k1 = None
+        if drift is not None and drift[0] == "absorber_stiffness":
+            k1 = self.absorber.stiffness * (1.0 + drift[1] * keys[:, 3])
+        a, b = model.matrices(u, rho, c, k1)
+        if drift is not None and k1 is None:
+            name, rate = drift
+            index = 0 if name == "pitch_stiffness" else 1
+            step = np.array(cal, dtype=float)
+            step[index] *= 1.01
+            a_step, _ = self._model(step, aero).matrices(u, rho, c)
+            # A is affine in each stiffness (beta K follows): p(t) = p (1 + r t)
+            a = a + (rate * keys[:, 3] / 0.01)[:, None, None] * (a_step - a)
+        if kappa > 0:
+            bm = self._moment_column(model, aero_scale, u, rho, c)
+            dk = 3.0 * kappa * keys[:, -1] * cal[0]  # equivalent extra pitch stiffness
+            a = a.copy()
+            a[:, :, 1] -= dk[:, None] * bm
+        c_acc, d_acc = model.acceleration_output(a, b)
+        h = windowed_frf(a, b, c_acc[:, :2], d_acc[:, :2], self.omega_dt, self.taper,
+                         self.dt, delay / self.dt)[inverse]  # (W, 2, F)
+        h = h * self.win_weight[:, None, None]
+        seg = np.zeros((len(self.segments),) + h.shape[1:], dtype=complex)
+        np.add.at(seg, self.win_segment, h)
+        return seg.reshape(-1)
+
+    def _moment_column(self, model, aero_scale, u, rho, c) -> np.ndarray:
+        """Pitch-moment input columns at the conditions (they depend on mass and density
+        only, so they are cached per aerodynamic model and condition set)."""
+        key = (aero_scale, u.tobytes(), rho.tobytes(), c.tobytes())
+        cached = self._moment_cache.get(key)
+        if cached is None:
+            if len(self._moment_cache) > 256:
+                self._moment_cache.clear()
+            cached = pitch_moment_input(model, u, rho, c)
+            self._moment_cache[key] = cached
+        return cached
+
+    def _cal_params(self, values=None) -> list[ParamSpec]:
+        nominal = (self.wing.pitch_stiffness, self.wing.plunge_stiffness,
+                   self.wing.damping_factor)
+        start = nominal if values is None else values
+        units = ("N m/rad", "N/m", "s")
+        r = CALIBRATION_RANGE
+        # Bounds slightly asymmetric: a start at the exact centre of the logistic map is z = 0
+        # for every parameter, where MINPACK's relative x-tolerance stops at once.
+        return [ParamSpec(n, u, float(np.clip(v, p / r * 1.001, p * r / 1.001)), p / r,
+                          p * r * 1.05, log=True)
+                for n, u, v, p in zip(CALIBRATION, units, start, nominal)]
+
+    def baseline(self, train: np.ndarray) -> ModelSpec:
+        params = tuple(self._cal_params())
+        return ModelSpec(
+            name=f"wing+maxwell({self._aero_name()})", effect=None, params=params, n_added=0,
+            predict=lambda v: self._predict(v[:3]))
+
+    def _aero_name(self) -> str:
+        return "quasi-steady" if isinstance(self.aero, QuasiSteadyAero) else "wagner"
+
+    def candidates(self, base, features):
+        cal = [base.value(n) for n in CALIBRATION]
+        params = tuple(self._cal_params(cal))
+        name0 = f"wing+maxwell({self._aero_name()})"
+        out = []
+
+        def spec(effect, added, predict, starts, label=""):
+            full = params + tuple(added)
+            return ModelSpec(
+                name=f"{name0} + {effect}" + (f"({label})" if label else ""), effect=effect,
+                params=full, n_added=len(added), predict=predict,
+                starts=tuple(np.array(cal + list(s), dtype=float) for s in starts),
+                signature=SIGNATURES[effect], label=label)
+
+        if self.has_c2_steps:
+            out.append(spec(
+                "actuator_lag", [ParamSpec("time_constant", "s", 1.0, 1e-3, 20.0, log=True)],
+                lambda v: self._predict(v[:3], lag=v[3]), []))
+        else:
+            out.append(NotApplicable("actuator_lag", "the reported c2 never changes in the "
+                                                     "log: a lag of the actuator cannot show"))
+        delay0 = 0.004  # informed by the residual's phase slope when it shows a delay
+        if features.phase is not None and np.isfinite(features.phase.equivalent_delay_s):
+            delay0 = float(np.clip(features.phase.equivalent_delay_s, 0.001, 0.045))
+        out.append(spec(
+            "sensor_delay", [ParamSpec("delay", "s", delay0, 0.0, 0.05, scale=1e-3)],
+            lambda v: self._predict(v[:3], delay=v[3]),
+            [(0.002,), (0.005,), (0.01,), (0.02,), (0.035,)]))  # the phase is periodic
+        var = self.win_pitch_var
+        if var.max() > 0 and var.max() > 1.5 * var.min():
+            kmax = 1.0 / var.max()  # +300 % pitch stiffness at the largest response
+            out.append(spec(
+                "cubic_stiffness",
+                [ParamSpec("kappa", "1/rad^2", 0.1 * kmax, 0.0, kmax, scale=0.01 * kmax)],
+                lambda v: self._predict(v[:3], kappa=v[3]), []))
+        else:
+            out.append(NotApplicable("cubic_stiffness", "the pitch response level hardly "
+                                     "varies over the flight: amplitude dependence cannot show"))
+        if isinstance(self.aero, WagnerAero):
+            out.append(NotApplicable("unsteady_aero", "the baseline already has unsteady "
+                                                      "(Wagner) aerodynamics"))
+        else:
+            out.append(spec(
+                "unsteady_aero", [ParamSpec("lag_scale", "-", 1.0, 0.02, 1.9)],
+                lambda v: self._predict(v[:3], aero_scale=v[3]), []))
+        span = self.win_time.max()
+        rmax = 0.6 / span
+        for name in DRIFT_PARAMETERS:
+            out.append(spec(
+                "parameter_drift",
+                [ParamSpec("rate", "1/s", 0.01 / span, -rmax, rmax, scale=1e-3)],
+                lambda v, name=name: self._predict(v[:3], drift=(name, v[3])), [], label=name))
+        return out
+
+    def variants(self, spec):
+        return []
