@@ -3,14 +3,18 @@
 Randomised cases (seeds 100, 101, ...; the engine gets only the data, mass and static
 stiffness, plus ``elements=1`` for the missing-element case):
 
-* each library effect, N_EFFECT cases: named in >= 90 % AND held-out error at most halved;
+* each library effect, N_EFFECT cases: named in >= 90 % AND held-out error at most halved
+  (with 12 cases: at most one miss), and never another effect's name;
 * clean data, N_CLEAN cases (half single sweeps, half three-temperature or three-level sets):
-  ``consistent`` in >= 90 %;
+  ``consistent`` in >= 90 %, never ``explained``;
 * each effect outside the library, N_OUTSIDE cases: never ``explained`` (a weak partial
   attribution is reported only as evidence of an ``unexplained`` verdict).
 
 The multi-covariate data sets are the amplitude/temperature effects, the Duffing case and half
-of the clean cases. Marked slow; test_discrepancy_frf.py runs a small sample by default.
+of the clean cases (test_discrepancy_frf.py adds one with two covariates). The rates on 40
+fresh seeds per effect are measured by bench/bench_discrepancy_acceptance.py. Marked slow
+(205 s on the shared 2-core machine at a load of about 2); test_discrepancy_frf.py runs a
+small sample by default.
 """
 import numpy as np
 import pytest
@@ -19,9 +23,9 @@ from dva_offline.discrepancy import engine, synthetic
 from dva_offline.discrepancy.frf_domain import FrfDomain
 from dva_offline.isolator.frf_data import split_conditions
 
-N_EFFECT = 10
-N_CLEAN = 10
-N_OUTSIDE = 6
+N_EFFECT = 12
+N_CLEAN = 12
+N_OUTSIDE = 8
 SEED0 = 100
 
 

@@ -1,12 +1,17 @@
 """FRF domain: model pieces, candidate nesting, the generator, a few end-to-end cases, the CLI."""
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from dva_offline import cli
 from dva_offline.discrepancy import engine, synthetic
-from dva_offline.discrepancy.frf_domain import FrfDomain
+from dva_offline.discrepancy.frf_domain import (
+    FrfDomain,
+    maxwell_from_stiffness,
+    modal_term_scan,
+)
 from dva_offline.isolator import isolator_io
 from dva_offline.isolator.frf_data import FrfData, split_conditions
 from dva_offline.isolator.maxwell_model import dynamic_stiffness
@@ -60,6 +65,44 @@ def test_every_candidate_reduces_to_the_baseline_at_its_null_value(quantity):
     assert seen == set(nulls)
 
 
+def test_maxwell_from_stiffness_finds_the_elements_without_a_start():
+    """The corner-grid search recovers an M-M-V stiffness whose corners lie between grid
+    points to within the grid's resolution, for fixed and for free static stiffness."""
+    w = 2 * np.pi * np.geomspace(3, 300, 200)
+    k, c, ks, cs = 22e3, -30.0, (41.8e3, 29.9e3), (79.0, 2490.0)  # Table 5.6 plate
+    target = dynamic_stiffness(w, k, c, ks, cs)
+    for k_fixed in (k, None):
+        k1, c1, ks1, cs1, cost = maxwell_from_stiffness(w, target, 1 / np.abs(target), 2,
+                                                        k_fixed)
+        fit = dynamic_stiffness(w, k1, c1, ks1, cs1)
+        assert np.sqrt(np.mean(np.abs(fit / target - 1) ** 2)) < 0.04  # a start, not a fit
+        assert cost < 0.1 * maxwell_from_stiffness(w, target, 1 / np.abs(target), 1,
+                                                   k_fixed)[-1]
+        corners = sorted(np.asarray(ks1) / (2 * np.pi * np.asarray(cs1)))
+        true = sorted(np.asarray(ks) / (2 * np.pi * np.asarray(cs)))
+        np.testing.assert_allclose(corners, true, rtol=0.6)  # grid steps are x 1.58
+    assert maxwell_from_stiffness(w, -target, np.ones(w.size), 2, k) is None  # no k_i > 0
+    with pytest.raises(ValueError, match="shape"):
+        maxwell_from_stiffness(w, target[:-1], np.ones(w.size), 2, k)
+    with pytest.raises(ValueError, match="n must be"):
+        maxwell_from_stiffness(w, target, np.ones(w.size), -1, k)
+
+
+def test_modal_term_scan_finds_a_mode_on_a_smooth_background():
+    w = 2 * np.pi * np.geomspace(3, 300, 300)
+    wf, zf, a = 2 * np.pi * 120.0, 0.02, 1 / 0.15
+    mode = a / (wf**2 - w**2 + 2j * zf * wf * w)
+    background = (1 + 0.3 * np.log(w / w[0])) * 2e-5 * (1 - 0.2j)  # a mis-fitted mount
+    grid = np.geomspace(20, 300, 60)
+    zetas = (0.005, 0.01, 0.02, 0.04, 0.08)
+    cost, ff, z, a_fit = modal_term_scan(w, mode + background, np.ones(w.size), grid, zetas,
+                                         background=3)[0]
+    assert abs(np.log(ff / 120.0)) < 0.05 and z == 0.02
+    assert a_fit == pytest.approx(a, rel=0.1)
+    # without the background terms the smooth part pulls the estimate off
+    assert modal_term_scan(w, mode + background, np.ones(w.size), grid, zetas)[0][0] > cost
+
+
 def test_generator_foundation_chain_matches_series_formula():
     """The generator solves the 2-DOF chain; the engine uses K K_f / (K + K_f): same FRF."""
     case = synthetic.generate_case("foundation_mode", np.random.default_rng(3), sigma=0.0)
@@ -107,6 +150,27 @@ def test_end_to_end_small_sample(effect, seed):
     assert res.augmented.error < 2 * case.sigma
     names = {c.effect for c in res.candidates}
     assert {"sensor_delay", "fixture_mass", "foundation_mode", "maxwell_element"} <= names
+
+
+def test_two_covariates_the_one_that_matters_is_named():
+    """Nine sweeps: a WLF temperature shift at three temperatures, each measured at three
+    excitation levels the mount does not depend on; both covariates get candidates."""
+    case = synthetic.generate_case("covariate_shift", np.random.default_rng(1),
+                                   clean_covariate="excitation_n", n_points=80)
+    assert case.condition_columns == ("temperature_c", "excitation_n")
+    dom = domain_for(case)
+    assert len(dom.conditions) == 9
+    res = engine.run(dom)
+    assert (res.verdict.status, res.verdict.effect, res.verdict.label) == (
+        "explained", "covariate_shift", "temperature_c")
+    assert res.augmented.error <= 0.5 * res.baseline.error
+    assert res.augmented.error < 1.5 * case.sigma
+    tried = {(c.effect, c.label) for c in res.candidates if c.applicable}
+    assert {("amplitude_dependence", "excitation_n"), ("covariate_shift", "excitation_n"),
+            ("amplitude_dependence", "temperature_c")} <= tried
+    with pytest.raises(ValueError, match="depends on"):
+        synthetic.generate_case("covariate_shift", np.random.default_rng(1),
+                                clean_covariate="temperature_c")
 
 
 def test_delay_parameter_and_uncertainty():
@@ -174,6 +238,24 @@ def test_cli_reads_stacked_conditions(tmp_path, capsys, only_discrepancy):
     assert len(payload["conditions"]) == 3
     assert payload["verdict"]["status"] == "consistent"
     assert payload["augmented"] is None
+
+
+def test_cli_worked_example_of_the_readme(capsys, only_discrepancy):
+    """The shipped three-temperature CSV (docs/discrepancy.md, README): the temperature shift
+    is named and removes the residual down to the noise; b near the hidden WLF truth
+    (C1/C2 referred to 23 C: 17.44 x 51.6 / 145.6^2 = 0.0424 1/K)."""
+    path = (Path(synthetic.__file__).parent / "examples" / "mount_temperatures.csv")
+    assert cli.main(["discrepancy", "frf", str(path), "--quantity", "receptance", "--mass",
+                     "1.041", "--static-stiffness", "13819", "--covariates", "temperature_c",
+                     "--json"]) == 0
+    payload = json.loads(capsys.readouterr().out)
+    verdict, base, aug = payload["verdict"], payload["baseline"], payload["augmented"]
+    assert (verdict["status"], verdict["effect"], verdict["covariate"]) == (
+        "explained", "covariate_shift", "temperature_c")
+    assert aug["error"] < 0.05 * base["error"]
+    assert aug["error"] < 1.25 * payload["noise_floor"]["sigma"]
+    b = next(p for p in aug["parameters"] if p["name"] == "b")
+    assert abs(b["value"] - 0.0424) < 4 * b["std"] + 0.002
 
 
 def test_cli_bad_column_is_one_line_error(tmp_path, capsys, only_discrepancy):

@@ -313,7 +313,8 @@ def register(subparsers) -> None:
     p.add_argument("--points", type=int, default=300, help="points per condition")
     p.add_argument("--system", choices=sorted(synthetic.BASE_SYSTEMS), default=None)
     p.add_argument("--clean-covariate", choices=("temperature_c", "excitation_n"),
-                   default=None, help="clean data: stack 3 conditions of this covariate")
+                   default=None, help="stack the data set at 3 levels of this covariate, on "
+                   "which the hidden effect does not depend")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(func=_cmd_synth)
 

@@ -32,9 +32,17 @@ covariate_shift        K0(w a_T), log10 a_T = -b C2 (T - T0) / (C2 + T - T0)   b
 its maximum); otherwise extra elements are already part of the baseline. ``a`` and ``T`` are
 condition covariates (any column with several levels; a_0, T0 = the median level).
 covariate_shift is the WLF form of time-temperature superposition with C1 = b C2.
+
+Starting values that do not inherit the baseline's distortion (the baseline bends its elements
+to imitate the missing effect): :func:`maxwell_from_stiffness` fits the Maxwell model globally
+over a grid of element corners (linear least squares per combination), and
+:func:`modal_term_scan` finds a foundation mode in the compliance; together they deconvolve a
+foundation from the data (``foundation_mode``) and start the reference-condition fit of the
+covariate candidates.
 """
 from __future__ import annotations
 
+import itertools
 import warnings
 from collections.abc import Sequence
 
@@ -49,7 +57,7 @@ from dva_offline.discrepancy.engine import (
     ParamSpec,
     fit_model,
 )
-from dva_offline.discrepancy.residual import ResidualFeatures, noise_floor
+from dva_offline.discrepancy.residual import ResidualFeatures, ljung_box, noise_floor
 from dva_offline.isolator.frf_data import FrfData, estimate_modal, to_receptance
 from dva_offline.isolator.maxwell_fit import FitWarning, fit_maxwell_model
 from dva_offline.isolator.maxwell_model import MaxwellModel, maxwell_element_stiffness
@@ -88,6 +96,122 @@ def _positive(x, floor):
     return max(float(x), floor)
 
 
+def _batched_least_squares(columns, rhs, subsets):
+    """Weighted linear least squares for many column subsets at once.
+
+    ``columns`` (M, P) real, ``rhs`` (M,), ``subsets`` (S, Q) column indices. Normal equations
+    on unit-norm columns (one Gram matrix for all subsets). Returns solutions (S, Q) and
+    residual sums of squares (S,); singular subsets get NaN.
+    """
+    norm = np.linalg.norm(columns, axis=0)
+    norm[norm == 0] = 1.0
+    a = columns / norm
+    gram, proj = a.T @ a, a.T @ rhs
+    g = gram[subsets[:, :, None], subsets[:, None, :]]
+    r = proj[subsets]
+    x = np.full(r.shape, np.nan)
+    ok = np.linalg.cond(g) < 1e12
+    if np.any(ok):
+        x[ok] = np.linalg.solve(g[ok], r[ok][..., None])[..., 0]
+    rss = float(rhs @ rhs) - np.einsum("sq,sq->s", x, r)
+    return x / norm[subsets], rss
+
+
+def maxwell_from_stiffness(omega, stiffness, weights, n, k_fixed=None, corners_hz=None):
+    """Maxwell model of order n closest to a complex stiffness, over a grid of time constants.
+
+    For fixed relaxation times tau_i, K(w) = k + j w c + sum_i k_i j w tau_i / (1 + j w tau_i)
+    is linear in (k, c, k_i): every combination of n grid values is solved by weighted linear
+    least squares (weights u_j on |K_model - K_j|) and the best one with all k_i > 0 wins. A
+    global search over the element corners, so it does not depend on a start (the nonlinear
+    fit that follows only polishes).
+
+    Parameters
+    ----------
+    omega : numpy.ndarray
+        Shape (N,) [rad/s].
+    stiffness : numpy.ndarray
+        Target K(w_j), shape (N,), complex [N/m].
+    weights : numpy.ndarray
+        u_j >= 0, shape (N,).
+    n : int
+        Number of Maxwell elements (>= 0).
+    k_fixed : float, optional
+        Static stiffness [N/m] (fitted when omitted).
+    corners_hz : numpy.ndarray, optional
+        Grid of element corner frequencies 1/(2 pi tau) [Hz]; default 16 log-spaced values
+        from a third of the lowest to three times the highest frequency.
+
+    Returns
+    -------
+    (k, c, k_i, c_i, cost) or None when no combination gives positive k_i.
+    """
+    w = np.asarray(omega, float)
+    target = np.asarray(stiffness, complex)
+    u = np.asarray(weights, float)
+    if w.ndim != 1 or target.shape != w.shape or u.shape != w.shape:
+        raise ValueError(f"omega, stiffness and weights must have one shape (N,), got "
+                         f"{w.shape}, {target.shape}, {u.shape}")
+    if not isinstance(n, (int, np.integer)) or n < 0:
+        raise ValueError(f"n must be an integer >= 0, got {n!r}")
+    if corners_hz is None:
+        f = w / (2 * np.pi)
+        corners_hz = np.geomspace(f.min() / 3, f.max() * 3, 16)
+    taus = 1.0 / (2 * np.pi * np.asarray(corners_hz, float))
+    s = 1j * w[:, None]
+    head = [s[:, 0]] if k_fixed is not None else [np.ones_like(target), s[:, 0]]
+    cols = np.column_stack(head + list((s * taus / (1.0 + s * taus)).T)) * u[:, None]
+    rhs = u * (target - (k_fixed or 0.0))
+    nh = len(head)
+    combos = list(itertools.combinations(range(taus.size), n))
+    combos = np.array(combos, dtype=int).reshape(len(combos), n)
+    subsets = np.column_stack([np.tile(np.arange(nh), (combos.shape[0], 1)), combos + nh])
+    x, rss = _batched_least_squares(np.vstack([cols.real, cols.imag]),
+                                    np.concatenate([rhs.real, rhs.imag]), subsets)
+    good = np.all(x[:, nh:] > 0, axis=1) & np.all(np.isfinite(x), axis=1)
+    if not np.any(good):
+        return None
+    i = int(np.flatnonzero(good)[np.argmin(rss[good])])
+    ks = x[i, nh:]
+    k = float(k_fixed) if k_fixed is not None else float(x[i, 0])
+    return k, float(x[i, nh - 1]), ks, ks * taus[combos[i]], float(max(rss[i], 0.0))
+
+
+def modal_term_scan(omega, compliance, weights, f_grid_hz, zetas, background=0):
+    """Best single-mode compliance a / (w_f^2 - w^2 + 2 j z w_f w) for each grid (f_f, z).
+
+    A foundation on its spring is such a term in the compliance of the mount path. For each
+    (f_f, z) the modal constant a (real) and, with ``background`` = B > 0, a smooth complex
+    polynomial of degree B - 1 in ln(w) (it absorbs what a mis-fitted mount model leaves,
+    like the residual terms of modal analysis) are fitted by weighted linear least squares.
+
+    Returns rows (cost, f_f, z, a) with a > 0, sorted by cost.
+    """
+    w = np.asarray(omega, float)
+    u = np.asarray(weights, float)
+    d = np.asarray(compliance, complex)
+    if w.ndim != 1 or d.shape != w.shape or u.shape != w.shape:
+        raise ValueError(f"omega, compliance and weights must have one shape (N,), got "
+                         f"{w.shape}, {d.shape}, {u.shape}")
+    x = np.log(w / np.sqrt(w.min() * w.max()))
+    smooth = [u * x**i for i in range(background)]
+    # background columns: real and imaginary coefficients of each polynomial term
+    cols = [*smooth, *(1j * t for t in smooth)]
+    pairs = [(float(ff), float(z)) for ff in np.asarray(f_grid_hz, float) for z in zetas]
+    for ff, z in pairs:
+        wf = 2 * np.pi * ff
+        cols.append(u / (wf**2 - w**2 + 2j * z * wf * w))
+    cols = np.column_stack(cols)
+    nb = 2 * background
+    subsets = np.column_stack([np.arange(len(pairs)) + nb,
+                               np.tile(np.arange(nb), (len(pairs), 1))]).astype(int)
+    sol, rss = _batched_least_squares(np.vstack([cols.real, cols.imag]),
+                                      np.concatenate([(u * d).real, (u * d).imag]), subsets)
+    rows = [(float(rss[i]), ff, z, float(sol[i, 0])) for i, (ff, z) in enumerate(pairs)
+            if sol[i, 0] > 0]
+    return sorted(rows)
+
+
 class FrfDomain:
     """Isolator FRF data for :func:`dva_offline.discrepancy.engine.run`.
 
@@ -109,7 +233,11 @@ class FrfDomain:
         conditions).
     order_tolerance : float
         Automatic order: the smallest order n whose refined held-out error satisfies
-        e_n^2 <= e_best^2 + order_tolerance * sigma_hat^2 (sigma_hat: noise floor).
+        e_n^2 <= e_best^2 + order_tolerance * sigma_hat^2 (sigma_hat: noise floor) and, if
+        any of these orders has a white residual (Ljung-Box p >= ``whiteness_alpha``), whose
+        residual is white.
+    whiteness_alpha : float
+        Ljung-Box level of the order choice (the engine's default whiteness level).
     """
 
     name = "frf"
@@ -117,7 +245,7 @@ class FrfDomain:
     def __init__(self, conditions: Sequence[FrfData], mass: float | None = None,
                  static_stiffness: float | None = None, elements: int | None = None,
                  max_elements: int = 3, covariates: Sequence[str] | None = None,
-                 order_tolerance: float = 0.15) -> None:
+                 order_tolerance: float = 0.15, whiteness_alpha: float = 1e-3) -> None:
         conditions = list(conditions)
         if not conditions or not all(isinstance(c, FrfData) for c in conditions):
             raise TypeError("conditions must be a non-empty sequence of FrfData")
@@ -135,7 +263,10 @@ class FrfDomain:
             raise ValueError(f"max_elements must be an integer >= 1, got {max_elements!r}")
         if not order_tolerance >= 0:
             raise ValueError(f"order_tolerance must be >= 0, got {order_tolerance}")
+        if not 0 < whiteness_alpha < 1:
+            raise ValueError(f"whiteness_alpha must be in (0, 1), got {whiteness_alpha}")
         self.order_tolerance = float(order_tolerance)
+        self.whiteness_alpha = float(whiteness_alpha)
         self.conditions = conditions
         self.mass = mass
         self.static_stiffness = static_stiffness
@@ -322,12 +453,14 @@ class FrfDomain:
                                     log=True))
         return tuple(params)
 
-    def _order_spec(self, model: MaxwellModel, previous: np.ndarray | None) -> ModelSpec:
-        """Spec of an order-n Maxwell model started at the isolator's fit and, when given, at
-        the refined order n - 1 plus a new element at a few time constants (nested starts)."""
+    def _order_spec(self, model: MaxwellModel, previous: np.ndarray | None,
+                    extra_starts=()) -> ModelSpec:
+        """Spec of an order-n Maxwell model started at the isolator's fit, at
+        ``extra_starts`` and, when given, at the refined order n - 1 plus a new element at a
+        few time constants (nested starts)."""
         n = model.n_elements
         params = self._maxwell_params(model)
-        starts = []
+        starts = [v for v in extra_starts if v is not None]
         if previous is not None and n > 0:
             pm, pk, pc, pks, pcs, _ = self._unpack(previous, n - 1)
             head = [v for v, free in ((pm, self._setup["free_m"]), (pk, self._setup["free_k"]))
@@ -376,10 +509,18 @@ class FrfDomain:
             refined[n], errors[n] = np.array([e.value for e in fit.estimates]), fit.error
             residuals[n] = fit.residual
         best_n = min(errors, key=errors.get)
-        sigma = noise_floor(residuals[best_n], self.observations.groups).sigma
+        groups = self.observations.groups
+        sigma = noise_floor(residuals[best_n], groups).sigma
         limit = errors[best_n] ** 2 + self.order_tolerance * sigma**2
+        within = sorted(n for n, e in errors.items() if e**2 <= limit)
+        # An order within the tolerance whose residual is still correlated misses structure
+        # that a higher order within the tolerance captures down to white noise (a clean
+        # M-M-V mount fitted as M-V): prefer the smallest order with a white residual.
+        lags = max(1, min(10, min(np.bincount(groups)[np.unique(groups)]) // 4))
+        white = [n for n in within
+                 if ljung_box(residuals[n], groups, lags).p_value >= self.whiteness_alpha]
         chosen = (self.elements if self.elements is not None else
-                  min(n for n, e in errors.items() if e**2 <= limit))
+                  (white or within)[0])
         self._setup["n"] = chosen
         self._setup["order_errors"] = errors
         self._setup["refined"] = refined
@@ -412,18 +553,100 @@ class FrfDomain:
     def _spec(self, effect, added, predict, bases, n, starts=(), label="", extra=0,
               priority=()):
         """Spec of baseline order n + effect; starts = every base vector x every effect start
-        (the first base with the effect's initial values is the initial point)."""
+        (the first base with the effect's initial values is the initial point); ``priority``:
+        informed starts, effect values on the first base or full parameter vectors."""
         m, k, c, ks, cs, _ = self._unpack(bases[0], n)
         model = MaxwellModel(float(m), float(k), float(c), tuple(ks), tuple(cs))
         params = self._maxwell_params(model) + tuple(added)
         effect_starts = [np.array([a.initial for a in added]), *starts]
         full_starts = tuple(np.concatenate([b, e]) for b in bases for e in effect_starts)[1:]
-        informed = tuple(np.concatenate([bases[0], e]) for e in priority)
+        informed = tuple(e if e.size == bases[0].size + len(added)
+                         else np.concatenate([bases[0], e]) for e in priority)
         full_starts = informed + full_starts
         name = ("voigt" if n == 0 else f"maxwell(n={n})") + f" + {effect}" + (
             f"({label})" if label else "")
         return ModelSpec(name, effect, params, len(added) + extra, predict, full_starts,
                          SIGNATURES[effect], label, len(informed))
+
+    def _apparent_stiffness(self, m, points=None):
+        """Mount stiffness seen in the data (default: the training points), K_app =
+        1 / H_rec + m w^2 (the data for stiffness), and d_j = |dH_j / H_j| per unit |dK_app|:
+        the factor turning a stiffness error into the relative error the fits minimise."""
+        tr = self._train if points is None else points
+        w, y = self.omega[tr], self.observations.values[tr]
+        if self.quantity == "stiffness":
+            return w, y, 1.0 / np.abs(y)
+        rec = y if self.quantity == "receptance" else -y / w**2
+        return w, 1.0 / rec + m * w**2, np.abs(rec)
+
+    def _grid_start(self, points, n, m):
+        """Parameter vector of an order-n Maxwell model fitted to ``points`` by the global
+        corner-grid search (:func:`maxwell_from_stiffness`), or None."""
+        s = self._setup
+        w, kapp, d = self._apparent_stiffness(m, points)
+        fit = maxwell_from_stiffness(w, kapp, d, n, None if s["free_k"] else s["k"])
+        if fit is None:
+            return None
+        k, c, ks, cs, _ = fit
+        return np.array([*[m] * s["free_m"], *[k] * s["free_k"], c, *ks, *cs])
+
+    def _foundation_informed(self, base, n, count=3):
+        """Full starts for ``foundation_mode`` that do not inherit the baseline's distortion.
+
+        A baseline fitted without the foundation bends its Maxwell elements to imitate it;
+        refitting from there ends in a local minimum (elements at a bound, zeta_f at its
+        lower bound). Instead: (1) the foundation is a single-mode term in the compliance,
+        1/K_app = 1/K + 1/K_f, so scan (f_f, zeta_f) for the term that best fits
+        1/K_app - 1/K_base (m_f linear); (2) remove that foundation from the data,
+        K = 1/(1/K_app - 1/K_f), and refit the Maxwell model of order n by the global
+        corner-grid search of :func:`maxwell_from_stiffness`; (3) repeat once with that
+        mount. Each of the ``count`` best distinct foundation frequencies gives one start.
+        """
+        s = self._setup
+        m, k, c, ks, cs, _ = self._unpack(base, n)
+        w, kapp, d = self._apparent_stiffness(m)
+        f = self.observations.axis
+        f_n = s["wn"] / (2 * np.pi)
+        grid = np.geomspace(max(float(f.min()), 1.2 * f_n), float(f.max()), 60)
+        zetas = (0.003, 0.01, 0.02, 0.04, 0.08, 0.15)
+        k_fixed = None if s["free_k"] else s["k"]
+        with np.errstate(all="ignore"):
+            u_c = np.abs(kapp) ** 2 * d  # relative error per unit compliance error
+            comp = 1.0 / kapp
+            rows = modal_term_scan(w, comp - 1.0 / self._stiffness(k, c, ks, cs, w), u_c,
+                                   grid, zetas, background=3)
+        picked = []
+        for _, ff, zf, a in rows:
+            if len(picked) == count:
+                break
+            if all(abs(np.log(ff / p[0])) > 0.1 for p in picked):
+                picked.append((ff, zf, a))
+        out = []
+        for ff, zf, a in picked:
+            vec = None
+            for _ in range(2):
+                wf = 2 * np.pi * ff
+                with np.errstate(all="ignore"):
+                    kf = (wf**2 - w**2 + 2j * zf * wf * w) / a
+                    mount = 1.0 / (comp - 1.0 / kf)
+                    u_k = np.abs(kapp / mount) ** 2 * d
+                ok = np.isfinite(mount) & np.isfinite(u_k)
+                fit = maxwell_from_stiffness(w[ok], mount[ok], u_k[ok], n, k_fixed)
+                if fit is None:
+                    break
+                k1, c1, ks1, cs1, _ = fit
+                # (3) the foundation again, against this mount, near the last estimate
+                with np.errstate(all="ignore"):
+                    again = modal_term_scan(
+                        w, comp - 1.0 / self._stiffness(k1, c1, ks1, cs1, w), u_c,
+                        np.geomspace(ff / 1.15, ff * 1.15, 9), zetas)
+                if again:
+                    _, ff, zf, a = again[0]
+                head = [m] * s["free_m"] + [k1] * s["free_k"]
+                vec = np.array([*head, c1, *ks1, *cs1, ff, zf, 1.0 / a])
+            if vec is not None:
+                out.append(vec)
+        return out
 
     def candidates(self, baseline: ModelFit, features: ResidualFeatures):
         """The candidate library (module docstring), started from the fitted baseline."""
@@ -433,13 +656,16 @@ class FrfDomain:
         self._reference_values = None
         if self._varying():
             # The covariate candidates' baseline is the model at the reference condition:
-            # start them also from a fit to that condition's training points alone.
+            # start them also from a fit to that condition's training points alone. The
+            # pooled baseline is bent by the covariate's effect; from it alone, this fit can
+            # end with a dormant element, so it is also started from a corner-grid search.
             ref = self._train & (self.observations.groups == self.reference)
             split = HoldoutSplit(ref, ~ref, "reference condition")
             n = self._setup["n"]
             mm, mk, mc, mks, mcs, _ = self._unpack(self._base_values, n)
             model = MaxwellModel(float(mm), float(mk), float(mc), tuple(mks), tuple(mcs))
-            spec = self._order_spec(model, self._setup["refined"].get(n - 1))
+            spec = self._order_spec(model, self._setup["refined"].get(n - 1),
+                                    [self._grid_start(ref, n, float(mm))])
             fit = fit_model(spec, self.observations, split, n_screen=4)
             self._reference_values = np.array([e.value for e in fit.estimates])
         return self._library([self._base_values], self._setup["n"])
@@ -589,6 +815,7 @@ class FrfDomain:
                 kp = float(np.abs(self._stiffness(k_c, c_c, ks_c, cs_c, np.array([wp]))[0]))
                 informed += [np.array([fp * np.sqrt(1.0 - 1.0 / r), zf, r * kp / wp**2])
                              for zf in (0.01, 0.03) for r in (1.5, 3.0, 8.0, 30.0)]
+            informed += self._foundation_informed(bases[0], n)
             first = found_starts[0]
             out.append(spec(
                 "foundation_mode",

@@ -50,7 +50,9 @@ Effects outside the engine's library (for the "never a confident wrong name" tes
   |K|, X_lin the linear amplitude there).
 
 A clean data set has ``effect=None`` (optionally at several temperatures/levels without any
-dependence on them).
+dependence on them). ``clean_covariate`` also repeats an effect's data set at three levels of a
+covariate the data do not depend on: e.g. a temperature shift measured at three temperatures
+x three excitation levels (two covariates, one of which matters).
 """
 from __future__ import annotations
 
@@ -370,7 +372,9 @@ def generate_case(effect: str | None, rng: np.random.Generator, *,
     system : str, optional
         Base system (default: random from :data:`BASE_SYSTEMS`).
     clean_covariate : {"temperature_c", "excitation_n"}, optional
-        For ``effect=None``: stack three conditions with this covariate and no dependence on it.
+        Repeat the data set at three levels of this covariate, with no dependence on it
+        (clean data at several temperatures or levels; with ``covariate_shift`` or
+        ``amplitude_dependence``, a data set with two covariates of which one matters).
 
     Returns
     -------
@@ -390,6 +394,11 @@ def generate_case(effect: str | None, rng: np.random.Generator, *,
     if clean_covariate not in (None, "temperature_c", "excitation_n"):
         raise ValueError(f"clean_covariate must be None, 'temperature_c' or 'excitation_n', "
                          f"got {clean_covariate!r}")
+    if clean_covariate is not None and clean_covariate == {
+            "amplitude_dependence": "excitation_n", "cubic_stiffness": "excitation_n",
+            "covariate_shift": "temperature_c"}.get(effect):
+        raise ValueError(f"clean_covariate {clean_covariate!r} is the covariate the effect "
+                         f"{effect!r} depends on; choose the other one")
     if effect == "maxwell_element" and system is None:
         system = MAXWELL_ELEMENT_SYSTEMS[rng.integers(len(MAXWELL_ELEMENT_SYSTEMS))]
     if effect in ("fixture_mass", "foundation_mode") and system is None:
@@ -415,13 +424,15 @@ def generate_case(effect: str | None, rng: np.random.Generator, *,
     else:
         raise ValueError(f"could not draw a detectable {effect} for sigma = {sigma}")
     freq = np.tile(f, clean.size // f.size)
-    if effect is None and clean_covariate is not None:
+    if clean_covariate is not None:
+        # the whole data set again at each level of a covariate it does not depend on
         levels = (np.asarray(LEVELS_N) if clean_covariate == "excitation_n"
                   else T_REF_C + np.array([-15.0, 0.0, 15.0]))
-        cov = {clean_covariate: np.repeat(levels, n_points)}
-        cols = (clean_covariate,)
-        clean = base = np.tile(clean, levels.size)
-        freq = np.tile(f, levels.size)
+        size = clean.size
+        cov = {**{name: np.tile(col, levels.size) for name, col in cov.items()},
+               clean_covariate: np.repeat(levels, size)}
+        cols = (*cols, clean_covariate)
+        clean, base, freq = (np.tile(a, levels.size) for a in (clean, base, freq))
     eps = sigma / np.sqrt(2) * (rng.standard_normal(clean.size)
                                 + 1j * rng.standard_normal(clean.size))
     return SyntheticCase(freq, clean * (1.0 + eps), clean, base, quantity, cov, effect,
