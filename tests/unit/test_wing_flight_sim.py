@@ -152,6 +152,26 @@ def test_batch_flights_with_different_schedules_equal_single_flights():
     np.testing.assert_array_equal(batch.airspeed[2], 50.0)
 
 
+def test_many_flights_on_one_schedule_equal_single_flights():
+    # Eight or more flights sharing a schedule take the whole-period products (period maps in
+    # sample-major order, written in place); one flight steps its periods instead.
+    rng = np.random.default_rng(8)
+    n = 2400
+    force = 1000.0 * rng.standard_normal((9, n))
+    u = np.linspace(60.0, 95.0, n)
+    c = np.interp(u, [60.0, 95.0], [1500.0, 200.0])
+    batch = simulate_flights(WING, DVA, force=force, airspeed=u, density=1.2, damping=c)
+    assert batch.displacements.shape == (9, 4, n) and batch.accelerations.shape == (9, 3, n)
+    for i in (0, 4, 8):
+        one = simulate_flights(WING, DVA, force=force[i], airspeed=u, density=1.2, damping=c)
+        for got, ref in ((batch.displacements[i], one.displacements[0]),
+                         (batch.accelerations[i], one.accelerations[0])):
+            np.testing.assert_allclose(got, ref, rtol=0, atol=1e-12 * np.abs(ref).max())
+        np.testing.assert_allclose(batch.final_state[i], one.final_state[0], rtol=0,
+                                   atol=1e-12 * np.abs(one.final_state).max())
+    np.testing.assert_array_equal(batch.damping[3], one.damping[0])  # same held schedule
+
+
 def test_reset_and_initial_state():
     sim = BlockSimulator(WING, DVA)
     x0 = np.zeros(sim.n_states)

@@ -161,6 +161,22 @@ def test_vectorised_assembly_equals_single():
         np.testing.assert_allclose(b[i], ss.b, rtol=1e-14)
 
 
+@pytest.mark.parametrize("absorber", [None, PassiveAbsorber(40, 9e4, 800.0, 1.0),
+                                      MaxwellAbsorber(40, 2.5e4, 1.5e5, 500.0, 1.53)])
+def test_unchecked_assembly_of_the_simulators_equals_the_checked_one(absorber):
+    model = AeroelasticModel(WING, absorber, WagnerAero())
+    u = np.array([0.0, 35.0, 90.0, 120.0])
+    rho = np.array([1.2, 0.9, 1.3, 1.2])
+    # c2 = inf (locked), the plain-damper limit (k2/c2 > 1e8 1/s), c2 = 0 and a normal value
+    c = None if absorber is None else np.array([np.inf, 1e-4, 0.0, 700.0])
+    if isinstance(absorber, PassiveAbsorber):
+        c = np.array([0.0, 10.0, 800.0, 5e3])
+    a, b = model.matrices(u, rho, damping=c)
+    a2, b2 = model.matrices_unchecked(u, rho, c)
+    np.testing.assert_array_equal(a2, a)
+    np.testing.assert_array_equal(b2, b)
+
+
 def test_polynomial_form_is_exact():
     model = AeroelasticModel(WING, MaxwellAbsorber(40, 2.5e4, 1.5e5, 500.0, 1.53), WagnerAero())
     a0, a1, a2 = model.polynomial(1.1)

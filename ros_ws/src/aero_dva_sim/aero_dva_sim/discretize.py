@@ -25,19 +25,36 @@ __all__ = ["check_sampling", "expm_batch", "zoh"]
 _TAYLOR = np.array([1.0 / math.factorial(k) for k in range(19)])
 
 
+def _add_identity(m: np.ndarray, c: float) -> np.ndarray:
+    """``m += c I`` in place for a stack (k, n, n); returns ``m``."""
+    n = m.shape[-1]
+    m.reshape(m.shape[0], n * n)[:, :: n + 1] += c
+    return m
+
+
 def _taylor18(x: np.ndarray) -> np.ndarray:
-    eye = np.broadcast_to(np.eye(x.shape[-1]), x.shape)
+    """Degree-18 Taylor polynomial of ``exp`` for a stack (k, n, n), Paterson-Stockmeyer.
+
+    In-place updates and the identity added on the diagonal only: for the small matrices
+    here the elementwise work costs as much as the seven matrix products.
+    """
     x2 = x @ x
     x3 = x2 @ x
     x4 = x2 @ x2
     c = _TAYLOR
 
     def block(j):
-        return c[4 * j] * eye + c[4 * j + 1] * x + c[4 * j + 2] * x2 + c[4 * j + 3] * x3
+        out = c[4 * j + 1] * x
+        out += c[4 * j + 2] * x2
+        out += c[4 * j + 3] * x3
+        return _add_identity(out, c[4 * j])
 
-    out = c[16] * eye + c[17] * x + c[18] * x2
+    out = c[17] * x
+    out += c[18] * x2
+    _add_identity(out, c[16])
     for j in (3, 2, 1, 0):
-        out = out @ x4 + block(j)
+        out = out @ x4
+        out += block(j)
     return out
 
 

@@ -318,6 +318,10 @@ class AeroelasticModel:
             raise ValueError("stiffness must be >= 0")
         if np.any(c < 0):
             raise ValueError("damping must be >= 0")
+        return self._features_of(u, rho, k1, c)
+
+    def _features_of(self, u, rho, k1, c) -> np.ndarray:
+        """:meth:`features` of float arrays that were already checked."""
         u, rho, k1, c = np.broadcast_arrays(u, rho, k1, c)
         phi = np.zeros(u.shape + (N_FEATURES,))
         phi[..., 0] = 1.0
@@ -353,6 +357,20 @@ class AeroelasticModel:
         """
         phi = self.features(airspeed, density, damping, stiffness)
         rho = np.broadcast_to(np.asarray(density, dtype=float), phi.shape[:-1])
+        return self.matrices_from_features(phi, rho)
+
+    def matrices_unchecked(self, airspeed: np.ndarray, density: np.ndarray, damping=None):
+        """:meth:`matrices` of float arrays (K,) the caller has already checked (>= 0, no NaN;
+        ``damping`` may be inf for a Maxwell absorber, ``None`` for the absorber's own).
+
+        The simulators' hot path: they check a flight's inputs once, then discretise hundreds
+        of held conditions, where :meth:`features`' checks would cost more than the assembly.
+        """
+        ab = self.absorber
+        k1 = 0.0 if ab is None else ab.stiffness
+        c = 0.0 if ab is None else (ab.damping if damping is None else damping)
+        phi = self._features_of(airspeed, density, k1, c)
+        rho = np.broadcast_to(density, phi.shape[:-1])
         return self.matrices_from_features(phi, rho)
 
     def matrices_from_features(self, phi: np.ndarray, density):
