@@ -138,3 +138,22 @@ def test_divergence_is_reported_not_crashed(executor, spin, ros_context, tmp_pat
     assert len(probe.blocks) < 1500  # stopped long before the 30 s flight ended
     le = np.concatenate([b.leading_edge for b in probe.blocks])
     assert np.all(np.isfinite(le))
+
+
+def test_paced_flight_keeps_its_real_time_factor(executor, spin, ros_context, tmp_path):
+    # 1 s of flight at 4x real time takes at least 0.25 s of wall time, however the ticks come
+    # (how much more depends on the machine's load, so it is not tested).
+    probe = Probe(ros_context)
+    scenario = _scenario(tmp_path, "{kind: constant, value_ratio: 0.8}")
+    sim = _simulator(ros_context, tmp_path, scenario, real_time_factor=4.0)
+    executor.add_node(probe.node)
+    executor.add_node(sim)
+    assert spin(executor, sim.finished.done, timeout=60.0)
+    assert spin(executor, lambda: "flight completed" in probe.messages(), timeout=5.0)
+    final = next(s for d in probe.diagnostics for s in d.status
+                 if s.message == "flight completed")
+    values = {kv.key: float(kv.value) for kv in final.values
+              if kv.key in ("sim_time_s", "real_time_factor")}
+    assert values["sim_time_s"] == pytest.approx(1.0)
+    assert values["real_time_factor"] <= 4.0 * 1.05  # never faster than asked
+    assert len(probe.blocks) == 50

@@ -195,29 +195,53 @@ class Simulator(Node):
             if not self._ready():
                 return
             self._started_wall = time.monotonic()
-        if self._waiting_for_controller():
-            self._set_stepping(False)
-            return
-        block = self.runtime.step()
-        self._publish(block)
+        while True:
+            if self._waiting_for_controller():
+                self._set_stepping(False)
+                return
+            if self._sim_time_due() < self.runtime.time - 0.5 * self.runtime.block_duration:
+                self._set_stepping(True)  # a paced flight ahead of schedule waits for a tick
+                return
+            block = self.runtime.step()
+            self._publish(block)
+            self._check_damper_status()
+            if block.diverged:
+                ratio = block.airspeed[-1] / self.runtime.critical_airspeed
+                self._diagnose("error", f"wing diverged at U = {block.airspeed[-1]:.2f} m/s "
+                               f"(U/U_cr = {ratio:.3f}, t = {block.t0:.3f} s): flight stopped",
+                               self._summary())
+                self._finish("diverged")
+                return
+            if self.runtime.done:
+                self._diagnose("ok", "flight completed", self._summary())
+                self._finish("completed")
+                return
+            # A paced flight that fell behind its wall-clock schedule (it waited for the
+            # controller, or a tick came late) catches up at once, so the real-time factor
+            # holds on average instead of every wait adding to the flight's wall time.
+            if not self._behind_schedule():
+                break
+        # As fast as possible the flight mostly has to wait for the controller right away:
+        # pause now rather than on the next tick. A paced flight waits for its tick.
+        self._set_stepping(self._rtf > 0 or not self._waiting_for_controller())
+
+    def _sim_time_due(self) -> float:
+        """[s] sim time the flight should have reached by now (inf when not paced)."""
+        if self._rtf <= 0:
+            return math.inf
+        return (time.monotonic() - self._started_wall) * self._rtf
+
+    def _behind_schedule(self) -> bool:
+        due = self._sim_time_due()
+        return math.isfinite(due) and due >= self.runtime.time + self.runtime.block_duration
+
+    def _check_damper_status(self) -> None:
         status = self.runtime.damper_snapshot().status
         if status != self._last_status and status in (DamperStatus.FALLBACK_STALE,):
             self._diagnose("warn", "no damper command within "
                            f"{self.runtime.config.damper.stale_timeout:g} s: fallback c2 = "
                            f"{self.runtime.damper_snapshot().applied_damping:g} N s/m applied", {})
         self._last_status = status
-        if block.diverged:
-            self._diagnose("error", f"wing diverged at U = {block.airspeed[-1]:.2f} m/s "
-                           f"(U/U_cr = {block.airspeed[-1] / self.runtime.critical_airspeed:.3f},"
-                           f" t = {block.t0:.3f} s): flight stopped", self._summary())
-            self._finish("diverged")
-        elif self.runtime.done:
-            self._diagnose("ok", "flight completed", self._summary())
-            self._finish("completed")
-        else:
-            # As fast as possible the flight mostly has to wait for the controller right away:
-            # pause now rather than on the next tick. A paced flight waits for its tick.
-            self._set_stepping(self._rtf > 0 or not self._waiting_for_controller())
 
     def _set_stepping(self, stepping: bool) -> None:
         """Step on the timer, or poll slowly until the flight may go on."""
