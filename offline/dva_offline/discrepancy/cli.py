@@ -98,27 +98,7 @@ def _cmd_frf(args) -> int:
     if args.json:
         print(json.dumps(payload))
     else:
-        v = result.verdict
-        lines = [
-            f"baseline {result.baseline.name}: held-out error {result.baseline.error:.4f} "
-            f"(noise floor {result.noise.sigma:.4f})",
-            f"verdict: {v.status}" + (f" -> {v.effect}" + (f" ({v.label})" if v.label else "")
-                                      if v.effect else ""),
-        ]
-        if result.augmented is not None:
-            a = result.augmented
-            lines.append(f"augmented {a.name}: held-out error {a.error:.4f} "
-                         f"({100 * (1 - a.error / result.baseline.error):.0f} % lower)")
-            lines += [f"  {e.name} = {e.value:.6g} +- {e.std:.2g} {e.unit}" for e in a.added]
-        lines.append(f"evidence: {v.evidence}")
-        lines.append("candidates (held-out error, dBIC):")
-        for c in result.candidates:
-            label = f" ({c.label})" if c.label else ""
-            if c.applicable:
-                lines.append(f"  {c.effect}{label}: {c.fit.error:.4f}, {c.delta_bic:.1f}")
-            else:
-                lines.append(f"  {c.effect}{label}: not applicable: {c.reason}")
-        print("\n".join(lines))
+        print("\n".join(_summary_lines(result)))
     return EXIT_OK
 
 
@@ -151,11 +131,16 @@ def _cmd_synth(args) -> int:
 
 
 def _flight_summary(result, domain) -> list[str]:
+    return _summary_lines(result, f"; {len(domain.segments)} segments, "
+                                  f"{result.split.held.sum()} held-out points")
+
+
+def _summary_lines(result, baseline_detail: str = "") -> list[str]:
+    """The human-readable report of either domain (``--json`` prints the full object)."""
     v = result.verdict
     lines = [
         f"baseline {result.baseline.name}: held-out error {result.baseline.error:.4f} "
-        f"(noise floor {result.noise.sigma:.4f}; {len(domain.segments)} segments, "
-        f"{result.split.held.sum()} held-out points)",
+        f"(noise floor {result.noise.sigma:.4f}{baseline_detail})",
         f"verdict: {v.status}" + (f" -> {v.effect}" + (f" ({v.label})" if v.label else "")
                                   if v.effect else ""),
     ]
