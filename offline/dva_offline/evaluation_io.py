@@ -14,8 +14,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -23,6 +21,7 @@ import numpy as np
 import yaml
 
 from aero_dva_sim.scenario_io import scenario_from_dict
+from dva_controller.atomic_io import atomic_output
 from dva_offline.evaluation import CONTROLLER_LABELS, CONTROLLERS, CaseStats, FlightCase
 
 __all__ = ["flight_bag", "flight_record_path", "load_base_scenario", "load_records",
@@ -31,17 +30,9 @@ __all__ = ["flight_bag", "flight_record_path", "load_base_scenario", "load_recor
 
 def save_json(path, payload) -> Path:
     """Write JSON atomically (a crash never leaves half a record)."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w") as handle:
-            json.dump(payload, handle, indent=1, allow_nan=False)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    os.chmod(path, 0o644)
-    return path
+    with atomic_output(path) as handle:
+        json.dump(payload, handle, indent=1, allow_nan=False)
+    return Path(path)
 
 
 def load_base_scenario(path) -> dict:
