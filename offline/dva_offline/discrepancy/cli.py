@@ -181,7 +181,7 @@ def _cmd_flight(args) -> int:
     if len(band) != 2:
         raise ValueError(f"--band must be LOW,HIGH in Hz, got {args.band!r}")
     settings = FlightSettings(band=band, window_s=args.window,
-                              segment_windows=args.segment_windows)
+                              segment_windows=args.segment_windows, settle_s=args.settle)
     print(f"reading {path} ...", file=sys.stderr, flush=True)
     log = load_flight_log(path, namespace=args.namespace)
     wing = load_wing(args.wing)
@@ -315,6 +315,9 @@ def register(subparsers) -> None:
                    help="DFT window [s] (Hann, 50 %% overlap; default 1)")
     p.add_argument("--segment-windows", type=int, default=7,
                    help="windows per segment of constant condition (default 7)")
+    p.add_argument("--settle", type=float, default=1.0,
+                   help="seconds of data at the log's start not analysed: the model is "
+                        "simulated from rest from there (default 1)")
     p.add_argument("--holdout-every", type=int, default=4,
                    help="hold out every Nth point of each segment and channel (default 4)")
     p.add_argument("--holdout-seed", type=int, default=None,

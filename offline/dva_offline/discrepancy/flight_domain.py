@@ -2,18 +2,22 @@
 
 Observations: H1 estimates of the frequency response from the measured aileron force to the
 measured plunge and pitch accelerations, per flight segment (airspeed, density and reported
-c2 nearly constant; a few boxcar windows each, see :mod:`.flight_frf`), at the DFT bins of a
-band (default 2-20 Hz). One group per segment and channel. Covariates per point: segment time,
+c2 nearly constant; Hann windows, see :mod:`.flight_frf`), at every other DFT bin of a band
+(default 2-20 Hz). One group per segment and channel. Covariates per point: segment time,
 airspeed, reported c2, pitch displacement RMS, time since the last c2 change.
 
-Weights: w_j = 1 / (|H_j| eps_j / median(eps)), eps_j the expected random relative error of
-the estimate from the run's coherence, so the residual w_j (H_model,j - H_j) is the relative
-error scaled to the median point's noise, and a correct model leaves residuals of about equal
-size everywhere (the engine's noise floor and consistency test assume that).
+Model values (output error through the estimator): the model is simulated along the whole log,
+driven by the logged force at the logged airspeed, density and c2 (:mod:`.flight_simulation`),
+and the same estimator is applied to its accelerations on the same windows. Leakage and the
+transients of each window are then the same in both and cancel: a correct model leaves the
+sensor noise alone (a noise-free flight is reproduced to 1e-6), where comparing with the
+estimator's expectation left a leakage scatter 3 times the noise that hid the smaller effects.
 
-Model values: the exact expectation of the same estimator for the model (boxcar window,
-sampled system), per window of the segment at that window's condition, averaged with the
-windows' force power, so leakage and resolution bias are in the model, not in the residual.
+Weights: w_j = median(eps) / (|H_j| eps_j), eps_j = sqrt(G_nn / S_xx,j) / |H_j| the relative
+error the sensor noise alone gives the estimate (G_nn per channel from the output power not
+coherent with the force well above the modes), so the residual w_j (H_model,j - H_j) is the
+relative error scaled to the median point's noise and a correct model leaves residuals of about
+equal size everywhere (the engine's noise floor and consistency test assume that).
 
 Baseline: :class:`~aero_dva_sim.wing_model.AeroelasticModel` of the wing file (reference wing
 by default) with its Maxwell DVA and aerodynamics, calibrated by three parameters: pitch
@@ -24,9 +28,9 @@ Candidates (each the baseline plus its parameters):
 
 - ``actuator_lag`` T [s]: the c2 acting is the logged c2 through a first-order lag.
 - ``sensor_delay`` tau [s]: accelerations delayed, H e^{-j w tau}.
-- ``cubic_stiffness`` kappa [1/rad^2]: pitch moment k_alpha (alpha + kappa alpha^3), by
-  statistical linearisation k_alpha (1 + 3 kappa sigma_alpha^2) with sigma_alpha the segment's
-  measured pitch RMS.
+- ``cubic_stiffness`` kappa [1/rad^2]: pitch moment k_alpha (alpha + kappa alpha^3); the
+  cubic part enters as a pitch-moment input computed from the logged pitch angle, so the
+  simulation is exact for the nonlinear wing (its distortion included) and stays linear.
 - ``unsteady_aero`` s [-]: Wagner/Jones finite-state aerodynamics, lag amplitudes x s.
 - ``parameter_drift`` (absorber_stiffness | pitch_stiffness | plunge_stiffness) r [1/s]:
   p(t) = p_0 (1 + r t), t from the start of the log (for the wing's stiffnesses beta K
@@ -53,14 +57,16 @@ from dva_offline.discrepancy.flight_frf import (
     estimate_segments,
     hann,
     runs_of_constant_condition,
-    taper,
-    windowed_frf,
 )
+from dva_offline.discrepancy.flight_simulation import BLOCK, ModalBlocks, simulate
+from dva_offline.discrepancy.flight_simulation import delay as delay_outputs
 
 CHANNELS = ("plunge", "pitch")  # accelerometer channels used (leading edge = their combination)
 CALIBRATION = ("pitch_stiffness", "plunge_stiffness", "damping_factor")
 CALIBRATION_RANGE = 1.5  # calibrated parameters stay within a factor of the file's values
 DRIFT_PARAMETERS = ("absorber_stiffness", "pitch_stiffness", "plunge_stiffness")
+NOISE_BAND = 5.0  # the sensor noise level is measured from this multiple of the band's top
+DRIFT_STEP_S = 0.5  # [s] a drifting parameter is held for this long in the simulation
 SIGNATURES = {
     "actuator_lag": "residual in the segments right after c2 steps (depends on the time since "
                     "the last c2 change), none in steady segments",
@@ -93,12 +99,16 @@ class FlightSettings:
         Windows per segment (segments shorter than 2 windows are dropped).
     tolerance : float
         Relative change of airspeed, density or c2 that starts a new run.
+    settle_s : float
+        [s] start of the log not analysed (the model is simulated from rest from the log's
+        start; the response to the unknown state before it dies out in about a second).
     """
 
     band: tuple[float, float] = (2.0, 20.0)
     window_s: float = 1.0
     segment_windows: int = 7
     tolerance: float = 0.02
+    settle_s: float = 1.0
 
     def __post_init__(self):
         lo, hi = self.band
@@ -108,6 +118,8 @@ class FlightSettings:
             raise ValueError(f"window must be > 0 s, got {self.window_s}")
         if self.segment_windows < 2:
             raise ValueError(f"segment_windows must be >= 2, got {self.segment_windows}")
+        if not 0 <= self.settle_s < 1e4:
+            raise ValueError(f"settle must be in [0, 1e4) s, got {self.settle_s}")
 
 
 @dataclass(frozen=True)
@@ -167,9 +179,10 @@ class FlightDomain:
     error_definition = (
         "RMS over held-out points j (not used in any fit) of w_j |H_model_j - H_j|, "
         "w_j = median(eps) / (|H_j| eps_j): the relative error of each H1 estimate scaled by "
-        "its expected random error eps_j (from the coherence) relative to the median point's; "
-        "H_model is the estimator's expectation for the model; error_l2 = "
-        "sqrt(sum |H_model - H|^2 / sum |H|^2) over the same points")
+        "the relative error eps_j the sensor noise alone gives it, relative to the median "
+        "point's; H_model is the same estimator applied, on the same windows, to the model's "
+        "response to the logged force; error_l2 = sqrt(sum |H_model - H|^2 / sum |H|^2) over "
+        "the same points")
 
     def __init__(self, data: FlightArrays, wing_file, settings: FlightSettings | None = None):
         self.settings = settings or FlightSettings()
@@ -191,12 +204,17 @@ class FlightDomain:
             raise FlightDataError(f"band {lo:g}-{hi:g} Hz holds {bins.size} bins at "
                                   f"{df:g} Hz resolution (need >= 5, below {fs / 2:g} Hz)")
         self.n_window, self.bins = n_window, bins
-        self.taper = taper(hann(n_window))
+        self.window = hann(n_window)
         self.omega_dt = 2 * np.pi * bins / n_window
         finite = np.isfinite(data.force) & np.all(np.isfinite(data.accelerations), axis=0)
         cols = [np.where(finite, c, np.nan) for c in (data.airspeed, data.density, data.damping)]
-        runs = runs_of_constant_condition(cols, self.settings.tolerance, 2 * n_window)
-        segs = estimate_segments(data.force, data.accelerations, runs, self.taper, bins,
+        # The model is simulated from rest from the log's start: windows in the first settle_s
+        # of data (where an unknown initial state still rings) are not used.
+        settle = int(np.argmax(finite)) + int(round(self.settings.settle_s * fs))
+        runs = [(max(a, settle), b)
+                for a, b in runs_of_constant_condition(cols, self.settings.tolerance, 1)
+                if b - max(a, settle) >= 2 * n_window]
+        segs = estimate_segments(data.force, data.accelerations, runs, self.window, bins,
                                  self.settings.segment_windows)
         if len(segs) < 2:
             raise FlightDataError(
@@ -215,9 +233,6 @@ class FlightDomain:
         wins = np.concatenate([s.windows for s in segs])
         self.win_segment = np.concatenate([np.full(len(s.windows), i)
                                            for i, s in enumerate(segs)])
-        power = np.concatenate([s.window_force_power for s in segs])
-        total = np.bincount(self.win_segment, power)
-        self.win_weight = power / total[self.win_segment]
         self.win_start, self.win_stop = wins[:, 0], wins[:, 1]
         csum = {name: np.concatenate([[0.0], np.cumsum(np.nan_to_num(arr))])
                 for name, arr in (("U", d.airspeed), ("rho", d.density), ("c2", d.damping))}
@@ -229,9 +244,6 @@ class FlightDomain:
         self.win_u, self.win_rho, self.win_c2 = (window_mean(k) for k in ("U", "rho", "c2"))
         fs = d.sample_rate
         self.win_time = 0.5 * (self.win_start + self.win_stop) / fs
-        seg_time = np.array([0.5 * (sg.start + sg.stop) / fs for sg in segs])
-        self.win_seg_time = seg_time[self.win_segment]  # drift is resolved per segment
-        self.t_mid = 0.5 * (self.win_time.min() + self.win_time.max())
         pitch = np.nan_to_num(d.pitch)
         seg_var = np.array([np.var(pitch[s.start:s.stop]) for s in segs])
         self.seg_pitch_rms = np.sqrt(seg_var)
@@ -246,14 +258,86 @@ class FlightDomain:
                          seg_start / fs)
         self.seg_since_change = since
         self.has_c2_steps = change.size > 0
-        # the logged c2 per sample, and window sample ranges for the lag candidate
+        # the logged c2 per sample (the lag candidate filters it)
         self._c2_samples = np.nan_to_num(c2, nan=float(np.nanmean(c2)))
         self._moment_cache: dict = {}
+        self._build_blocks()
+
+    def _build_blocks(self):
+        """Per simulation block: the logged condition and time; and the force DFTs of every
+        window (the estimator applied to the simulated outputs)."""
+        d, blk = self.data, BLOCK
+        n = d.force.size
+        nb = -(-n // blk)
+
+        def block_mean(x):
+            padded = np.full(nb * blk, np.nan)
+            padded[:n] = x
+            rows = padded.reshape(nb, blk)
+            count = np.isfinite(rows).sum(1)
+            mean = np.where(count > 0, np.nansum(rows, 1) / np.maximum(count, 1), np.nan)
+            # blocks without a finite sample take the previous block's value (then the next's)
+            good = np.flatnonzero(np.isfinite(mean))
+            if good.size == 0:
+                raise FlightDataError("no finite sample in a logged condition")
+            return mean[good[np.clip(np.searchsorted(good, np.arange(nb), "right") - 1, 0,
+                                             None)]]
+
+        self.blk_u, self.blk_rho = block_mean(d.airspeed), block_mean(d.density)
+        self.blk_c2 = block_mean(d.damping)
+        self.blk_time = (np.arange(nb) + 0.5) * blk / d.sample_rate
+        self._force = np.nan_to_num(d.force)
+        self._pitch = np.nan_to_num(d.pitch)
+        idx = np.concatenate([s.windows[:, :1] for s in self.segments]) + np.arange(
+            self.n_window)
+        self._win_idx = idx
+        x = np.fft.rfft(self.window * self._force[idx], axis=-1)[:, self.bins]
+        self._win_xc = np.conj(x)  # (W, F)
+        sxx = np.zeros((len(self.segments), self.bins.size))
+        np.add.at(sxx, self.win_segment, np.abs(x) ** 2)
+        self._seg_sxx = sxx
+
+    def _noise_eps(self, h) -> np.ndarray:
+        """Expected relative error of each estimate from the sensor noise alone.
+
+        The model's H1 comes from the same windows of the same force, so leakage cancels and
+        the residual of a correct model is sum_w conj(X_w) N_w / sum_w |X_w|^2 (N the
+        accelerometer noise), of variance G_nn / S_xx: G_nn the noise power per window DFT,
+        S_xx the segment's force power at the bin. G_nn (white noise: one value per channel)
+        is the output power not coherent with the force well above the wing's modes
+        (NOISE_BAND x the band's upper end up to 0.4 fs), where the FRF is flat and leakage
+        does not bias the coherence as it does near the lightly damped modes.
+        """
+        fs = self.data.sample_rate
+        df = fs / self.n_window
+        lo = max(NOISE_BAND * self.settings.band[1], self.settings.band[1] + 5.0)
+        high = np.arange(int(np.ceil(lo / df)), int(0.4 * fs / df) + 1)
+        if high.size < 5:  # a low sample rate: fall back on the band itself
+            high = self.bins
+        win = self.window
+        idx = self._win_idx
+        x = np.fft.rfft(win * self._force[idx], axis=-1)[:, high]  # (W, F)
+        y = np.fft.rfft(win * np.nan_to_num(self.data.accelerations)[:, idx],
+                        axis=-1)[..., high]  # (p, W, F)
+        runs = np.array([self.segments[i].run for i in self.win_segment])
+        gnn = []
+        for r in np.unique(runs):
+            w = runs == r
+            gxx = np.mean(np.abs(x[w]) ** 2, 0)
+            gxy = np.mean(np.conj(x[w]) * y[:, w], 1)
+            gyy = np.mean(np.abs(y[:, w]) ** 2, 1)
+            # incoherent power; n_w / (n_w - 1): the coherence of n_w windows is biased up
+            n_w = int(w.sum())
+            gnn.append(np.clip(gyy - np.abs(gxy) ** 2 / gxx, 0.0, None) * n_w / max(n_w - 1, 1))
+        noise = np.median(np.concatenate(gnn, axis=1), axis=1)  # (p,)
+        per = np.sqrt(noise[None, :, None] / self._seg_sxx[:, None, :])  # (S, p, F)
+        e = per.reshape(-1) / np.abs(h)
+        return np.maximum(e, 0.2 * np.median(e))  # |H| ~ 0 or noise ~ 0: do not trust eps
 
     def _observations(self) -> Observations:
         segs = self.segments
         n_ch, n_f = len(CHANNELS), self.bins.size
-        values, eps, groups, freq = [], [], [], []
+        values, groups, freq = [], [], []
         cov = {k: [] for k in ("time_s", "airspeed_mps", "damper_c2", "pitch_rms_rad",
                                "since_c2_change_s")}
         fs = self.data.sample_rate
@@ -261,7 +345,6 @@ class FlightDomain:
             w = self.win_segment == i
             for ch in range(n_ch):
                 values.append(s.h[ch])
-                eps.append(s.eps[ch])
                 groups.append(np.full(n_f, i * n_ch + ch))
                 freq.append(self.bins * fs / self.n_window)
                 for key, val in (("time_s", 0.5 * (s.start + s.stop) / fs),
@@ -271,8 +354,7 @@ class FlightDomain:
                                  ("since_c2_change_s", self.seg_since_change[i])):
                     cov[key].append(np.full(n_f, float(val)))
         y = np.concatenate(values)
-        e = np.concatenate(eps)
-        e = np.maximum(e, 0.2 * np.median(e))  # coherence ~ 1: do not trust eps -> 0
+        e = self._noise_eps(y)
         self.eps = e
         weights = np.median(e) / (np.abs(y) * e)
         return Observations(y, weights, np.concatenate(freq), np.concatenate(groups),
@@ -293,19 +375,18 @@ class FlightDomain:
             aero = WagnerAero(a1=jones.a1 * aero_scale, b1=jones.b1,
                               a2=jones.a2 * aero_scale, b2=jones.b2)
         model = self._model(cal, aero)
-        c2 = self.win_c2
+        c2 = self.blk_c2
         if lag > 0:
             g = np.exp(-self.dt / lag)
             x = self._c2_samples
             true, _ = lfilter([1.0 - g], [1.0, -g], x, zi=[g * x[0]])
-            csum = np.concatenate([[0.0], np.cumsum(true)])
-            c2 = (csum[self.win_stop] - csum[self.win_start]) / (self.win_stop - self.win_start)
-        # Windows of one run share a condition: evaluate each distinct one once.
-        cols = [self.win_u, self.win_rho, c2]
+            padded = np.full(c2.size * BLOCK, true[-1])
+            padded[:true.size] = true
+            c2 = padded.reshape(-1, BLOCK).mean(1)
+        # Blocks share few conditions: discretise each distinct one once.
+        cols = [self.blk_u, self.blk_rho, c2]
         if drift is not None:
-            cols.append(self.win_seg_time)
-        if kappa > 0:
-            cols.append(self.win_pitch_var)
+            cols.append(np.round(self.blk_time / DRIFT_STEP_S) * DRIFT_STEP_S)
         keys, inverse = np.unique(np.stack(cols, axis=1), axis=0, return_inverse=True)
         inverse = inverse.reshape(-1)
         u, rho, c = keys[:, 0], keys[:, 1], keys[:, 2]
@@ -321,17 +402,25 @@ class FlightDomain:
             a_step, _ = self._model(step, aero).matrices(u, rho, c)
             # A is affine in each stiffness (beta K follows): p(t) = p (1 + r t)
             a = a + (rate * keys[:, 3] / 0.01)[:, None, None] * (a_step - a)
-        if kappa > 0:
-            bm = self._moment_column(model, aero_scale, u, rho, c)
-            dk = 3.0 * kappa * keys[:, -1] * cal[0]  # equivalent extra pitch stiffness
-            a = a.copy()
-            a[:, :, 1] -= dk[:, None] * bm
         c_acc, d_acc = model.acceleration_output(a, b)
-        h = windowed_frf(a, b, c_acc[:, :2], d_acc[:, :2], self.omega_dt, self.taper,
-                         self.dt, delay / self.dt)[inverse]  # (W, 2, F)
-        h = h * self.win_weight[:, None, None]
-        seg = np.zeros((len(self.segments),) + h.shape[1:], dtype=complex)
-        np.add.at(seg, self.win_segment, h)
+        modes = ModalBlocks(a, b, c_acc[:, :2], d_acc[:, :2], self.dt)
+        y = simulate(modes, inverse, self._force)
+        if kappa > 0:
+            # the cubic part of the pitch spring as a pitch moment input computed from the
+            # logged pitch angle: exact for the nonlinear wing, distortion included
+            bm = self._moment_column(model, aero_scale, u, rho, c)
+            _, d_m = model.acceleration_output(a, bm)
+            moment = -kappa * cal[0] * self._pitch**3
+            y = y + simulate(modes.with_input(bm, d_m[:, :2]), inverse, moment)
+        if delay:
+            y = delay_outputs(y, delay / self.dt)
+        # the segments' estimator applied to the simulated accelerations
+        spec = np.fft.rfft(self.window * y[:, self._win_idx], axis=-1)[..., self.bins]
+        seg = np.zeros((len(self.segments), y.shape[0], self.bins.size), dtype=complex)
+        np.add.at(seg, self.win_segment, (self._win_xc * spec).transpose(1, 0, 2))
+        seg /= self._seg_sxx[:, None, :]
+        if not np.all(np.isfinite(seg)):  # an unstable candidate diverges: a huge residual
+            seg = np.where(np.isfinite(seg), seg, 1e12)
         return seg.reshape(-1)
 
     def _moment_column(self, model, aero_scale, u, rho, c) -> np.ndarray:
@@ -373,12 +462,18 @@ class FlightDomain:
         name0 = f"wing+maxwell({self._aero_name()})"
         out = []
 
-        def spec(effect, added, predict, starts, label=""):
+        nominal = [self.wing.pitch_stiffness, self.wing.plunge_stiffness,
+                   self.wing.damping_factor]
+
+        def spec(effect, added, predict, starts, label="", nominal_starts=()):
+            # nominal_starts: from the wing file's calibration as well (a large effect pulls
+            # the baseline's calibration far from the truth, a local minimum for the fit)
             full = params + tuple(added)
             return ModelSpec(
                 name=f"{name0} + {effect}" + (f"({label})" if label else ""), effect=effect,
                 params=full, n_added=len(added), predict=predict,
-                starts=tuple(np.array(cal + list(s), dtype=float) for s in starts),
+                starts=tuple(np.array(cal + list(s), dtype=float) for s in starts)
+                + tuple(np.array(nominal + list(s), dtype=float) for s in nominal_starts),
                 signature=SIGNATURES[effect], label=label)
 
         if self.has_c2_steps:
@@ -394,9 +489,13 @@ class FlightDomain:
         out.append(spec(
             "sensor_delay", [ParamSpec("delay", "s", delay0, 0.0, 0.05, scale=1e-3)],
             lambda v: self._predict(v[:3], delay=v[3]),
-            [(0.002,), (0.005,), (0.01,), (0.02,), (0.035,)]))  # the phase is periodic
+            [(0.002,), (0.005,), (0.01,), (0.02,), (0.035,)],  # the phase is periodic
+            nominal_starts=[(delay0,)]))
         var = self.win_pitch_var
-        if var.max() > 0 and var.max() > 1.5 * var.min():
+        if not np.any(np.isfinite(self.data.pitch)):
+            out.append(NotApplicable("cubic_stiffness", "the log has no pitch angle "
+                                     "(wing/displacement): the cubic moment cannot be formed"))
+        elif var.max() > 0 and var.max() > 1.5 * var.min():
             kmax = 1.0 / var.max()  # +300 % pitch stiffness at the largest response
             out.append(spec(
                 "cubic_stiffness",
@@ -411,7 +510,8 @@ class FlightDomain:
         else:
             out.append(spec(
                 "unsteady_aero", [ParamSpec("lag_scale", "-", 1.0, 0.02, 1.9)],
-                lambda v: self._predict(v[:3], aero_scale=v[3]), []))
+                lambda v: self._predict(v[:3], aero_scale=v[3]), [],
+                nominal_starts=[(0.5,), (1.0,)]))
         span = self.win_time.max()
         rmax = 0.6 / span
         for name in DRIFT_PARAMETERS:

@@ -4,7 +4,7 @@ Not used by the engine. A case is a stepped flight of the reference wing recorde
 batch path (:func:`aero_dva_sim.batch_recording_io.record_runtime`) into an MCAP bag, flown
 with a hidden plant (:mod:`aero_dva_sim.hidden_plant`) that the log does not reveal:
 
-- three airspeeds drawn in 0.35-0.7 U_cr, flown in a random order and then again in the same
+- three airspeeds drawn in 0.55-0.85 U_cr, flown in a random order and then again in the same
   order; at each visit a low c2 (100-300 N s/m) and a high c2 (900-1500 N s/m) are held for
   ``dwell`` s each (12 dwells, 11 c2 steps);
 - the aileron force (1 kN RMS) alternates between level 1 and level 3 every airspeed visit, so
@@ -25,12 +25,12 @@ LIBRARY_EFFECTS = ("actuator_lag", "sensor_delay", "cubic_stiffness", "unsteady_
                    "parameter_drift")
 OUTSIDE_EFFECTS = ("sensor_gain",)
 THRESHOLDS = {
-    "actuator_lag": "time constant T 1-3 s (c2 steps every dwell)",
-    "sensor_delay": "delay 2-10 ms (whole samples at 1 kHz)",
-    "cubic_stiffness": "3 kappa sigma_alpha^2 = 50-120 % at the high excitation level "
+    "actuator_lag": "time constant T 0.5-1.5 s (c2 steps every dwell)",
+    "sensor_delay": "delay 1-10 ms (whole samples at 1 kHz)",
+    "cubic_stiffness": "3 kappa sigma_alpha^2 = 15-40 % at the high excitation level "
                        "(kappa from the nominal pitch RMS 1.2e-3 rad there)",
-    "unsteady_aero": "Jones lag amplitudes x 0.5-1.2",
-    "parameter_drift": "the DVA spring k1 changes by 20-40 % over the flight (either sign)",
+    "unsteady_aero": "Jones lag amplitudes x 0.2-1.2",
+    "parameter_drift": "the DVA spring k1 changes by 10-25 % over the flight (either sign)",
     "sensor_gain": "one accelerometer's gain off by 5-15 % (either sign): outside the library",
 }
 ACC_RMS = (1.0, 1.8, 1.9)  # typical accelerometer RMS at 1 kN [m/s^2, rad/s^2, m/s^2]
@@ -60,18 +60,18 @@ def _plant(effect, rng, noise, duration):
     if effect is None:
         pass
     elif effect == "actuator_lag":
-        params["time_constant_s"] = fields["actuator_lag"] = float(rng.uniform(1.0, 3.0))
+        params["time_constant_s"] = fields["actuator_lag"] = float(rng.uniform(0.5, 1.5))
     elif effect == "sensor_delay":
-        params["delay_s"] = fields["sensor_delay"] = int(rng.integers(2, 11)) / 1000.0
+        params["delay_s"] = fields["sensor_delay"] = int(rng.integers(1, 11)) / 1000.0
     elif effect == "cubic_stiffness":
-        share = float(rng.uniform(0.50, 1.20))
+        share = float(rng.uniform(0.15, 0.40))
         params["kappa_per_rad2"] = fields["cubic_stiffness"] = share / (3 * PITCH_RMS_HIGH**2)
         params["stiffening_at_high_level"] = share
     elif effect == "unsteady_aero":
-        params["lag_scale"] = fields["unsteady_aero"] = float(rng.uniform(0.5, 1.2))
+        params["lag_scale"] = fields["unsteady_aero"] = float(rng.uniform(0.2, 1.2))
     elif effect == "parameter_drift":
         name = "absorber_stiffness"
-        change = float(rng.uniform(0.20, 0.40)) * (1 if rng.random() < 0.5 else -1)
+        change = float(rng.uniform(0.10, 0.25)) * (1 if rng.random() < 0.5 else -1)
         params.update(parameter=name, total_change=change, rate_per_s=change / duration)
         fields.update(drift_parameter=name, drift_rate=change / duration)
     elif effect == "sensor_gain":

@@ -23,9 +23,9 @@ recorded topics names:
 
 :class:`PlantSimulator` has the :class:`~aero_dva_sim.flight_sim.BlockSimulator` streaming
 interface (``advance(force, airspeed, density, damping)``): exact ZOH steps with the condition
-held over 10 samples and only renewed when it moved by more than 0.5 % (2 % for the lagged
-c2, which moves continuously), one matrix per hold period for a linear plant and sample by
-sample with a cubic stiffness. So
+held over 10 samples and only renewed when it moved by more than 0.1 % (as FlightRuntime;
+2 % for the lagged c2, which moves continuously; 0.5 % for a drifting stiffness), one matrix
+per hold period for a linear plant and sample by sample with a cubic stiffness. So
 :class:`~aero_dva_sim.flight_runtime.FlightRuntime` swaps it in when a scenario has a
 ``plant`` section. Pure numerics (no ROS).
 """
@@ -45,7 +45,10 @@ from aero_dva_sim.wing_model import AeroelasticModel
 DRIFT_PARAMETERS = ("pitch_stiffness", "plunge_stiffness", "absorber_stiffness")
 CHANNELS = ("plunge", "pitch", "leading_edge")
 HOLD = 10  # samples between updates of the held condition (as BlockSimulator)
-QUANTUM = 5e-3  # relative change of a held input below which the cached matrices are reused
+QUANTUM = 1e-3  # relative change of a held airspeed, density or c2 below which the cached
+# matrices are reused: FlightRuntime's, so the plant flies every condition step the log shows
+# (with 0.5 % a 0.3 % airspeed step between two dwells was not flown: the log then lied)
+QUANTUM_DRIFT = 5e-3  # the drifting stiffness factor is applied in steps of 0.5 %
 QUANTUM_LAGGED = 0.02  # the same for the lagged c2 (it moves continuously after each step)
 DRIFT_UPDATE = 0.05  # [s] the drifting stiffness is updated at this interval
 MAX_CUBIC_PITCH = 0.5  # [rad] beyond this the pitch "spring" is no longer a spring: diverged
@@ -287,7 +290,7 @@ class PlantSimulator:
     def _hold(self, raw: tuple) -> tuple:
         if self._held is None:
             return raw
-        quanta = (QUANTUM, QUANTUM, QUANTUM,
+        quanta = (QUANTUM_DRIFT, QUANTUM, QUANTUM,
                   QUANTUM_LAGGED if self.plant.actuator_lag > 0 else QUANTUM)
         return tuple(cur if abs(v - cur) <= q * abs(cur) else v
                      for v, cur, q in zip(raw, self._held, quanta))
