@@ -8,18 +8,23 @@ the stable airspeeds of the c2 list 200..770 N s/m, 4 s dwells: 122 x 20 x 4 s =
    nothing written, over the first ``--stepped-airspeeds`` airspeeds (the baseline; its rate
    is per sample, so it extrapolates);
 2. ``parallel sim``: :mod:`aero_dva_sim.sweep_batch` (the whole sweep parallel in time),
-   nothing written: the simulation alone;
-3. ``record``: :func:`~aero_dva_sim.batch_recording_io.record_sweep`, simulation + every topic
-   written to a rosbag2 MCAP bag in ``--dir`` (what ``dva train sweep`` runs), and variants:
-   without chunk CRCs, with one message block per dwell (4000 samples), and into ``/dev/shm``
-   (RAM) when it exists;
+   nothing written: the simulation alone, all 7 output channels, and the 4 a measured-only
+   recording needs (3 accelerations + the leading edge for the divergence test);
+3. ``record``: :func:`~aero_dva_sim.batch_recording_io.record_sweep` into a rosbag2 MCAP bag
+   in ``--dir`` (chunk CRCs on, fsynced on close): as ``dva train sweep`` runs it (every
+   topic; encoding, CRCs and writing on a second thread while the main thread simulates), as
+   ``dva train sweep --no-displacement`` runs it (the measured topics only), and the old way
+   (every topic, simulation and writing in turn); the first two also into ``/dev/shm`` (RAM)
+   when it exists, to separate the CPU from the disk;
 4. ``dd``: the disk's write bandwidth, ``dd if=/dev/zero bs=16M conv=fdatasync`` of as many
-   bytes as the bag into the same directory: the bag cannot be written faster than this
-   (the recorder fsyncs the bag when it closes it).
+   bytes as the default bag into the same directory, and what the bags would take at that
+   rate (this virtual disk's rate varies from run to run, 280-580 MB/s seen).
 
-Per path: wall and CPU time (CPU = user + system of this process: on a shared machine the wall
-time also holds other jobs' time), "x real time" = sim seconds per wall second, and the ratio
-to the stepped baseline. The machine's load average is printed with the results.
+Per path: wall and CPU time (CPU = user + system of this process, all threads: above the wall
+time when both cores work), "x real time" = sim seconds per wall second, the ratio to the
+stepped baseline, the 1-minute load average when the path started, and "others": the cores
+other processes kept busy during the path (from /proc/stat; 1.0 = one of the two cores was
+taken, and the second core this path could use was not there).
 ``--airspeeds K`` flies only the first K airspeeds; ``--as-is`` the shipped sweep unchanged
 (171 x 20 x 2 s = 6840 s; it diverges near the top, where both paths stop).
 
@@ -68,10 +73,27 @@ def sweep_config(as_is: bool, airspeeds: int | None):
     return config
 
 
+def busy_seconds() -> float:
+    """CPU seconds all cores of the machine have been busy since boot (NaN without /proc)."""
+    try:
+        with open("/proc/stat") as stream:
+            fields = [int(v) for v in stream.readline().split()[1:]]
+    except (OSError, ValueError):
+        return float("nan")
+    idle = fields[3] + (fields[4] if len(fields) > 4 else 0)  # idle + iowait
+    return (sum(fields[:8]) - idle) / os.sysconf("SC_CLK_TCK")
+
+
+OTHERS: list[float] = []  # per timed() call: cores other processes kept busy meanwhile
+
+
 def timed(fn):
+    busy = busy_seconds()
     wall, cpu = time.perf_counter(), time.process_time()
     out = fn()
-    return out, time.perf_counter() - wall, time.process_time() - cpu
+    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+    OTHERS.append(max(0.0, busy_seconds() - busy - cpu) / wall)
+    return out, wall, cpu
 
 
 def stepped(runtime) -> float:
@@ -81,10 +103,10 @@ def stepped(runtime) -> float:
     return runtime.time
 
 
-def parallel_simulation(runtime) -> float:
+def parallel_simulation(runtime, outputs=sweep_batch.OUTPUTS) -> float:
     plan = sweep_batch.plan_sweep(runtime.config, runtime.scenario)
     done = 0
-    for chunk in sweep_batch.simulate_sweep(runtime.config, plan):
+    for chunk in sweep_batch.simulate_sweep(runtime.config, plan, outputs=outputs):
         done += chunk.force.size
     return done / plan.sample_rate
 
@@ -126,61 +148,76 @@ def main() -> None:
     parser.add_argument("--stepped-airspeeds", type=int, default=3,
                         help="airspeeds flown by the stepped baseline (default 3)")
     parser.add_argument("--no-variants", action="store_true",
-                        help="only the default recording (no CRC-less, big-block, RAM runs)")
+                        help="no recordings into /dev/shm")
     args = parser.parse_args()
     config = sweep_config(args.as_is, args.airspeeds)
     s = config.scenario
     directory = Path(args.dir or tempfile.gettempdir())
-    dwell = int(round(s.dwell * s.sample_rate))
     print(f"sweep: {len(s.airspeed.values)} airspeeds x {len(s.sweep_damping)} c2 x "
           f"{s.dwell:g} s = {s.duration:g} s of flight at {s.sample_rate:g} Hz "
           f"(blocks of {s.block_size}); bag in {directory}")
 
     rows = []
+
+    def row(name, run):  # run() -> (sim seconds, wall, cpu, bytes or None)
+        load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+        rows.append((name, *run(), load, OTHERS[-1]))
+
     base_config = sweep_config(args.as_is, min(args.stepped_airspeeds,
                                                len(s.airspeed.values)))
     runtime = FlightRuntime(base_config)  # (its flutter analysis is not timed, in no path)
-    sim, wall, cpu = timed(lambda: stepped(runtime))
-    rows.append(("stepped (FlightRuntime.step)", sim, wall, cpu, None))
+    row("stepped (FlightRuntime.step)", lambda: (*timed(lambda: stepped(runtime)), None))
     runtime = FlightRuntime(config)
-    sim, wall, cpu = timed(lambda: parallel_simulation(runtime))
-    rows.append(("parallel sim (no writing)", sim, wall, cpu, None))
-    result, wall, cpu, size = record(config, directory)
-    rows.append((f"record, blocks of {s.block_size}", result.sim_time, wall, cpu, size))
-    if not args.no_variants:
-        r, w, c, b = record(config, directory, chunk_crc=False)
-        rows.append((f"record, blocks of {s.block_size}, no CRC", r.sim_time, w, c, b))
-        r, w, c, b = record(config, directory, chunk_crc=False, block_size=dwell)
-        rows.append((f"record, blocks of {dwell}, no CRC", r.sim_time, w, c, b))
-        shm = Path("/dev/shm")
-        if shm.is_dir() and os.access(shm, os.W_OK):
-            r, w, c, b = record(config, shm)
-            rows.append((f"record to /dev/shm, blocks of {s.block_size}", r.sim_time, w, c, b))
-            r, w, c, b = record(config, shm, chunk_crc=False, block_size=dwell)
-            rows.append((f"record to /dev/shm, {dwell}, no CRC", r.sim_time, w, c, b))
+    row("parallel sim, 7 channels", lambda: (*timed(lambda: parallel_simulation(runtime)),
+                                             None))
+    measured = ("leading_edge",) + sweep_batch.OUTPUTS[4:]
+    row("parallel sim, 4 channels", lambda: (
+        *timed(lambda: parallel_simulation(runtime, measured)), None))
+    results = {}
+
+    def recorded(name, where, **options):
+        def run():
+            result, wall, cpu, size = record(config, where, **options)
+            results[name] = (result, size)
+            return result.sim_time, wall, cpu, size
+        row(name, run)
+
+    recorded("record: dva train sweep", directory)
+    recorded("record: --no-displacement", directory, displacement=False)
+    recorded("record: old (all, no overlap)", directory, overlap=False)
+    shm = Path("/dev/shm")
+    if not args.no_variants and shm.is_dir() and os.access(shm, os.W_OK):
+        recorded("/dev/shm: dva train sweep", shm)
+        recorded("/dev/shm: --no-displacement", shm, displacement=False)
+    result, size = results["record: dva train sweep"]
     bandwidth = disk_bandwidth(directory, size)
 
     base = rows[0][1] / rows[0][2]
-    print(f"{'path':<38}{'sim [s]':>9}{'wall [s]':>10}{'cpu [s]':>9}{'MB':>7}"
-          f"{'x real time':>13}{'vs stepped':>12}")
-    for name, sim, wall, cpu, nbytes in rows:
+    print(f"{'path':<32}{'sim [s]':>8}{'wall [s]':>9}{'cpu [s]':>8}{'MB':>6}"
+          f"{'x real time':>12}{'vs stepped':>11}{'load':>6}{'others':>7}")
+    for name, sim, wall, cpu, nbytes, load, others in rows:
         mb = f"{nbytes / 1e6:.0f}" if nbytes else "-"
-        print(f"{name:<38}{sim:>9.0f}{wall:>10.2f}{cpu:>9.2f}{mb:>7}{sim / wall:>13.0f}"
-              f"{sim / wall / base:>12.1f}")
+        print(f"{name:<32}{sim:>8.0f}{wall:>9.2f}{cpu:>8.2f}{mb:>6}{sim / wall:>12.0f}"
+              f"{sim / wall / base:>11.1f}{load:>6.2f}{others:>7.2f}")
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
-    print(f"outcome {result.outcome} ({result.method}); load average {load:.1f} on "
+    print(f"outcome {result.outcome} ({result.method}); load average now {load:.2f} on "
           f"{os.cpu_count()} CPUs")
     if bandwidth:
-        floor = size / bandwidth
-        print(f"disk write bandwidth (dd, fdatasync, {directory}): {bandwidth / 1e6:.0f} MB/s:\n"
-              f"  writing the {size / 1e6:.0f} MB bag takes >= {floor:.2f} s, so recording to "
-              f"this disk cannot exceed {result.sim_time / floor:.0f} x real time")
-    sim_rate = rows[1][1] / rows[1][2]
-    print(f"issue target: >= {TARGET:.0f} x real time in aggregate;\n  simulation alone "
-          f"{sim_rate:.0f} x ({'met' if sim_rate >= TARGET else 'not met'}), simulation + "
-          f"recording {rows[2][1] / rows[2][2]:.0f} x "
-          f"({'met' if rows[2][1] / rows[2][2] >= TARGET else 'not met'})")
-
+        for name in ("record: dva train sweep", "record: --no-displacement"):
+            nbytes = results[name][1]
+            floor = nbytes / bandwidth
+            print(f"disk write bandwidth (dd, fdatasync, {directory}): "
+                  f"{bandwidth / 1e6:.0f} MB/s: at that rate the {nbytes / 1e6:.0f} MB bag "
+                  f"({name[8:]}) takes {floor:.2f} s: {result.sim_time / floor:.0f} x "
+                  "real time")
+    rate = {name: sim / wall for name, sim, wall, *_ in rows}
+    print(f"issue target: >= {TARGET:.0f} x real time in aggregate;")
+    for name in ("parallel sim, 7 channels", "record: dva train sweep",
+                 "record: --no-displacement", "/dev/shm: dva train sweep",
+                 "/dev/shm: --no-displacement"):
+        if name in rate:
+            print(f"  {name:<30}{rate[name]:>7.0f} x "
+                  f"({'met' if rate[name] >= TARGET else 'not met'})")
 
 if __name__ == "__main__":
     main()

@@ -31,7 +31,8 @@ __all__ = ["register"]
 DEFAULT_C2 = "200:770:20"  # [N s/m] brackets the reference wing's optimum (350-420) by 150+
 TOPICS = {
     "/wing/acceleration": "the spectra's accelerations",
-    "/wing/displacement": "the leading-edge RMS",
+    "/wing/displacement": "the leading-edge RMS, the labels' objective; `dva train sweep "
+                          "--no-displacement` leaves it out",
     "/flight/condition": "the airspeed",
     "/dva/damper_state": "the applied c2",
 }
@@ -63,6 +64,10 @@ def register(subparsers) -> None:
                    help="[1/s] decay rate every (U, c2) pair must have (default 0.5)")
     s.add_argument("--as-is", action="store_true",
                    help="fly the scenario unchanged (no stability check, its own c2 and dwell)")
+    s.add_argument("--no-displacement", dest="displacement", action="store_false",
+                   help="record only what a wing test measures (no /wing/displacement: "
+                        "faster, smaller; but `dva train rbf`, run reports and replays need "
+                        "the displacement)")
     s.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     s.set_defaults(func=_sweep)
 
@@ -152,7 +157,8 @@ def _sweep(args) -> int:
         bar.update(done - bar.n)
 
     try:
-        recorded = record_sweep(out, runtime, progress)  # parallel in time where it can
+        # Parallel in time where it can; encoding and writing overlap the simulation.
+        recorded = record_sweep(out, runtime, progress, displacement=args.displacement)
     finally:
         bar.close()
     speeds = np.asarray(scenario.airspeed.values)
@@ -167,6 +173,7 @@ def _sweep(args) -> int:
         "samples": recorded.samples,
         "blocks": recorded.blocks,
         "method": recorded.method,
+        "topics": [t.name for t in recorded.summary.topics],
         "bag_bytes": bag_bytes,
         "critical_airspeed_no_dva": u_cr,
         "airspeeds": int(speeds.size),
@@ -193,6 +200,8 @@ def _sweep(args) -> int:
     print(f"flown               {recorded.sim_time:.0f} s of sim time in "
           f"{recorded.wall_time:.1f} s wall ({summary['real_time_factor']:.0f}x real time), "
           f"{bag_bytes / 1e6:.0f} MB")
+    if not args.displacement:
+        print("topics              measured only (no /wing/displacement)")
     print(f"airspeeds           {speeds.size}: {speeds[0] / u_cr:.3f} .. "
           f"{speeds[-1] / u_cr:.3f} U_cr (U_cr = {u_cr:.2f} m/s without DVA)")
     c2 = scenario.sweep_damping

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from aero_dva_sim.flight_log_io import load_flight_log
-from aero_dva_sim.mcap_io import bag_topics
+from aero_dva_sim.mcap_io import bag_topics, read_messages
 
 from .conftest import ros2_run_path
 
@@ -57,3 +57,20 @@ def test_graph_and_batch_sweeps_record_the_same_flight(tmp_path):
     for name in ("displacements", "accelerations"):  # stepped vs parallel in time: round-off
         for a, b in zip(getattr(by_graph, name), getattr(by_batch, name)):
             np.testing.assert_allclose(a, b, rtol=0, atol=1e-9 * np.abs(b).max())
+
+    # `--no-displacement`: the measured topics only, the same messages as the full batch bag.
+    measured = tmp_path / "measured"
+    recorded = subprocess.run(
+        [str(dva), "train", "sweep", "--scenario", str(scenario), "--as-is", "--out",
+         str(measured), "--no-displacement", "--json"], capture_output=True, text=True,
+        timeout=300)
+    assert recorded.returncode == 0, recorded.stdout + recorded.stderr
+    assert "/wing/displacement" not in json.loads(recorded.stdout)["topics"]
+    assert set(bag_topics(measured)) == set(batch_topics) - {"/wing/displacement"}
+    kept = [t for t in FLIGHT_TOPICS if t != "/wing/displacement"]
+    for topic in kept:
+        assert bag_topics(measured)[topic].message_count == 120
+    raw = [(m.topic, m.log_time_ns, m.message)
+           for m in read_messages(measured, kept, decode=False)]
+    assert raw == [(m.topic, m.log_time_ns, m.message)
+                   for m in read_messages(batch, kept, decode=False)]

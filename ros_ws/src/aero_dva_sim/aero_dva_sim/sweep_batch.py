@@ -7,17 +7,22 @@ density and c2 (the same hold grid and 0.1 % hysteresis as
 dwell is one linear time-invariant system and the whole flight can be computed exactly with
 large array operations:
 
-1. the force is the runtime's: ``force_std * default_rng(seed).standard_normal`` over the flight
-   (the generator yields the same numbers in one call as in 50-sample calls);
-2. every distinct held condition is discretised in one batched call (exact ZOH,
+1. every distinct held condition is discretised in one batched call (exact ZOH,
    :func:`~aero_dva_sim.discretize.zoh`);
-3. the forced state at the end of every dwell from rest is computed for all dwells at once
+
+then, chunk by chunk of dwells (about 65 dwells each, so a consumer gets the first chunk at
+once and the flight streams out):
+
+2. the chunk's force, the runtime's: ``force_std * default_rng(seed).standard_normal`` (the
+   generator yields the same numbers in one call as in pieces);
+3. the forced state at the end of each of the chunk's dwells from rest, all at once
    (sub-blocks of ``L`` samples, grouped ``R`` at a time, so the sequential part is short);
-4. a scan over the dwells gives their initial states, ``x0[k+1] = Phi_k^M x0[k] + xf_k``;
-5. per chunk of dwells, the states at every sub-block start follow (two short recurrences,
-   vectorised over the dwells), and the outputs come from one batched product per output
-   channel with the sub-block map ``y = [C Phi^j | Toeplitz(C Phi^i Gamma, D)] [x; u]``,
-   written straight into time order.
+4. a scan over the chunk's dwells gives their initial states,
+   ``x0[k+1] = Phi_k^M x0[k] + xf_k``, carried on to the next chunk;
+5. the states at every sub-block start follow (two short recurrences, vectorised over the
+   dwells), and the outputs come from one batched product per output channel asked for (a
+   consumer that records no displacement skips those channels) with the sub-block map
+   ``y = [C Phi^j | Toeplitz(C Phi^i Gamma, D)] [x; u]``, written straight into time order.
 
 Same seed -> same data as stepping the runtime, to round-off (a test compares them sample by
 sample). Supported: ``steps`` scenarios with constant density and the nominal plant
@@ -39,11 +44,15 @@ from aero_dva_sim.flight_sim import DEFAULT_HOLD
 from aero_dva_sim.scenario import Scenario, airspeed_at, density_at, sweep_damping_at
 from aero_dva_sim.wing_model import AeroelasticModel
 
-__all__ = ["SweepChunk", "SweepPlan", "plan_sweep", "simulate_sweep", "unsupported_reason"]
+__all__ = ["OUTPUTS", "SweepChunk", "SweepPlan", "plan_sweep", "simulate_sweep",
+           "unsupported_reason"]
 
 SUBBLOCK = 10  # [samples] L: outputs cost 7 (n + L) multiply-adds per sample
 CHUNK_SAMPLES = 1 << 18  # samples per output chunk (about 15 MB of outputs): cache-friendly
 _KNOWN_CONFIG = {"scenario", "wing", "aero", "absorber", "damper"}
+#: The output channels, in FlightBlock order: 4 displacements, then 3 accelerations.
+OUTPUTS = ("plunge", "pitch", "leading_edge", "absorber_stroke", "plunge_acceleration",
+           "pitch_acceleration", "leading_edge_acceleration")
 
 
 @dataclass(frozen=True)
@@ -86,14 +95,38 @@ class SweepChunk:
     first_index : int
         Index of the chunk's first sample since the start of the flight.
     force : (T,) [N]
-    displacements : (4, T) plunge [m], pitch [rad], leading edge [m], DVA stroke [m]
-    accelerations : (3, T) plunge [m/s^2], pitch [rad/s^2], leading edge [m/s^2]
+    outputs : (m, T)
+        The computed output channels, in the order of ``channels``.
+    channels : tuple of int
+        Indices into :data:`OUTPUTS` of the rows of ``outputs``.
     """
 
     first_index: int
     force: np.ndarray
-    displacements: np.ndarray
-    accelerations: np.ndarray
+    outputs: np.ndarray
+    channels: tuple[int, ...] = tuple(range(len(OUTPUTS)))
+
+    def rows(self, names) -> np.ndarray:
+        """(len(names), T) the named channels of :data:`OUTPUTS` (a view when they lie in
+        order); ValueError naming a channel that was not computed."""
+        try:
+            rows = [self.channels.index(OUTPUTS.index(name)) for name in names]
+        except ValueError:
+            raise ValueError(f"channels {list(names)} asked for; this chunk has "
+                             f"{[OUTPUTS[c] for c in self.channels]}") from None
+        if rows and rows == list(range(rows[0], rows[0] + len(rows))):
+            return self.outputs[rows[0]:rows[0] + len(rows)]
+        return self.outputs[rows]
+
+    @property
+    def displacements(self) -> np.ndarray:
+        """(4, T) plunge [m], pitch [rad], leading edge [m], DVA stroke [m]."""
+        return self.rows(OUTPUTS[:4])
+
+    @property
+    def accelerations(self) -> np.ndarray:
+        """(3, T) plunge [m/s^2], pitch [rad/s^2], leading edge [m/s^2]."""
+        return self.rows(OUTPUTS[4:])
 
 
 def unsupported_reason(config: RuntimeConfig, scenario: Scenario) -> str | None:
@@ -271,46 +304,35 @@ def _matvec(m: np.ndarray, x: np.ndarray) -> np.ndarray:
 
 
 def simulate_sweep(config: RuntimeConfig, plan: SweepPlan, *,
-                   chunk_samples: int = CHUNK_SAMPLES) -> Iterator[SweepChunk]:
+                   chunk_samples: int = CHUNK_SAMPLES,
+                   outputs=OUTPUTS) -> Iterator[SweepChunk]:
     """Yield the flight in chunks of whole segments, in time order.
 
-    The force is drawn first (the whole flight, from the scenario's seed), then the
-    segment-initial states (steps 3-4 of the module docstring); each chunk is computed when
-    it is asked for, so a consumer that stops early (divergence) saves the rest.
+    Chunk by chunk (so a consumer, e.g. a writer thread, gets the first one at once, and one
+    that stops early (divergence) saves the rest): the chunk's force (the scenario seed's
+    stream, drawn in pieces), its segments' end states from rest, the scan that carries the
+    state from segment to segment (steps 3-4 of the module docstring), then the outputs.
+    ``outputs`` names the channels of :data:`OUTPUTS` to compute (each costs the same; a
+    channel left out is not computed at all); a channel's values do not depend on which
+    others are computed.
     """
+    channels = _channels(outputs)
     s = plan.scenario
-    n_all = plan.n_samples
-    force = s.force_std * np.random.default_rng(s.seed).standard_normal(n_all)
+    rng = np.random.default_rng(s.seed)
     model = AeroelasticModel(config.wing, config.absorber, config.aero)
     maps = _Maps(model, plan.params, 1.0 / plan.sample_rate, plan.subblock)
     nst, sub = maps.n, plan.subblock
-    # Per segment length: R and its group maps; the segments' end states from rest.
-    with np.errstate(over="ignore", invalid="ignore"):  # a diverging flight may overflow
-        lengths = np.unique(plan.lengths)
-        layout = {}
-        x_free_end = np.empty((len(plan.starts), nst))  # end state from rest (forced part)
-        phi_seg = np.empty((len(plan.starts), nst, nst))  # Phi^M: carries the initial state
-        for m in lengths.tolist():
-            sel = np.flatnonzero(plan.lengths == m)
+    layout: dict[int, tuple[int, int, np.ndarray]] = {}  # length -> R, groups, Phi^M
+
+    def lay(m: int) -> tuple[int, int, np.ndarray]:
+        if m not in layout:
             r = _split(m // sub)
             groups = m // (sub * r)
-            phi_g, ctrb_g = maps.group(r)
-            layout[m] = (r, groups)
-            cond = plan.condition[sel]
-            u = _segment_forces(force, plan.starts[sel], m).reshape(len(sel), groups, sub * r)
-            g = ctrb_g[cond] @ u.transpose(0, 2, 1)  # (S, n, G) forced end of each group
-            x = np.zeros((len(sel), nst))
-            p = phi_g[cond]
-            for j in range(groups):
-                x = _matvec(p, x) + g[:, :, j]
-            x_free_end[sel] = x
-            phi_seg[sel] = _power(phi_g, groups)[cond]
-        # The sequential scan over segments (a few microseconds each).
-        x0 = np.empty((len(plan.starts), nst))
-        x = np.zeros(nst)
-        for k in range(len(plan.starts)):
-            x0[k] = x
-            x = phi_seg[k] @ x + x_free_end[k]
+            layout[m] = (r, groups, _power(maps.group(r)[0], groups))
+        return layout[m]
+
+    x = np.zeros(nst)  # state at the start of the next chunk
+    drawn = 0
     k = 0
     while k < len(plan.starts):
         stop = k + 1
@@ -319,21 +341,57 @@ def simulate_sweep(config: RuntimeConfig, plan: SweepPlan, *,
             total += int(plan.lengths[stop])
             stop += 1
         first = int(plan.starts[k])
-        out = np.empty((7, total))
-        with np.errstate(over="ignore", invalid="ignore"):
-            for m in np.unique(plan.lengths[k:stop]).tolist():
-                sel = k + np.flatnonzero(plan.lengths[k:stop] == m)
-                _outputs(maps, layout[m], plan.condition[sel], x0[sel],
-                         _segment_forces(force, plan.starts[sel], m), plan.starts[sel] - first,
-                         out)
-        yield SweepChunk(first_index=first, force=force[first:first + total],
-                         displacements=out[:4], accelerations=out[4:])
+        if first != drawn:
+            raise ValueError(f"the sweep plan's segments are not back to back at sample {first}")
+        force = s.force_std * rng.standard_normal(total)  # the stream of one call, in pieces
+        drawn += total
+        n = stop - k
+        x_free_end = np.empty((n, nst))  # end state from rest (forced part)
+        phi_seg = np.empty((n, nst, nst))  # Phi^M: carries the initial state
+        x0 = np.empty((n, nst))
+        out = np.empty((len(channels), total))
+        with np.errstate(over="ignore", invalid="ignore"):  # a diverging flight may overflow
+            groups_of = {m: np.flatnonzero(plan.lengths[k:stop] == m)
+                         for m in np.unique(plan.lengths[k:stop]).tolist()}
+            for m, local in groups_of.items():
+                r, groups, phi_m = lay(m)
+                phi_g, ctrb_g = maps.group(r)
+                cond = plan.condition[k + local]
+                u = _segment_forces(force, plan.starts[k + local] - first, m)
+                g = ctrb_g[cond] @ u.reshape(len(local), groups, sub * r).transpose(0, 2, 1)
+                xe = np.zeros((len(local), nst))
+                p = phi_g[cond]
+                for j in range(groups):  # forced end of each group, in turn
+                    xe = _matvec(p, xe) + g[:, :, j]
+                x_free_end[local] = xe
+                phi_seg[local] = phi_m[cond]
+            # The sequential scan over the chunk's segments (a few microseconds each).
+            for i in range(n):
+                x0[i] = x
+                x = phi_seg[i] @ x + x_free_end[i]
+            for m, local in groups_of.items():
+                r, groups, _ = lay(m)
+                _outputs(maps, (r, groups), plan.condition[k + local], x0[local],
+                         _segment_forces(force, plan.starts[k + local] - first, m),
+                         plan.starts[k + local] - first, out, channels)
+        yield SweepChunk(first_index=first, force=force, outputs=out, channels=channels)
         k = stop
 
 
+def _channels(outputs) -> tuple[int, ...]:
+    if isinstance(outputs, str):
+        outputs = (outputs,)
+    outputs = tuple(outputs)
+    unknown = [o for o in outputs if o not in OUTPUTS]
+    if unknown or not outputs or len(set(outputs)) != len(outputs):
+        raise ValueError(f"outputs must be distinct names among {OUTPUTS}, got {outputs}")
+    return tuple(OUTPUTS.index(o) for o in outputs)
+
+
 def _outputs(maps: _Maps, layout: tuple[int, int], cond: np.ndarray, x0: np.ndarray,
-             u: np.ndarray, offsets: np.ndarray, out: np.ndarray) -> None:
-    """Outputs of segments of one length into ``out`` (7, T) at ``offsets``.
+             u: np.ndarray, offsets: np.ndarray, out: np.ndarray,
+             channels: tuple[int, ...]) -> None:
+    """Output ``channels`` of segments of one length into ``out`` (m, T) at ``offsets``.
 
     ``x0`` (S, n) initial states, ``u`` (S, M) forces. States at group starts (G steps), then
     at sub-block starts (R steps, vectorised over groups), then one batched product.
@@ -362,11 +420,11 @@ def _outputs(maps: _Maps, layout: tuple[int, int], cond: np.ndarray, x0: np.ndar
     xs = xs.reshape(nseg, groups * r, nst + sub)
     # One product per output channel writes time-ordered samples straight into ``out``.
     back_to_back = nseg == 1 or bool(np.all(np.diff(offsets) == m))
-    for o in range(7):
+    for row_index, o in enumerate(channels):
         q = maps.qt[cond, o]  # (S, n + L, L)
         if back_to_back:
-            row = out[o, offsets[0]:offsets[0] + nseg * m].reshape(nseg, groups * r, sub)
+            row = out[row_index, offsets[0]:offsets[0] + nseg * m].reshape(nseg, groups * r, sub)
             np.matmul(xs, q, out=row)
         else:
             for i, off in enumerate(offsets.tolist()):
-                out[o, off:off + m] = (xs[i] @ q[i]).reshape(m)
+                out[row_index, off:off + m] = (xs[i] @ q[i]).reshape(m)
