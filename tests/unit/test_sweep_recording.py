@@ -12,17 +12,10 @@ from aero_dva_sim import batch_recording_io as br
 from aero_dva_sim import sweep_batch
 from aero_dva_sim.flight_runtime import FlightRuntime, load_runtime_config
 from aero_dva_sim.mcap_io import bag_topics, read_messages
+from tests.unit.test_batch_recording import SWEEP
 
-# 3 airspeeds x 3 c2 x 0.6 s = 5.4 s at 1 kHz; chunks of 1300 samples give 5 chunks.
-SWEEP = """name: mini
-duration: auto
-sample_rate: 1000.0
-block_size: 50
-airspeed: {kind: steps, ratios: [0.9, 0.95, 1.0]}
-density: {base: 1.2}
-excitation: {force_std: 1000.0, seed: 5}
-sweep: {dwell: 0.6, damping: [60.0, 400.0, 1100.0]}
-"""
+# The mini sweep of test_batch_recording (3 airspeeds x 3 c2 x 0.6 s = 5.4 s at 1 kHz);
+# chunks of 1300 samples give 5 chunks.
 DISPLACEMENT = "/wing/displacement"
 
 
