@@ -10,7 +10,8 @@ times above it instead of 1-4 times.
 The flight is cut into blocks of ``block`` samples; within a block the model is time-invariant
 (the block's condition). Per distinct condition k the continuous model x' = A x + B f,
 y = C x + D f is diagonalised (A = V diag(s) V^-1, lambda = e^{s dt}, exact ZOH of the force),
-so a block is n scalar recursions z[i+1] = lambda z[i] + g f[i]. Pure numerics.
+so a block is a few scalar recursions z[i+1] = lambda z[i] + g f[i] (one per real mode and per
+conjugate pair). Pure numerics.
 """
 from __future__ import annotations
 
@@ -22,6 +23,10 @@ BLOCK = 50  # [samples] conditions are held per block (the hidden plant's drift/
 class ModalBlocks:
     """Modal form of K conditions (exact ZOH of the force over one sample).
 
+    The model is real, so its complex modes come in conjugate pairs with conjugate states:
+    only one of each pair is kept, with weight 2 (real modes weight 1; conditions with fewer
+    kept modes are padded with silent ones), which nearly halves the work.
+
     Parameters
     ----------
     a : (K, n, n) continuous state matrices
@@ -32,17 +37,25 @@ class ModalBlocks:
 
     def __init__(self, a, b, c_out, d_out, dt: float):
         s, v = np.linalg.eig(a)
-        self.v = v
-        self.vinv = np.linalg.inv(v)
-        bm = (self.vinv @ b[..., None].astype(complex))[..., 0]
+        vinv = np.linalg.inv(v)
+        # kept: imag > 0 (weight 2) and real (weight 1), first; the imag < 0 twins dropped
+        drop = s.imag < 0
+        order = np.argsort(drop, axis=-1, kind="stable")
+        m = int((~drop).sum(-1).max())
+        keep = order[..., :m]  # (K, m)
+        k_idx = np.arange(s.shape[0])[:, None]
+        weight = np.where(s.imag > 0, 2.0, np.where(drop, 0.0, 1.0))[k_idx, keep]
+        s = s[k_idx, keep]
+        self.vinv = vinv[k_idx, keep, :]  # (K, m, n): z = vinv x
+        self.v_out = v[k_idx, :, keep].transpose(0, 2, 1) * weight[:, None, :]  # x = Re(v_out z)
         sdt = s * dt
         small = np.abs(sdt) < 1e-8
         gain = np.where(small, dt, (np.exp(sdt) - 1.0) / np.where(small, 1.0, s))
-        self.g = gain * bm  # (K, n): z[i+1] = lam z[i] + g f[i]
-        self.lam = np.exp(sdt)  # (K, n)
-        self.cm = c_out @ v  # (K, p, n): y[i] = Re(cm z[i]) + d f[i]
+        self._gain = np.where(weight > 0, gain, 0.0)  # padded modes stay silent
+        self.g = self._gain * (self.vinv @ b[..., None].astype(complex))[..., 0]  # (K, m)
+        self.lam = np.where(weight > 0, np.exp(sdt), 0.0)  # z[i+1] = lam z[i] + g f[i]
+        self.cm = c_out @ self.v_out  # (K, p, m): y[i] = Re(cm z[i]) + d f[i]
         self.d = np.asarray(d_out, dtype=float)
-        self._gain = gain
 
     def with_input(self, b, d_out) -> ModalBlocks:
         """The same modes driven by another input (columns ``b`` (K, n), feedthrough
@@ -93,17 +106,18 @@ def simulate(modes: ModalBlocks, condition: np.ndarray, force: np.ndarray,
         cond = condition.tolist()
         prev = cond[0]
         for i, k in enumerate(cond):
-            if k != prev:
-                z = modes.vinv[k] @ (modes.v[prev] @ z)
+            if k != prev:  # through the physical state into the new condition's modes
+                z = modes.vinv[k] @ (modes.v_out[prev] @ z).real
                 prev = k
             z0[i] = z
             z = lam_block[k] * z + ends[i]
-        states = np.empty((nb, lam.shape[1], block), dtype=complex)
+        states = np.empty((block, nb, lam.shape[1]), dtype=complex)  # contiguous per step
         z = z0
         for i in range(block):
-            states[:, :, i] = z
+            states[i] = z
             z = lam * z + g * u[:, i, None]
-        y = (modes.cm[condition] @ states).real + modes.d[condition][..., None] * u[:, None, :]
+        y = (modes.cm[condition] @ states.transpose(1, 2, 0)).real
+        y += modes.d[condition][..., None] * u[:, None, :]
     return y.transpose(1, 0, 2).reshape(-1, nb * block)[:, :n]
 
 
