@@ -205,7 +205,6 @@ class FlightDomain:
                                   f"{df:g} Hz resolution (need >= 5, below {fs / 2:g} Hz)")
         self.n_window, self.bins = n_window, bins
         self.window = hann(n_window)
-        self.omega_dt = 2 * np.pi * bins / n_window
         finite = np.isfinite(data.force) & np.all(np.isfinite(data.accelerations), axis=0)
         cols = [np.where(finite, c, np.nan) for c in (data.airspeed, data.density, data.damping)]
         # The model is simulated from rest from the log's start: windows in the first settle_s
@@ -235,13 +234,13 @@ class FlightDomain:
                                            for i, s in enumerate(segs)])
         self.win_start, self.win_stop = wins[:, 0], wins[:, 1]
         csum = {name: np.concatenate([[0.0], np.cumsum(np.nan_to_num(arr))])
-                for name, arr in (("U", d.airspeed), ("rho", d.density), ("c2", d.damping))}
+                for name, arr in (("U", d.airspeed), ("c2", d.damping))}
         length = self.win_stop - self.win_start
 
         def window_mean(name):
             return (csum[name][self.win_stop] - csum[name][self.win_start]) / length
 
-        self.win_u, self.win_rho, self.win_c2 = (window_mean(k) for k in ("U", "rho", "c2"))
+        self.win_u, self.win_c2 = window_mean("U"), window_mean("c2")  # covariates
         fs = d.sample_rate
         self.win_time = 0.5 * (self.win_start + self.win_stop) / fs
         pitch = np.nan_to_num(d.pitch)
@@ -355,7 +354,6 @@ class FlightDomain:
                     cov[key].append(np.full(n_f, float(val)))
         y = np.concatenate(values)
         e = self._noise_eps(y)
-        self.eps = e
         weights = np.median(e) / (np.abs(y) * e)
         return Observations(y, weights, np.concatenate(freq), np.concatenate(groups),
                             {k: np.concatenate(v) for k, v in cov.items()})
