@@ -68,6 +68,10 @@ def register(subparsers) -> None:
                    help="record only what a wing test measures (no /wing/displacement: "
                         "faster, smaller; but `dva train rbf`, run reports and replays need "
                         "the displacement)")
+    s.add_argument("--jobs", type=_jobs, default=0, metavar="N",
+                   help="processes, each recording a part of the sweep into its own file "
+                        "of a split bag (default 0: one per core, at most 4, fewer for a "
+                        "short sweep; 1: one file)")
     s.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     s.set_defaults(func=_sweep)
 
@@ -98,6 +102,16 @@ def _help(parser) -> int:
     return 2
 
 
+def _jobs(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expects an integer >= 0, got {text!r}")
+    return value
+
+
 def _range3(option: str, text: str):
     parts = text.split(":")
     try:
@@ -120,9 +134,9 @@ def _sweep(args) -> int:
     from tqdm import tqdm
 
     from aero_dva_sim import paths
-    from aero_dva_sim.batch_recording_io import record_sweep
     from aero_dva_sim.flight_runtime import FlightRuntime, load_runtime_config
     from aero_dva_sim.flutter import flutter_speed, growth_rate
+    from aero_dva_sim.sweep_recording_io import default_jobs, record_sweep
     from aero_dva_sim.wing_model import AeroelasticModel
     from dva_offline.training import adapt_sweep
 
@@ -150,6 +164,9 @@ def _sweep(args) -> int:
         config = load_runtime_config_checked(config)
     runtime = FlightRuntime(config)
     scenario = runtime.scenario
+    jobs = args.jobs or default_jobs(scenario.n_samples)
+    # No tqdm monitor thread: the recording forks its processes from this one.
+    tqdm.monitor_interval = 0
     bar = tqdm(total=scenario.n_samples, desc="sweep", unit="sample", unit_scale=True,
                file=sys.stderr, leave=False)
 
@@ -158,7 +175,8 @@ def _sweep(args) -> int:
 
     try:
         # Parallel in time where it can; encoding and writing overlap the simulation.
-        recorded = record_sweep(out, runtime, progress, displacement=args.displacement)
+        recorded = record_sweep(out, runtime, progress, displacement=args.displacement,
+                                jobs=jobs)
     finally:
         bar.close()
     speeds = np.asarray(scenario.airspeed.values)
@@ -175,6 +193,7 @@ def _sweep(args) -> int:
         "method": recorded.method,
         "topics": [t.name for t in recorded.summary.topics],
         "bag_bytes": bag_bytes,
+        "bag_files": len(list(out.glob("*.mcap"))),
         "critical_airspeed_no_dva": u_cr,
         "airspeeds": int(speeds.size),
         "airspeed_ratio_range": [float(speeds[0] / u_cr), float(speeds[-1] / u_cr)],
@@ -199,7 +218,7 @@ def _sweep(args) -> int:
     print(f"outcome             {recorded.outcome}")
     print(f"flown               {recorded.sim_time:.0f} s of sim time in "
           f"{recorded.wall_time:.1f} s wall ({summary['real_time_factor']:.0f}x real time), "
-          f"{bag_bytes / 1e6:.0f} MB")
+          f"{bag_bytes / 1e6:.0f} MB in {summary['bag_files']} file(s)")
     if not args.displacement:
         print("topics              measured only (no /wing/displacement)")
     print(f"airspeeds           {speeds.size}: {speeds[0] / u_cr:.3f} .. "

@@ -13,6 +13,7 @@ from mcap.records import Chunk
 from mcap.stream_reader import StreamReader
 
 from aero_dva_sim import batch_recording_io as br
+from aero_dva_sim import sweep_recording_io as sr
 from aero_dva_sim.damper import DamperSnapshot, DamperStatus
 from aero_dva_sim.flight_log_io import load_flight_log
 from aero_dva_sim.flight_runtime import FlightBlock
@@ -503,7 +504,7 @@ def test_parallel_sweep_equals_the_stepped_runtime_sample_by_sample(tmp_path):
 def test_record_sweep_writes_the_runtimes_bag(tmp_path):
     scenario = _scenario(tmp_path, SWEEP)
     seen = []
-    fast = br.record_sweep(tmp_path / "fast", _runtime(scenario),
+    fast = sr.record_sweep(tmp_path / "fast", _runtime(scenario),
                            progress=lambda done, total: seen.append((done, total)))
     ref = br.record_runtime(tmp_path / "ref", _runtime(scenario))
     assert (fast.method, ref.method) == ("parallel", "stepped")
@@ -535,7 +536,7 @@ def test_record_sweep_writes_the_runtimes_bag(tmp_path):
 def test_record_sweep_blocks_across_chunk_boundaries(tmp_path):
     # 70-sample blocks do not divide the 600-sample dwells: blocks straddle the chunks.
     scenario = _scenario(tmp_path, SWEEP.replace("block_size: 50", "block_size: 70"))
-    fast = br.record_sweep(tmp_path / "fast", _runtime(scenario), chunk_samples=1300)
+    fast = sr.record_sweep(tmp_path / "fast", _runtime(scenario), chunk_samples=1300)
     ref = br.record_runtime(tmp_path / "ref", _runtime(scenario))
     assert fast.method == "parallel" and fast.blocks == ref.blocks == 78
     a, b = _raw_messages(tmp_path / "fast"), _raw_messages(tmp_path / "ref")
@@ -551,25 +552,25 @@ def test_record_sweep_blocks_across_chunk_boundaries(tmp_path):
 
 def test_record_sweep_with_dwell_sized_blocks_keeps_the_samples(tmp_path):
     scenario = _scenario(tmp_path, SWEEP)
-    result = br.record_sweep(tmp_path / "big", _runtime(scenario), block_size=600)
+    result = sr.record_sweep(tmp_path / "big", _runtime(scenario), block_size=600)
     assert result.blocks == 9
     counts = {t.name: t.message_count for t in result.summary.topics}
     assert counts["/wing/acceleration"] == counts["/dva/damper_state"] == 9
     small = load_flight_log(tmp_path / "big")
-    br.record_sweep(tmp_path / "small", _runtime(scenario))
+    sr.record_sweep(tmp_path / "small", _runtime(scenario))
     np.testing.assert_array_equal(small.displacements,
                                   load_flight_log(tmp_path / "small").displacements)
     np.testing.assert_array_equal(small.applied_damping, np.repeat(
         np.tile([60.0, 400.0, 1100.0], 3), 600))
     with pytest.raises(ValueError, match="must divide the dwell"):
-        br.record_sweep(tmp_path / "odd", _runtime(scenario), block_size=250)
+        sr.record_sweep(tmp_path / "odd", _runtime(scenario), block_size=250)
 
 
 def test_record_sweep_stops_at_divergence_like_the_runtime(tmp_path):
     text = SWEEP.replace("ratios: [0.9, 0.95, 1.0]", "ratios: [0.9, 1.3]").replace(
         "dwell: 0.6", "dwell: 2.0")
     scenario = _scenario(tmp_path, text)
-    fast = br.record_sweep(tmp_path / "fast", _runtime(scenario))
+    fast = sr.record_sweep(tmp_path / "fast", _runtime(scenario))
     ref = br.record_runtime(tmp_path / "ref", _runtime(scenario))
     assert fast.outcome == ref.outcome == "diverged"
     assert (fast.samples, fast.blocks) == (ref.samples, ref.blocks)
@@ -588,7 +589,7 @@ def test_record_sweep_steps_what_it_does_not_model(tmp_path):
     assert "density varies" in sweep_batch.unsupported_reason(runtime.config, runtime.scenario)
     with pytest.raises(ValueError, match="density varies"):
         sweep_batch.plan_sweep(runtime.config, runtime.scenario)
-    result = br.record_sweep(tmp_path / "bag", runtime)
+    result = sr.record_sweep(tmp_path / "bag", runtime)
     assert result.method == "stepped" and result.samples == 5400
     ramp = _runtime(_scenario(tmp_path, RAMP))
     assert "not a stepped sweep" in sweep_batch.unsupported_reason(ramp.config, ramp.scenario)
@@ -611,11 +612,11 @@ def test_sweep_damper_states_equal_the_damper_model(tmp_path):
             s = model.snapshot()
             expected.append((s.time, s.commanded_damping, s.applied_damping, s.min_damping,
                              s.max_damping, s.command_age, int(s.status)))
-        got = br._sweep_damper_states(config, t0, c2)
+        got = sr._sweep_damper_states(config, t0, c2)
         np.testing.assert_array_equal(np.column_stack([got[k] for k in (
             "time", "commanded_damping", "applied_damping", "min_damping", "max_damping",
             "command_age", "status")]), np.array(expected))
-    ideal = br._sweep_damper_states(DamperConfig(0.0, 2500.0, 500.0), t0[:10], c2[:10])
+    ideal = sr._sweep_damper_states(DamperConfig(0.0, 2500.0, 500.0), t0[:10], c2[:10])
     assert np.all(ideal["status"] == 0) and np.all(ideal["applied_damping"] == 300.0)
 
 

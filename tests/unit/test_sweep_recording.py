@@ -10,6 +10,7 @@ from mcap.reader import make_reader
 
 from aero_dva_sim import batch_recording_io as br
 from aero_dva_sim import sweep_batch
+from aero_dva_sim import sweep_recording_io as sr
 from aero_dva_sim.flight_runtime import FlightRuntime, load_runtime_config
 from aero_dva_sim.mcap_io import bag_topics, read_messages
 from tests.unit.test_batch_recording import SWEEP
@@ -68,8 +69,8 @@ def test_simulate_sweep_computes_only_the_channels_asked_for(scenario):
 
 
 def test_measured_only_sweep_is_the_full_bag_without_the_displacement(tmp_path, scenario):
-    full = br.record_sweep(tmp_path / "full", _runtime(scenario), chunk_samples=1300)
-    measured = br.record_sweep(tmp_path / "measured", _runtime(scenario), chunk_samples=1300,
+    full = sr.record_sweep(tmp_path / "full", _runtime(scenario), chunk_samples=1300)
+    measured = sr.record_sweep(tmp_path / "measured", _runtime(scenario), chunk_samples=1300,
                                displacement=False)
     assert DISPLACEMENT in bag_topics(tmp_path / "full")
     assert set(bag_topics(tmp_path / "measured")) == \
@@ -86,7 +87,7 @@ def test_measured_only_sweep_is_the_full_bag_without_the_displacement(tmp_path, 
 
 def test_writing_on_a_second_thread_gives_the_same_bytes(tmp_path, scenario):
     for name, overlap in (("thread", True), ("inline", False)):
-        br.record_sweep(tmp_path / name, _runtime(scenario), chunk_samples=1300,
+        sr.record_sweep(tmp_path / name, _runtime(scenario), chunk_samples=1300,
                         displacement=False, overlap=overlap)
     assert _raw(tmp_path / "thread") == _raw(tmp_path / "inline")
     assert _writer_threads() == []
@@ -96,8 +97,8 @@ def test_measured_only_sweep_stops_at_divergence_like_the_full_one(tmp_path):
     path = tmp_path / "div.yaml"
     path.write_text(SWEEP.replace("ratios: [0.9, 0.95, 1.0]", "ratios: [0.9, 1.3]")
                     .replace("dwell: 0.6", "dwell: 2.0"))
-    full = br.record_sweep(tmp_path / "full", _runtime(str(path)))
-    measured = br.record_sweep(tmp_path / "measured", _runtime(str(path)), displacement=False)
+    full = sr.record_sweep(tmp_path / "full", _runtime(str(path)))
+    measured = sr.record_sweep(tmp_path / "measured", _runtime(str(path)), displacement=False)
     assert full.outcome == measured.outcome == "diverged"
     assert (measured.samples, measured.blocks) == (full.samples, full.blocks)
     assert measured.samples < 12000
@@ -120,7 +121,7 @@ def test_the_writer_is_at_most_two_runs_behind(tmp_path, scenario, monkeypatch):
         return append(bag, *args)
 
     monkeypatch.setattr(br._ChunkedBag, "add_messages", slow_append)
-    result = br.record_sweep(tmp_path / "bag", _runtime(scenario), chunk_samples=1300,
+    result = sr.record_sweep(tmp_path / "bag", _runtime(scenario), chunk_samples=1300,
                              progress=lambda done, total: simulated.append(done))
     assert result.samples == 5400 and len(lag) == 5  # one encoded run per chunk here
     assert max(lag) <= 3  # the one being written + 2 queued: memory stays bounded
@@ -129,7 +130,7 @@ def test_the_writer_is_at_most_two_runs_behind(tmp_path, scenario, monkeypatch):
 
 
 def _raw_reference(tmp_path: Path, scenario: str) -> list[tuple]:
-    br.record_sweep(tmp_path / "reference", _runtime(scenario), chunk_samples=1300,
+    sr.record_sweep(tmp_path / "reference", _runtime(scenario), chunk_samples=1300,
                     overlap=False)
     return _raw(tmp_path / "reference")
 
@@ -148,7 +149,7 @@ def test_a_writer_error_is_raised_and_leaves_no_completed_flight(tmp_path, scena
 
     monkeypatch.setattr(br._ChunkedBag, "add_messages", failing)
     with pytest.raises(OSError, match="No space left"):
-        br.record_sweep(tmp_path / "bag", _runtime(scenario), chunk_samples=1300)
+        sr.record_sweep(tmp_path / "bag", _runtime(scenario), chunk_samples=1300)
     assert _writer_threads() == []
     assert len(calls) == 3  # nothing written after the failed run
     # What was written before the failure is closed as a valid bag: a prefix without holes,
@@ -173,7 +174,7 @@ def test_a_simulation_error_stops_the_writer(tmp_path, scenario, monkeypatch):
 
     monkeypatch.setattr(sweep_batch, "simulate_sweep", breaks_after_two)
     with pytest.raises(FloatingPointError, match="simulation failed"):
-        br.record_sweep(tmp_path / "bag", _runtime(scenario), chunk_samples=1300)
+        sr.record_sweep(tmp_path / "bag", _runtime(scenario), chunk_samples=1300)
     assert _writer_threads() == []
     assert _status(tmp_path / "bag") == []
 
@@ -182,7 +183,7 @@ def test_training_names_the_missing_displacement_of_a_measured_only_bag(tmp_path
     from aero_dva_sim.mcap_io import TopicNotFoundError
     from dva_offline.train_cli import _check_topics
 
-    br.record_sweep(tmp_path / "bag", _runtime(scenario), displacement=False)
+    sr.record_sweep(tmp_path / "bag", _runtime(scenario), displacement=False)
     with pytest.raises(TopicNotFoundError, match=r"no topic /wing/displacement \(the "
                                                  r"leading-edge RMS.*--no-displacement"):
         _check_topics(tmp_path / "bag")

@@ -54,14 +54,16 @@ def dva_executable() -> str:
 
 @pytest.fixture(scope="module")
 def mini(tmp_path_factory):
-    """The mini sweep recorded once through ``dva train sweep --as-is`` (the entry point)."""
+    """The mini sweep recorded once through ``dva train sweep --as-is`` (the entry point),
+    by two processes into a split bag (one file each), which the rest reads as one bag."""
     root = tmp_path_factory.mktemp("train")
     scenario = root / "mini.yaml"
     scenario.write_text(MINI_YAML)
     bag = root / "bag"
     result = subprocess.run(
         [dva_executable(), "train", "sweep", "--scenario", str(scenario), "--as-is",
-         "--out", str(bag), "--json"], capture_output=True, text=True, timeout=300)
+         "--out", str(bag), "--jobs", "2", "--json"], capture_output=True, text=True,
+        timeout=300)
     assert result.returncode == 0, result.stderr
     summary = json.loads(result.stdout)
     return {"root": root, "scenario": scenario, "bag": bag, "summary": summary,
@@ -80,7 +82,7 @@ def _direct_rms(scenario_path):
 
 def test_sweep_summary(mini):
     s = mini["summary"]
-    assert s["outcome"] == "completed" and s["adapted"] is False
+    assert s["outcome"] == "completed" and s["adapted"] is False and s["bag_files"] == 2
     assert s["sim_time_s"] == pytest.approx(len(RATIOS) * len(C2) * DWELL)
     assert s["airspeeds"] == len(RATIOS) and s["c2_values"] == list(C2)
 
@@ -227,7 +229,7 @@ def test_wrong_message_type_is_named(tmp_path, capsys):
 def test_truncated_file_is_reported(mini, tmp_path, capsys):
     copy = tmp_path / "bag"
     shutil.copytree(mini["bag"], copy)
-    (mcap,) = copy.glob("*.mcap")
+    mcap = sorted(copy.glob("*.mcap"))[-1]  # the second file of the split bag
     with open(mcap, "r+b") as stream:
         stream.truncate(mcap.stat().st_size // 2)
     err = _cli_error(capsys, ["train", "rbf", str(copy), "--out", str(tmp_path / "n.npz")])

@@ -27,20 +27,19 @@ Two writers produce the same bytes (a test compares the files):
 
 Entry points: :meth:`BatchRecorder.write_blocks` (FlightBlock objects),
 :meth:`BatchRecorder.write_samples` (whole sample arrays cut into blocks, no per-block Python
-objects), :func:`record_runtime` (steps a FlightRuntime) and :func:`record_sweep` (a stepped
-sweep simulated parallel in time by :mod:`aero_dva_sim.sweep_batch`, the same bag to
-round-off in the samples, encoded and written on a second thread while the next chunk is
-simulated; other flights fall back to :func:`record_runtime`). ``displacement=False`` leaves
-out ``wing/displacement`` (what a wing test measures, as the recorder node's ``exclude``).
+objects) and :func:`record_runtime` (steps a FlightRuntime);
+:func:`aero_dva_sim.sweep_recording_io.record_sweep` records a stepped sweep simulated
+parallel in time. ``displacement=False`` leaves out ``wing/displacement`` (what a wing test
+measures, as the recorder node's ``exclude``).
 
 The bag is complete only when closed (``metadata.yaml`` written last, atomically), as with
-:class:`~aero_dva_sim.mcap_io.BagWriter`.
+:class:`~aero_dva_sim.mcap_io.BagWriter`. A split bag (``file_name``, one file per process)
+gets its ``metadata.yaml`` from :func:`close_split_bag` once every file is closed.
 """
 from __future__ import annotations
 
 import math
 import os
-import queue
 import struct
 import tempfile
 import threading
@@ -74,8 +73,6 @@ from mcap.records import (
 )
 
 from aero_dva_sim import cdr_encoding as cdr
-from aero_dva_sim.damper import DamperModel, DamperStatus
-from aero_dva_sim.flight_runtime import SWEEP_SOURCE
 from aero_dva_sim.mcap_io import (
     BagSummary,
     BagWriter,
@@ -86,7 +83,6 @@ from aero_dva_sim.mcap_io import (
     normalize_type_name,
     qos_profile_yaml,
 )
-from aero_dva_sim.scenario import airspeed_at, density_at, sample_times, sweep_damping_at
 
 __all__ = [
     "DIAGNOSTIC_NAME",
@@ -96,8 +92,8 @@ __all__ = [
     "RecordedFlight",
     "flight_topics",
     "record_flight_blocks",
+    "close_split_bag",
     "record_runtime",
-    "record_sweep",
 ]
 
 #: Writers (see the module docstring).
@@ -130,7 +126,6 @@ _MCAP_MAGIC = struct.pack("<8B", 137, 77, 67, 65, 80, 48, 13, 10)
 _RECORD_HEADER = struct.Struct("<BQHIQQ")  # MCAP message record up to its data (31 bytes)
 _COMPRESSIONS = ("none", "zstd", "lz4")
 _SYNC_EVERY = 32 << 20  # [bytes] written between background fdatasyncs
-_QUEUE = 2  # chunks queued for record_sweep's writer thread
 _ACC = ("plunge", "pitch", "leading_edge")
 _DISP = ("plunge", "pitch", "leading_edge", "absorber_stroke")
 _DAMPER_COLUMNS = ("time", "commanded_damping", "applied_damping", "min_damping",
@@ -220,17 +215,25 @@ class _ChunkedBag:
     chunking, all indexes, statistics, summary offsets and chunk CRCs) writes for the same
     messages: same records, same chunk boundaries (a chunk ends after the message that takes
     it over ``chunk_size`` bytes), same message and chunk indexes, same metadata.
+
+    ``file_name`` writes one file of a split bag instead: the file ``file_name`` in the
+    existing ``directory``, and no ``metadata.yaml`` (:func:`close_split_bag` writes it for
+    all the files).
     """
 
     def __init__(self, directory, *, compression: str, chunk_size: int,
                  ros_distro: str | None, library: str | None = None, chunk_crc: bool = True,
-                 background_sync: bool = True):
+                 background_sync: bool = True, file_name: str | None = None):
         if compression not in _COMPRESSIONS:
             raise ValueError(f"compression must be one of {_COMPRESSIONS}, got {compression!r}")
         self._crc = bool(chunk_crc)
         self._compress = _compressor(compression)
         self._compression = "" if compression == "none" else compression
-        self.directory, self.mcap_path = create_bag_directory(directory)
+        self._split = file_name is not None
+        if self._split:
+            self.directory, self.mcap_path = _split_file(directory, file_name)
+        else:
+            self.directory, self.mcap_path = create_bag_directory(directory)
         self._chunk_size = chunk_size
         self._ros_distro = ros_distro or os.environ.get("ROS_DISTRO") or "jazzy"
         self._stream = open(self.mcap_path, "wb")
@@ -266,7 +269,9 @@ class _ChunkedBag:
         self._pieces: list = []
         self._size = 0  # uncompressed bytes in the chunk
         self._messages = 0
-        self._index_parts: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        # channel id -> [(log times, offsets in the chunk), ...]; the dict's order is the
+        # order of each channel's first message in the chunk (mcap's message index order)
+        self._index: dict[int, list[tuple[np.ndarray, np.ndarray]]] = {}
         self._chunk_t_min: int | None = None
         self._chunk_t_max = 0
 
@@ -303,18 +308,15 @@ class _ChunkedBag:
             self._emit(piece)
         index_start = self._pos
         offsets: dict[int, int] = {}
-        channels = np.concatenate([p[0] for p in self._index_parts])
-        # One stable sort groups each channel's (log time, offset) entries in file order.
-        order = np.argsort(channels, kind="stable")
-        ids, begin, counts = np.unique(channels[order], return_index=True, return_counts=True)
-        entries = np.empty((len(order), 2), dtype="<u8")
-        entries[:, 0] = np.concatenate([p[1] for p in self._index_parts])[order]
-        entries[:, 1] = np.concatenate([p[2] for p in self._index_parts])[order]
         records = []
         length = 0
-        for k in np.argsort(order[begin], kind="stable"):  # channels by first message
-            channel = int(ids[k])
-            data = entries[begin[k]:begin[k] + counts[k]].tobytes()
+        for channel, parts in self._index.items():
+            entries = np.empty((sum(len(t) for t, _ in parts), 2), dtype="<u8")
+            entries[:, 0] = parts[0][0] if len(parts) == 1 else np.concatenate(
+                [t for t, _ in parts])
+            entries[:, 1] = parts[0][1] if len(parts) == 1 else np.concatenate(
+                [o for _, o in parts])
+            data = entries.tobytes()
             record = struct.pack("<BQHI", Opcode.MESSAGE_INDEX, 6 + len(data), channel,
                                  len(data)) + data
             offsets[channel] = index_start + length
@@ -374,6 +376,10 @@ class _ChunkedBag:
         ends = np.cumsum(sizes, dtype=np.int64)
         starts = ends - sizes
         self._statistics(channels, log_times)
+        # Each channel's records in file order, found once for the whole batch.
+        order = np.argsort(channels.astype(np.uint16), kind="stable")  # a radix sort
+        ids, begin, counts = np.unique(channels[order], return_index=True, return_counts=True)
+        own = [(int(c), order[b:b + n]) for c, b, n in zip(ids, begin, counts)]
         first = 0
         while first < m:
             # The chunk closes after the first message whose end passes chunk_size.
@@ -382,11 +388,17 @@ class _ChunkedBag:
             stop = min(last + 1, m)
             begin, end = int(starts[first]), int(ends[stop - 1])
             self._pieces.append(records[begin:end])
-            self._index_parts.append((
-                channels[first:stop],
-                log_times[first:stop],
-                starts[first:stop] - begin + self._size,
-            ))
+            new = []
+            for channel, rows in own:
+                lo, hi = np.searchsorted(rows, (first, stop))
+                if hi > lo:
+                    sel = rows[lo:hi]
+                    if channel not in self._index:
+                        new.append((int(sel[0]), channel))
+                    self._index.setdefault(channel, []).append(
+                        (log_times[sel], starts[sel] - begin + self._size))
+            for _, channel in sorted(new):  # channels new to the chunk: in order of appearance
+                self._index[channel] = self._index.pop(channel)
             low, high = int(log_times[first:stop].min()), int(log_times[first:stop].max())
             self._chunk_t_min = low if self._chunk_t_min is None else min(self._chunk_t_min, low)
             self._chunk_t_max = max(self._chunk_t_max, high)
@@ -442,8 +454,9 @@ class _ChunkedBag:
             if self._sync is not None:
                 self._sync.stop()
             self._stream.close()
-        text = yaml.safe_dump({"rosbag2_bagfile_information": metadata}, sort_keys=False)
-        _atomic_write_text(self.directory / "metadata.yaml", text)
+        if not self._split:
+            text = yaml.safe_dump({"rosbag2_bagfile_information": metadata}, sort_keys=False)
+            _atomic_write_text(self.directory / "metadata.yaml", text)
         self._summary = BagSummary(
             directory=self.directory, mcap_path=self.mcap_path,
             topics=tuple(TopicInfo(t, self._schema_name(c), self.counts[t])
@@ -495,6 +508,55 @@ class _ChunkedBag:
                summary_crc=crc).write(builder)
         self._emit(builder.end())
         self._emit(_MCAP_MAGIC)
+
+
+def _split_file(directory, file_name: str) -> tuple[Path, Path]:
+    directory = Path(directory)
+    if not directory.is_dir():
+        raise FileNotFoundError(f"bag directory {str(directory)!r} does not exist")
+    if Path(file_name).name != file_name or not file_name.endswith(".mcap"):
+        raise ValueError(f"file_name must be a plain *.mcap name, got {file_name!r}")
+    path = directory / file_name
+    if path.exists():
+        raise FileExistsError(f"bag file {str(path)!r} exists: a bag is never overwritten")
+    return directory, path
+
+
+def close_split_bag(directory, parts: Sequence[BagSummary],
+                    ros_distro: str | None = None) -> BagSummary:
+    """Write ``metadata.yaml`` (atomically) of a bag whose files ``parts`` are, in order.
+
+    Each part is the summary of one closed :class:`BatchRecorder` with ``file_name`` set.
+    rosbag2 splits bags the same way: each file a complete MCAP file with every topic's
+    schema and channel, the messages in time order across the files. Returns the bag's
+    summary (``mcap_path`` = the first file).
+    """
+    if not parts:
+        raise ValueError("close_split_bag needs at least one file")
+    directory = Path(directory)
+    counts: dict[str, int] = {}
+    types: dict[str, str] = {}
+    for part in parts:
+        for topic in part.topics:
+            counts[topic.name] = counts.get(topic.name, 0) + topic.message_count
+            types.setdefault(topic.name, topic.type_name)
+    used = [p for p in parts if p.message_count]
+    t_min = min((p.starting_time_ns for p in used), default=None)
+    t_max = max((p.starting_time_ns + p.duration_ns for p in used), default=None)
+    distro = ros_distro or os.environ.get("ROS_DISTRO") or "jazzy"
+    qos = qos_profile_yaml()
+    files = [(p.mcap_path.name, p.starting_time_ns, p.duration_ns, p.message_count)
+             for p in parts]
+    metadata = bag_metadata(parts[0].mcap_path.name,
+                            [(t, types[t], qos, n) for t, n in counts.items()],
+                            t_min, t_max, distro, files=files)
+    text = yaml.safe_dump({"rosbag2_bagfile_information": metadata}, sort_keys=False)
+    _atomic_write_text(directory / "metadata.yaml", text)
+    return BagSummary(directory=directory, mcap_path=parts[0].mcap_path,
+                      topics=tuple(TopicInfo(t, types[t], n) for t, n in counts.items()),
+                      message_count=metadata["message_count"],
+                      starting_time_ns=metadata["starting_time"]["nanoseconds_since_epoch"],
+                      duration_ns=metadata["duration"]["nanoseconds"])
 
 
 def _compressor(name: str) -> Callable:
@@ -644,6 +706,13 @@ class BatchRecorder:
         0, "not computed" in the MCAP specification, and saves hashing every byte (about
         0.7 ms per MB here); readers then cannot detect a flipped byte inside a chunk.
         Only with ``engine="numpy"``.
+    file_name : str, optional
+        Write one file of a split bag (``engine="numpy"`` only): ``bag_dir`` exists,
+        ``file_name`` (``*.mcap``) is created in it, and :func:`close_split_bag` writes the
+        bag's ``metadata.yaml`` once every file is closed.
+    first_block : int
+        Blocks the files before this one hold: the sequence numbers of the block topics
+        start there (0 for the first or only file).
 
     Notes
     -----
@@ -655,7 +724,8 @@ class BatchRecorder:
                  damper_state: bool = True, displacement: bool = True,
                  compression: str = "none",
                  chunk_size: int = 1 << 20, ros_distro: str | None = None,
-                 engine: str = "numpy", chunk_crc: bool = True):
+                 engine: str = "numpy", chunk_crc: bool = True, file_name: str | None = None,
+                 first_block: int = 0):
         rate = float(sample_rate)
         if not (math.isfinite(rate) and rate > 0.0):
             raise ValueError(f"sample_rate must be a finite rate > 0 Hz, got {sample_rate!r}")
@@ -667,6 +737,11 @@ class BatchRecorder:
             raise ValueError(f"chunk_size must be a positive integer, got {chunk_size!r}")
         if not chunk_crc and engine != "numpy":
             raise ValueError("chunk_crc=False needs engine='numpy' (BagWriter always hashes)")
+        if file_name is not None and engine != "numpy":
+            raise ValueError("file_name (a split bag) needs engine='numpy'")
+        if isinstance(first_block, bool) or not isinstance(first_block, (int, np.integer)) \
+                or first_block < 0:
+            raise ValueError(f"first_block must be an integer >= 0, got {first_block!r}")
         self.sample_rate = rate
         self.engine = engine
         self.damper_state = bool(damper_state)
@@ -677,11 +752,15 @@ class BatchRecorder:
         qos = qos_profile_yaml()
         if engine == "numpy":
             self._bag = _ChunkedBag(bag_dir, compression=compression, chunk_size=chunk_size,
-                                    ros_distro=ros_distro, chunk_crc=chunk_crc)
+                                    ros_distro=ros_distro, chunk_crc=chunk_crc,
+                                    file_name=file_name)
         else:
             self._bag = BagWriter(bag_dir, compression=compression, chunk_size=chunk_size,
                                   ros_distro=ros_distro)
-        self._counts = dict.fromkeys(self.topics.values(), 0)
+        # Sequence numbers go on across the files of a split bag; /diagnostics is not per block
+        self._first = {topic: 0 if key == "diagnostics" else int(first_block)
+                       for key, topic in self.topics.items()}
+        self._counts = dict(self._first)
         # The records of the last block runs, reused (fresh memory costs a page fault per 4 KiB)
         self._records: dict[tuple, np.ndarray] = {}
         try:
@@ -697,8 +776,8 @@ class BatchRecorder:
 
     @property
     def message_counts(self) -> dict[str, int]:
-        """Messages written so far per topic."""
-        return dict(self._counts)
+        """Messages written so far per topic (into this file)."""
+        return {topic: n - self._first[topic] for topic, n in self._counts.items()}
 
     def __enter__(self) -> BatchRecorder:
         return self
@@ -873,7 +952,7 @@ class BatchRecorder:
         for key in group.keys:
             topic = self.topics[key]
             self._counts[topic] += count
-            self._bag.counts[topic] = self._counts[topic]
+            self._bag.counts[topic] = self._counts[topic] - self._first[topic]
 
     # ---------------------------------------------------------------- sample arrays
     def write_samples(self, first_index: int, accelerations, displacements, force, *,
@@ -1028,7 +1107,7 @@ class BatchRecorder:
             self._bag.add_messages(memoryview(record), np.array([len(record)]),
                                    np.array([self._bag.channel_id(topic)]),
                                    np.array([log_time], dtype=np.uint64))
-            self._bag.counts[topic] = self._counts[topic] + 1
+            self._bag.counts[topic] = self._counts[topic] + 1 - self._first[topic]
         self._counts[topic] += 1
 
 
@@ -1236,205 +1315,6 @@ def record_runtime(bag_dir, runtime, progress: Callable[[int, int], None] | None
                           blocks=blocks_done)
 
 
-def record_sweep(bag_dir, runtime, progress: Callable[[int, int], None] | None = None, *,
-                 block_size: int | None = None, chunk_samples: int | None = None,
-                 displacement: bool = True, overlap: bool = True,
-                 **options) -> RecordedFlight:
-    """Record a stepped sweep simulated parallel in time (:mod:`aero_dva_sim.sweep_batch`).
-
-    The same bag as :func:`record_runtime` (same topics, schemas, messages, diagnostics; the
-    samples equal to round-off, about 1e-15 relative), from whole arrays instead of
-    50-sample steps. A flight the parallel path does not model
-    (:func:`~aero_dva_sim.sweep_batch.unsupported_reason`: not a sweep, varying density, a
-    hidden plant, ...) is flown by :func:`record_runtime` instead, so this is always safe to
-    call. ``runtime`` is only read (its config, scenario and critical airspeed), not stepped.
-
-    The main thread simulates chunk after chunk; a second thread (``overlap``) encodes,
-    hashes and writes them, at most two chunks behind, so memory stays bounded. (Encoding on
-    the main thread instead measured slower, 1.9 s against 1.25 s for the full sweep,
-    probably because its many short GIL-free copies then wait for the GIL.) An error on
-    either thread stops both and is raised here; the recorder then closes the bag as on any
-    error, with the chunks written before the failure and without the final "flight
-    completed" status, which is written only after every chunk is in the file.
-
-    Parameters
-    ----------
-    bag_dir : path-like
-        Bag directory to create.
-    runtime : FlightRuntime
-        A fresh runtime.
-    progress : callable, optional
-        ``progress(samples_done, samples_total)`` after each chunk is simulated (its writing
-        may still be under way).
-    block_size : int, optional
-        Samples per message block (default the scenario's, as the simulator node publishes);
-        another value must divide every dwell, so that each block has one (U, c2).
-    chunk_samples : int, optional
-        Samples simulated and encoded together (default
-        :data:`~aero_dva_sim.sweep_batch.CHUNK_SAMPLES`; bounds the memory used).
-    displacement : bool
-        Record ``wing/displacement`` (True, as the graph records every topic). False records
-        only what a wing test measures (accelerations, force, flight condition, damper
-        state), as the graph's recorder does with ``exclude``, and skips computing the
-        displacements (except the leading edge, for the divergence test); the messages of
-        the other topics are the same bytes either way.
-    overlap : bool
-        Write on the second thread (True) or in turn with the simulation (False; the same
-        bytes, slower).
-    **options
-        ``namespace``, ``compression``, ``chunk_size``, ``ros_distro``, ``engine``,
-        ``chunk_crc`` of :class:`BatchRecorder`.
-
-    Returns
-    -------
-    RecordedFlight
-        ``method`` is "parallel" or "stepped" (the fallback).
-    """
-    from aero_dva_sim import sweep_batch
-
-    reason = sweep_batch.unsupported_reason(runtime.config, runtime.scenario)
-    if reason is None and max(runtime.scenario.sweep_damping) > \
-            runtime.config.damper.absurd_limit:
-        reason = "the damper rejects some sweep c2"  # recorded as the node would, stepped
-    if reason is not None:
-        if block_size not in (None, runtime.block_size):
-            raise ValueError(f"block_size {block_size} needs the parallel sweep path; this "
-                             "flight is stepped with the scenario's block size")
-        return record_runtime(bag_dir, runtime, progress, displacement=displacement,
-                              **options)
-    started = time.monotonic()
-    scenario, config = runtime.scenario, runtime.config
-    plan = sweep_batch.plan_sweep(config, scenario)
-    n = runtime.block_size if block_size is None else block_size
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
-        raise ValueError(f"block_size must be a positive integer, got {block_size!r}")
-    n = int(n)
-    dwell = int(round(scenario.dwell * scenario.sample_rate))
-    if block_size is not None and (dwell % n or np.any(plan.lengths % n)):
-        raise ValueError(f"block_size {n} must divide the dwell ({dwell} samples) so that "
-                         "each block has one (U, c2)")
-    rate, total = runtime.sample_rate, plan.n_samples
-    limit = 0.5 * config.wing.chord  # BlockSimulator's default divergence limit
-    # The simulator node publishes every topic; the recorder may leave some out.
-    published = dict.fromkeys((t for k, t in _BLOCK_TOPICS if not t.startswith("/")), 0)
-    outputs = sweep_batch.OUTPUTS if displacement else \
-        ("leading_edge",) + sweep_batch.OUTPUTS[4:]
-    edge = outputs.index("leading_edge")
-    done = 0
-    outcome = "completed"
-    with BatchRecorder(bag_dir, rate, displacement=displacement, **options) as recorder:
-        writer = _Pipeline(lambda item: _write_sweep_blocks(recorder, runtime, n, *item),
-                           threaded=overlap)
-        try:
-            pending = None  # samples of a block cut by a chunk boundary
-            chunks = sweep_batch.simulate_sweep(
-                config, plan, chunk_samples=chunk_samples or sweep_batch.CHUNK_SAMPLES,
-                outputs=outputs)
-            for chunk in chunks:
-                data = (chunk.force, chunk.outputs)
-                if pending is not None:
-                    data = tuple(np.concatenate([a, b], axis=-1) for a, b in zip(pending, data))
-                length = data[0].size
-                end = done + length
-                keep = length if end == total else length - (length % n)
-                pending = tuple(a[..., keep:] for a in data) if keep < length else None
-                force, out = (a[..., :keep] for a in data)
-                if keep == 0:
-                    continue
-                diverged = _first_diverged_block(out[edge], out, n, limit)
-                if diverged is not None:  # the node publishes the diverging block, then stops
-                    keep = min(keep, (diverged + 1) * n)
-                    force, out = force[:keep], out[:, :keep]
-                writer.put((done, force, out[:4] if displacement else None, out[-3:]))
-                for topic in published:
-                    published[topic] += -(-keep // n)
-                done += keep
-                if progress is not None:
-                    progress(done, total)
-                if diverged is not None:
-                    outcome = "diverged"
-                    break
-            writer.finish()  # every chunk is in the bag (or the writer's error is raised)
-        except BaseException:
-            writer.abandon()
-            raise
-        if outcome == "diverged":
-            t = sample_times(scenario, done - keep + diverged * n, keep - diverged * n)
-            u = float(airspeed_at(scenario, t)[-1])
-            recorder.write_diagnostics(done / rate, [(
-                "error", f"wing diverged at U = {u:.2f} m/s (U/U_cr = "
-                f"{u / runtime.critical_airspeed:.3f}, t = {t[0]:.3f} s): flight stopped",
-                _summary_values(done / rate, started, runtime, published))])
-        else:
-            recorder.write_diagnostics(done / rate, [(
-                "ok", "flight completed", _summary_values(done / rate, started, runtime,
-                                                          published))])
-        bag = recorder.close()
-    return RecordedFlight(summary=bag, outcome=outcome, sim_time=done / rate,
-                          wall_time=time.monotonic() - started, samples=done,
-                          blocks=-(-done // n), method="parallel")
-
-
-class _Pipeline:
-    """Run ``write(item)`` for every item :meth:`put`, in order, on a second thread.
-
-    The queue holds at most ``depth`` items, so a writer slower than its producer bounds the
-    memory in flight. The writer's first error stops the writing (later items are dropped)
-    and is raised by the next :meth:`put` or by :meth:`finish`. ``threaded=False`` writes
-    in :meth:`put` itself (the reference).
-    """
-
-    _END = object()
-
-    def __init__(self, write: Callable, *, threaded: bool = True, depth: int = _QUEUE):
-        self._write = write
-        self._error: BaseException | None = None
-        self._cancelled = False
-        self._thread: threading.Thread | None = None
-        if threaded:
-            self._queue: queue.Queue = queue.Queue(maxsize=depth)
-            self._thread = threading.Thread(target=self._run, name="bag-writer", daemon=True)
-            self._thread.start()
-
-    def _run(self) -> None:
-        while True:
-            item = self._queue.get()
-            if item is self._END:
-                return
-            if self._error is None and not self._cancelled:  # else drain: put never blocks
-                try:
-                    self._write(item)
-                except BaseException as exc:  # raised in the caller's thread
-                    self._error = exc
-
-    def put(self, item) -> None:
-        if self._thread is None:
-            self._write(item)
-            return
-        self._raise()
-        self._queue.put(item)
-
-    def finish(self) -> None:
-        """Wait until every item is written; raise the writer's error, if any."""
-        self._join()
-        self._raise()
-
-    def abandon(self) -> None:
-        """Drop the items not yet written and stop the thread (after the caller failed)."""
-        self._cancelled = True
-        self._join()
-
-    def _join(self) -> None:
-        if self._thread is not None:
-            self._queue.put(self._END)
-            self._thread.join()
-            self._thread = None
-
-    def _raise(self) -> None:
-        if self._error is not None:
-            raise self._error
-
-
 def _summary_values(sim: float, started: float, runtime, published: dict) -> dict:
     """The key-values of the node's final "simulator: flight" status."""
     wall = time.monotonic() - started
@@ -1443,71 +1323,3 @@ def _summary_values(sim: float, started: float, runtime, published: dict) -> dic
               "critical_airspeed_no_dva": runtime.critical_airspeed}
     values.update({f"published:{t}": n for t, n in published.items()})
     return values
-
-
-def _first_diverged_block(leading_edge: np.ndarray, outputs: np.ndarray, n: int,
-                          limit: float) -> int | None:
-    """Index of the first block of ``n`` samples that BlockSimulator would call diverged.
-
-    Its test: |leading edge| > ``limit``, or an output not finite (``outputs`` (m, T): the
-    channels computed; a state that overflows makes every output it feeds non-finite).
-    """
-    with np.errstate(over="ignore", invalid="ignore"):
-        # Fast path, one pass per row: a row's sum is finite exactly when its values are
-        # (short of an overflow of the sum itself, ~1e308, long after the limit).
-        if np.max(np.abs(leading_edge)) <= limit and all(
-                math.isfinite(float(np.sum(row))) for row in outputs):
-            return None
-        bad = ~(np.abs(leading_edge) <= limit)
-        for row in outputs:
-            bad |= ~np.isfinite(row)
-    return int(np.argmax(bad)) // n
-
-
-def _write_sweep_blocks(recorder: BatchRecorder, runtime, n: int, first: int, force, disp,
-                        acc) -> int:
-    """Write samples ``first ..`` of a sweep as the node publishes them; returns the blocks.
-
-    ``disp`` may be None when the recorder records no displacement.
-    """
-    scenario = runtime.scenario
-    count = -(-force.size // n)
-    index = first + n * np.arange(count, dtype=np.int64)
-    t0 = index / runtime.sample_rate  # == FlightBlock.t0, bit for bit
-    c2 = sweep_damping_at(scenario, t0)
-    damper = _sweep_damper_states(runtime.config.damper, t0, c2) if recorder.damper_state \
-        else None
-    return recorder.write_samples(first, acc, disp, force, block_size=n,
-                                  airspeed=airspeed_at(scenario, t0),
-                                  density=density_at(scenario, t0), damper=damper,
-                                  source=SWEEP_SOURCE if damper is not None else None)
-
-
-def _sweep_damper_states(config, t0: np.ndarray, c2: np.ndarray) -> dict[str, np.ndarray]:
-    """The damper snapshot after each sweep block, as FlightRuntime leaves it.
-
-    Per block the runtime commands the block's c2 at t0 and updates the damper to t0. An
-    ideal damper (no lag) with c2 inside its range then reports c2 applied, age 0, status OK
-    at t0: computed here for all blocks at once. Otherwise the damper model is stepped block by
-    block, exactly as the runtime does.
-    """
-    k = len(t0)
-    if config.time_constant == 0.0 and np.all((c2 >= config.min_damping)
-                                              & (c2 <= config.max_damping)):
-        return {"time": t0, "commanded_damping": c2, "applied_damping": c2,
-                "min_damping": np.full(k, config.min_damping),
-                "max_damping": np.full(k, config.max_damping),
-                "command_age": np.zeros(k), "status": np.full(k, float(DamperStatus.OK))}
-    model = DamperModel(config, start_time=0.0)
-    rows = []
-    for t, c in zip(t0.tolist(), c2.tolist()):
-        model.command(c, t, SWEEP_SOURCE)
-        model.update(t)
-        snap = model.snapshot()
-        if snap.source != SWEEP_SOURCE:
-            raise ValueError(f"sweep c2 = {c} N s/m at t = {t} s was refused by the damper "
-                             f"({snap.status.name}); the stepped path records that")
-        rows.append((snap.time, snap.commanded_damping, snap.applied_damping,
-                     snap.min_damping, snap.max_damping, snap.command_age, int(snap.status)))
-    table = np.array(rows, dtype=np.float64).reshape(-1, 7)
-    return dict(zip(_DAMPER_COLUMNS, table.T))

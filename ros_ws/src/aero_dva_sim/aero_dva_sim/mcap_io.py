@@ -368,15 +368,20 @@ def create_bag_directory(directory) -> tuple[Path, Path]:
 
 
 def bag_metadata(mcap_name: str, topics: Sequence[tuple[str, str, str, int]],
-                 t_min: int | None, t_max: int | None, ros_distro: str) -> dict:
-    """rosbag2 ``metadata.yaml`` content (version :data:`METADATA_VERSION`) of a one-file bag.
+                 t_min: int | None, t_max: int | None, ros_distro: str,
+                 files: Sequence[tuple[str, int, int, int]] | None = None) -> dict:
+    """rosbag2 ``metadata.yaml`` content (version :data:`METADATA_VERSION`) of a bag.
 
     ``topics`` holds (name, type, offered QoS YAML, message count) per topic; ``t_min`` and
-    ``t_max`` are the first and last log times [ns] (None for an empty bag).
+    ``t_max`` are the first and last log times [ns] (None for an empty bag). A one-file bag
+    is the file ``mcap_name``; a split bag lists its ``files`` in order, each as (name,
+    starting time [ns], duration [ns], message count).
     """
     start = t_min or 0
     duration = 0 if t_min is None else t_max - t_min
     count = sum(n for *_, n in topics)
+    if files is None:
+        files = [(mcap_name, start, duration, count)]
     return {
         "version": METADATA_VERSION,
         "storage_identifier": "mcap",
@@ -398,14 +403,15 @@ def bag_metadata(mcap_name: str, topics: Sequence[tuple[str, str, str, int]],
         ],
         "compression_format": "",
         "compression_mode": "",
-        "relative_file_paths": [mcap_name],
+        "relative_file_paths": [name for name, *_ in files],
         "files": [
             {
-                "path": mcap_name,
-                "starting_time": {"nanoseconds_since_epoch": start},
-                "duration": {"nanoseconds": duration},
-                "message_count": count,
+                "path": name,
+                "starting_time": {"nanoseconds_since_epoch": file_start},
+                "duration": {"nanoseconds": file_duration},
+                "message_count": file_count,
             }
+            for name, file_start, file_duration, file_count in files
         ],
         "custom_data": {},
         "ros_distro": ros_distro,
@@ -695,6 +701,12 @@ class BagMessage:
     message: object
 
 
+def _file_order(path: Path) -> tuple:
+    """rosbag2 numbers split files ``<name>_<i>.mcap``: ``_10`` comes after ``_9``."""
+    stem, _, index = path.stem.rpartition("_")
+    return (stem, int(index), "") if index.isdigit() else (path.stem, -1, path.name)
+
+
 def _mcap_files(path: Path, allow_truncated: bool) -> list[Path]:
     if not path.exists():
         raise BagReadError(f"bag {str(path)!r} does not exist")
@@ -702,7 +714,7 @@ def _mcap_files(path: Path, allow_truncated: bool) -> list[Path]:
         return [path]
     meta = path / "metadata.yaml"
     if not meta.is_file():
-        found = sorted(path.glob("*.mcap"))
+        found = sorted(path.glob("*.mcap"), key=_file_order)
         if allow_truncated and found:
             return found
         raise BagReadError(

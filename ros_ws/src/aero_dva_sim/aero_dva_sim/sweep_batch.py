@@ -44,8 +44,8 @@ from aero_dva_sim.flight_sim import DEFAULT_HOLD
 from aero_dva_sim.scenario import Scenario, airspeed_at, density_at, sweep_damping_at
 from aero_dva_sim.wing_model import AeroelasticModel
 
-__all__ = ["OUTPUTS", "SweepChunk", "SweepPlan", "plan_sweep", "simulate_sweep",
-           "unsupported_reason"]
+__all__ = ["OUTPUTS", "SweepChunk", "SweepMaps", "SweepPlan", "plan_sweep", "simulate_sweep",
+           "split_sweep", "sweep_maps", "unsupported_reason"]
 
 SUBBLOCK = 10  # [samples] L: outputs cost 7 (n + L) multiply-adds per sample
 CHUNK_SAMPLES = 1 << 18  # samples per output chunk (about 15 MB of outputs): cache-friendly
@@ -229,8 +229,12 @@ def plan_sweep(config: RuntimeConfig, scenario: Scenario, *, hold: int = DEFAULT
                      subblock=sub)
 
 
-class _Maps:
-    """Per-condition discrete maps over one sample, a sub-block and groups of sub-blocks."""
+class SweepMaps:
+    """Per-condition discrete maps over one sample, a sub-block and groups of sub-blocks.
+
+    Built by :func:`sweep_maps` (the first step of the module docstring); processes that
+    share a flight build them once, before they fork.
+    """
 
     def __init__(self, model: AeroelasticModel, params: np.ndarray, dt: float, sub: int):
         self.n = n = model.n_states
@@ -261,6 +265,7 @@ class _Maps:
         self.ctrb_l = (powers[sub - 1::-1] @ gam[None, :, :, None])[..., 0].transpose(1, 2, 0)
         self.sub = sub
         self._groups: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        self._segments: dict[int, tuple[int, int, np.ndarray]] = {}
 
     def group(self, r: int) -> tuple[np.ndarray, np.ndarray]:
         """(Phi^(L r), ctrb over L r samples (K, n, L r)) for groups of ``r`` sub-blocks."""
@@ -272,6 +277,23 @@ class _Maps:
                 power = self.phi_l @ power
             self._groups[r] = (power, np.concatenate(parts[::-1], axis=2))
         return self._groups[r]
+
+    def segment(self, m: int) -> tuple[int, int, np.ndarray]:
+        """(R, groups, Phi^m (K, n, n)) for segments of ``m`` samples."""
+        if m not in self._segments:
+            r = _split(m // self.sub)
+            groups = m // (self.sub * r)
+            self._segments[m] = (r, groups, _power(self.group(r)[0], groups))
+        return self._segments[m]
+
+
+def sweep_maps(config: RuntimeConfig, plan: SweepPlan) -> SweepMaps:
+    """The discrete maps of every condition and segment length of ``plan``."""
+    model = AeroelasticModel(config.wing, config.absorber, config.aero)
+    maps = SweepMaps(model, plan.params, 1.0 / plan.sample_rate, plan.subblock)
+    for m in np.unique(plan.lengths).tolist():
+        maps.segment(m)
+    return maps
 
 
 def _power(m: np.ndarray, e: int) -> np.ndarray:
@@ -305,7 +327,8 @@ def _matvec(m: np.ndarray, x: np.ndarray) -> np.ndarray:
 
 def simulate_sweep(config: RuntimeConfig, plan: SweepPlan, *,
                    chunk_samples: int = CHUNK_SAMPLES,
-                   outputs=OUTPUTS) -> Iterator[SweepChunk]:
+                   outputs=OUTPUTS, span: tuple[int, int] | None = None,
+                   maps: SweepMaps | None = None) -> Iterator[SweepChunk]:
     """Yield the flight in chunks of whole segments, in time order.
 
     Chunk by chunk (so a consumer, e.g. a writer thread, gets the first one at once, and one
@@ -315,29 +338,33 @@ def simulate_sweep(config: RuntimeConfig, plan: SweepPlan, *,
     ``outputs`` names the channels of :data:`OUTPUTS` to compute (each costs the same; a
     channel left out is not computed at all); a channel's values do not depend on which
     others are computed.
+
+    ``span = (first, end)`` yields only samples ``first .. end - 1``, both segment starts
+    (:func:`split_sweep`; ``end`` may be ``n_samples``), so that processes can share a
+    flight. The segments before ``first`` are still scanned (force and end states, no
+    outputs: about a fifth of their full cost) because their state and the force stream carry
+    on; the yielded samples are the same bits as those of the whole flight. ``maps``: the
+    plan's :func:`sweep_maps`, if already built.
     """
     channels = _channels(outputs)
+    first_sample, end_sample = _span(plan, span)
     s = plan.scenario
     rng = np.random.default_rng(s.seed)
-    model = AeroelasticModel(config.wing, config.absorber, config.aero)
-    maps = _Maps(model, plan.params, 1.0 / plan.sample_rate, plan.subblock)
+    if maps is None:
+        maps = sweep_maps(config, plan)
     nst, sub = maps.n, plan.subblock
-    layout: dict[int, tuple[int, int, np.ndarray]] = {}  # length -> R, groups, Phi^M
-
-    def lay(m: int) -> tuple[int, int, np.ndarray]:
-        if m not in layout:
-            r = _split(m // sub)
-            groups = m // (sub * r)
-            layout[m] = (r, groups, _power(maps.group(r)[0], groups))
-        return layout[m]
 
     x = np.zeros(nst)  # state at the start of the next chunk
     drawn = 0
     k = 0
-    while k < len(plan.starts):
+    last = int(np.searchsorted(plan.starts, end_sample))  # segments k < last are flown
+    while k < last:
+        # A chunk lies before the span or inside it, never across its start.
+        bound = last if plan.starts[k] >= first_sample else \
+            int(np.searchsorted(plan.starts, first_sample))
         stop = k + 1
         total = int(plan.lengths[k])
-        while stop < len(plan.starts) and total + plan.lengths[stop] <= chunk_samples:
+        while stop < bound and total + plan.lengths[stop] <= chunk_samples:
             total += int(plan.lengths[stop])
             stop += 1
         first = int(plan.starts[k])
@@ -354,7 +381,7 @@ def simulate_sweep(config: RuntimeConfig, plan: SweepPlan, *,
             groups_of = {m: np.flatnonzero(plan.lengths[k:stop] == m)
                          for m in np.unique(plan.lengths[k:stop]).tolist()}
             for m, local in groups_of.items():
-                r, groups, phi_m = lay(m)
+                r, groups, phi_m = maps.segment(m)
                 phi_g, ctrb_g = maps.group(r)
                 cond = plan.condition[k + local]
                 u = _segment_forces(force, plan.starts[k + local] - first, m)
@@ -369,13 +396,52 @@ def simulate_sweep(config: RuntimeConfig, plan: SweepPlan, *,
             for i in range(n):
                 x0[i] = x
                 x = phi_seg[i] @ x + x_free_end[i]
+            if first < first_sample:  # before the span: only the state carries on
+                k = stop
+                continue
             for m, local in groups_of.items():
-                r, groups, _ = lay(m)
+                r, groups, _ = maps.segment(m)
                 _outputs(maps, (r, groups), plan.condition[k + local], x0[local],
                          _segment_forces(force, plan.starts[k + local] - first, m),
                          plan.starts[k + local] - first, out, channels)
         yield SweepChunk(first_index=first, force=force, outputs=out, channels=channels)
         k = stop
+
+
+def split_sweep(plan: SweepPlan, parts: int, *, align: int = 1,
+                weights=None) -> list[tuple[int, int]]:
+    """Cut the flight into at most ``parts`` consecutive spans for :func:`simulate_sweep`.
+
+    Every cut is a segment start that is a multiple of ``align`` (e.g. the message block
+    size, so that no block straddles two spans), placed nearest to where the ``weights``
+    (relative sizes, default equal) put it. Fewer spans come back when there are fewer
+    usable cuts; empty spans are dropped.
+    """
+    if isinstance(parts, bool) or not isinstance(parts, (int, np.integer)) or parts < 1:
+        raise ValueError(f"parts must be a positive integer, got {parts!r}")
+    w = np.ones(parts) if weights is None else np.asarray(weights, dtype=float)
+    if w.shape != (parts,) or not np.all(np.isfinite(w)) or np.any(w <= 0):
+        raise ValueError(f"weights must be {parts} finite values > 0, got {weights!r}")
+    cuts = plan.starts[(plan.starts > 0) & (plan.starts % align == 0)]
+    bounds = [0]
+    if cuts.size:
+        for target in (np.cumsum(w)[:-1] / w.sum() * plan.n_samples).tolist():
+            cut = int(cuts[np.argmin(np.abs(cuts - target))])
+            if cut > bounds[-1]:
+                bounds.append(cut)
+    bounds.append(plan.n_samples)
+    return [(a, b) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
+
+
+def _span(plan: SweepPlan, span) -> tuple[int, int]:
+    if span is None:
+        return 0, plan.n_samples
+    first, end = (int(v) for v in span)
+    valid = set(plan.starts.tolist()) | {plan.n_samples}
+    if first not in valid or end not in valid or not first < end:
+        raise ValueError(f"span {tuple(span)} must be two segment starts (or n_samples = "
+                         f"{plan.n_samples}) with first < end")
+    return first, end
 
 
 def _channels(outputs) -> tuple[int, ...]:
@@ -388,7 +454,7 @@ def _channels(outputs) -> tuple[int, ...]:
     return tuple(OUTPUTS.index(o) for o in outputs)
 
 
-def _outputs(maps: _Maps, layout: tuple[int, int], cond: np.ndarray, x0: np.ndarray,
+def _outputs(maps: SweepMaps, layout: tuple[int, int], cond: np.ndarray, x0: np.ndarray,
              u: np.ndarray, offsets: np.ndarray, out: np.ndarray,
              channels: tuple[int, ...]) -> None:
     """Output ``channels`` of segments of one length into ``out`` (m, T) at ``offsets``.
