@@ -90,9 +90,9 @@ __all__ = [
     "HARDWARE_ID",
     "BatchRecorder",
     "RecordedFlight",
+    "close_split_bag",
     "flight_topics",
     "record_flight_blocks",
-    "close_split_bag",
     "record_runtime",
 ]
 
