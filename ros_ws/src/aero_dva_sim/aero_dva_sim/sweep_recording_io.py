@@ -130,7 +130,8 @@ def record_sweep(bag_dir, runtime, progress: Callable[[int, int], None] | None =
         Processes (see the module docstring; :func:`default_jobs` picks one per core). 1
         writes a one-file bag; more write a split bag of up to ``jobs`` files (fewer when
         the flight has fewer dwells), with the same messages. Needs the "fork" start method
-        (Linux); elsewhere 1 is used.
+        (Linux; elsewhere 1 is used), and forks the calling process: call it where no other
+        thread holds a lock the processes need (the CLI runs no other thread).
     **options
         ``namespace``, ``compression``, ``chunk_size``, ``ros_distro``, ``engine``,
         ``chunk_crc`` of :class:`~aero_dva_sim.batch_recording_io.BatchRecorder`
