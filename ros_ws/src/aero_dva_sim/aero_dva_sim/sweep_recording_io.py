@@ -324,8 +324,7 @@ def _record_split(bag_dir, sweep: _Sweep, spans: list[tuple[int, int]],
         done, diverged_at = _fly_span(sweep, recorder, spans[-1], mine)
         for j, (process, receive) in enumerate(children):
             parts.append(_wait(j, process, receive, advance))
-        cut = next((j for j, p in enumerate(parts) if p.diverged_at is not None), None)
-        if cut is None:  # every span was flown: the flight's status goes last
+        if all(p.diverged_at is None for p in parts):  # the flight's status goes last
             _write_status(sweep, recorder, done, diverged_at)
         own = recorder.close()
     except BaseException as exc:
@@ -342,22 +341,28 @@ def _record_split(bag_dir, sweep: _Sweep, spans: list[tuple[int, int]],
             process.join()
         if recorder is not None:
             own = recorder.close()  # idempotent; without the final status
-        # The files closed in order from the first make the bag (a prefix of the flight);
-        # the files after a missing one are dropped.
-        closed = [p.summary for p in parts]
-        if len(parts) == len(children) and own is not None:
-            closed.append(own)
-        _drop(directory, names[len(closed):])
-        if closed:
-            close_split_bag(directory, closed, options.get("ros_distro"))
+        kept, _ = _prefix(parts, own if len(parts) == len(children) else None)
+        _drop(directory, names[len(kept):])
+        if kept:
+            close_split_bag(directory, kept, options.get("ros_distro"))
         raise
-    if cut is not None:  # the wing diverged in span `cut`: the flight stopped there
-        _drop(directory, names[cut + 1:])
-        kept = [p.summary for p in parts[:cut + 1]]
-        return close_split_bag(directory, kept, options.get("ros_distro")), \
-            parts[cut].done, parts[cut].diverged_at
-    kept = [p.summary for p in parts] + [own]
-    return close_split_bag(directory, kept, options.get("ros_distro")), done, diverged_at
+    kept, diverged = _prefix(parts, own)
+    _drop(directory, names[len(kept):])
+    bag = close_split_bag(directory, kept, options.get("ros_distro"))
+    if diverged is not None:  # the wing diverged in an earlier span: the flight stopped there
+        return bag, diverged.done, diverged.diverged_at
+    return bag, done, diverged_at
+
+
+def _prefix(parts: list[_Part], own: BagSummary | None
+            ) -> tuple[list[BagSummary], _Part | None]:
+    """The files that make the bag, in order from the first, and the span where the wing
+    diverged (None: none did). The bag is a prefix of the flight: it ends at a missing file
+    (``own`` None) or after the span that diverged."""
+    for j, part in enumerate(parts):
+        if part.diverged_at is not None:
+            return [p.summary for p in parts[:j + 1]], part
+    return [p.summary for p in parts] + ([own] if own is not None else []), None
 
 
 def _fly_part(send, sweep: _Sweep, span, directory: Path, name: str, counter,
