@@ -343,8 +343,8 @@ def simulate_sweep(config: RuntimeConfig, plan: SweepPlan, *,
     (:func:`split_sweep`; ``end`` may be ``n_samples``), so that processes can share a
     flight. The segments before ``first`` are still scanned (force and end states, no
     outputs: about a third of the cost of simulating them) because their state and the force
-    stream carry on; the yielded samples are the same bits as those of the whole flight. ``maps``: the
-    plan's :func:`sweep_maps`, if already built.
+    stream carry on; the yielded samples are the same bits as those of the whole flight.
+    ``maps``: the plan's :func:`sweep_maps`, if already built.
     """
     channels = _channels(outputs)
     first_sample, end_sample = _span(plan, span)
