@@ -3,10 +3,10 @@
 Writes the simulator's six messages per block (/clock, acceleration, displacement, excitation,
 flight condition, damper state; 1 kHz, 50-sample blocks) in the same run through
 
-1. ``dict``: :class:`~aero_dva_sim.mcap_io.BagWriter` with message dicts (mcap-ros2-support's
+1. ``dict``: :class:`~aero_dva.bag.mcap_io.BagWriter` with message dicts (mcap-ros2-support's
    pure-Python CDR encoder), the baseline;
-2. ``bagwriter``: :mod:`aero_dva_sim.cdr_encoding` bytes, one ``BagWriter.write`` per message;
-3. ``numpy``: :class:`~aero_dva_sim.batch_recording_io.BatchRecorder` (block runs encoded and
+2. ``bagwriter``: :mod:`aero_dva.bag.cdr_encoding` bytes, one ``BagWriter.write`` per message;
+3. ``numpy``: :class:`~aero_dva.bag.batch_recording_io.BatchRecorder` (block runs encoded and
    chunked with numpy, the batch path's default),
 4. ``samples``: :meth:`BatchRecorder.write_samples` with the same samples as whole arrays (no
    FlightBlock objects; what ``record_sweep`` writes), and ``samples-nocrc`` without chunk
@@ -32,10 +32,10 @@ from pathlib import Path
 
 import numpy as np
 
-from aero_dva_sim.batch_recording_io import BatchRecorder
-from aero_dva_sim.damper import DamperSnapshot, DamperStatus
-from aero_dva_sim.flight_runtime import FlightBlock
-from aero_dva_sim.mcap_io import BagWriter, qos_profile_yaml
+from aero_dva.bag.batch_recording_io import BatchRecorder
+from aero_dva.bag.mcap_io import BagWriter, qos_profile_yaml
+from aero_dva.flight.damper import DamperSnapshot, DamperStatus
+from aero_dva.flight.scenario_flight import FlightBlock
 
 RATE = 1000.0
 N = 50
@@ -199,11 +199,11 @@ def main() -> None:
           f"({'measured' if count >= sweep * RATE / N else 'extrapolated'})")
 
     if args.simulation:
-        from aero_dva_sim import paths
-        from aero_dva_sim.flight_runtime import FlightRuntime, load_runtime_config
+        from aero_dva import data_files
+        from aero_dva.flight.scenario_flight import FlightRuntime, load_runtime_config
 
         runtime = FlightRuntime(load_runtime_config(
-            {"scenario": paths.config_file("scenario_sweep.yaml")}))
+            {"scenario": data_files.data_file("scenario_sweep.yaml")}))
         steps = 200
         t = time.perf_counter()
         for _ in range(steps):

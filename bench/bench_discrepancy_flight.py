@@ -28,8 +28,8 @@ from dva_offline.discrepancy.flight_synthetic import (
 
 
 def main(argv) -> int:
-    from aero_dva_sim.flight_log_io import load_flight_log
-    from aero_dva_sim.wing_io import load_wing
+    from aero_dva.bag.flight_log_io import load_flight_log
+    from aero_dva.wing.wing_io import load_wing
 
     n = int(argv[1]) if len(argv) > 1 else 10
     first = int(argv[2]) if len(argv) > 2 else 0

@@ -8,7 +8,7 @@ Measures, in one run:
 - baseline: the flight engine alone (FlightRuntime stepping blocks, no ROS, no publishing);
 - the graph: simulator, airspeed_controller and mcap_recorder as separate processes over DDS
   (run_flight with --real-time-factor 0, i.e. as fast as the graph goes), once with the nodes on
-  rclpy's default executor and once on the events executor they use (aero_dva_sim.ros_executor);
+  rclpy's default executor and once on the events executor they use (dva_ros_common.node_tools);
 and prints real-time factors, their ratios, the CPU seconds the node processes used (robust to
 other load on the machine, unlike wall time), message rates (from the recorded bag), and the
 sim-time latency from a flight-condition sample to the damper command derived from it taking
@@ -25,15 +25,15 @@ from pathlib import Path
 
 import numpy as np
 
-from aero_dva_sim.dva_design import best_damping_curve
-from aero_dva_sim.flight_runner import main as run_flight
-from aero_dva_sim.flight_runtime import FlightRuntime, load_runtime_config
-from aero_dva_sim.mcap_io import bag_topics
-from aero_dva_sim.ros_executor import ENV_VAR
-from aero_dva_sim.wing_io import load_wing
-from aero_dva_sim.wing_model import AeroelasticModel
-from dva_controller.airspeed_schedule import fit_airspeed_schedule
-from dva_controller.schedule_io import save_schedule
+from aero_dva.bag.mcap_io import bag_topics
+from aero_dva.control.airspeed_schedule import fit_airspeed_schedule
+from aero_dva.control.dva_design import best_damping_curve
+from aero_dva.control.schedule_io import save_schedule
+from aero_dva.flight.scenario_flight import FlightRuntime, load_runtime_config
+from aero_dva.wing.model import AeroelasticModel
+from aero_dva.wing.wing_io import load_wing
+from aero_dva_sim.run_flight import main as run_flight
+from dva_ros_common.node_tools import ENV_VAR
 
 
 def baseline_engine() -> tuple[float, float]:
@@ -69,7 +69,7 @@ def fly_graph(root: Path, name: str, schedule: Path, executor: str) -> dict | No
     if code != 0:
         print(f"run_flight ({executor}) failed")
         return None
-    from aero_dva_sim.flight_log_io import load_flight_log
+    from aero_dva.bag.flight_log_io import load_flight_log
 
     final = load_flight_log(bag).diagnostics[-1]["values"]
     cpu = (cpu_after.ru_utime - cpu_before.ru_utime) + (cpu_after.ru_stime - cpu_before.ru_stime)

@@ -2,11 +2,11 @@
 
 In the same run:
 
-- exact route: :func:`aero_dva_sim.optimal_damping.optimal_damping` on 200 airspeeds
+- exact route: :func:`aero_dva.control.optimal_damping.optimal_damping` on 200 airspeeds
   (0.8 .. 1.2 U_cr) x 100 values of c2 (0 .. 2500 N s/m), leading-edge objective, sampled
   system at 1 kHz with 1 kN per sample; wall time (median of repeats) with and without the
   ``minimize_scalar`` refinement (target: under 2 s);
-- simulated route (the seed's): :func:`aero_dva_sim.optimal_damping.simulated_rms` on a small
+- simulated route (the seed's): :func:`aero_dva.control.optimal_damping.simulated_rms` on a small
   subset of (airspeed, c2) pairs, each flown at constant condition, settled, then ``--duration``
   seconds kept; wall time per pair, the speed-up of the exact route per pair, the agreement
   in standard errors, and the simulated time a 1 % standard error would need.
@@ -21,11 +21,11 @@ import time
 
 import numpy as np
 
-from aero_dva_sim.dva_design import bare_critical_airspeed
-from aero_dva_sim.optimal_damping import optimal_damping, simulated_rms
-from aero_dva_sim.stationary_rms import stationary_rms
-from aero_dva_sim.wing_io import load_wing
-from aero_dva_sim.wing_model import AeroelasticModel
+from aero_dva.control.dva_design import bare_critical_airspeed
+from aero_dva.control.optimal_damping import optimal_damping, simulated_rms
+from aero_dva.control.stationary_rms import stationary_rms
+from aero_dva.wing.model import AeroelasticModel
+from aero_dva.wing.wing_io import load_wing
 
 
 def timed(fn, repeats, *args, **kwargs):

@@ -7,10 +7,10 @@ the stable airspeeds of the c2 list 200..770 N s/m, 4 s dwells: 122 x 20 x 4 s =
 1. ``stepped``: :meth:`FlightRuntime.step` (50-sample blocks, what the simulator node runs),
    nothing written, over the first ``--stepped-airspeeds`` airspeeds (the baseline; its rate
    is per sample, so it extrapolates);
-2. ``parallel sim``: :mod:`aero_dva_sim.sweep_batch` (the whole sweep parallel in time),
+2. ``parallel sim``: :mod:`aero_dva.flight.sweep` (the whole sweep parallel in time),
    nothing written: the simulation alone, all 7 output channels, and the 4 a measured-only
    recording needs (3 accelerations + the leading edge for the divergence test);
-3. ``record``: :func:`~aero_dva_sim.sweep_recording_io.record_sweep` into a rosbag2 MCAP bag
+3. ``record``: :func:`~aero_dva.bag.sweep_recording_io.record_sweep` into a rosbag2 MCAP bag
    in ``--dir`` (chunk CRCs on, fsynced on close): as ``dva train sweep`` runs it (every
    topic, one process per core, each simulating and writing its span into its own file of a
    split bag), in one process (encoding, CRCs and writing on a second thread while the main
@@ -46,19 +46,20 @@ from pathlib import Path
 
 import numpy as np
 
-from aero_dva_sim import paths, sweep_batch
-from aero_dva_sim.flight_runtime import FlightRuntime, load_runtime_config
-from aero_dva_sim.flutter import growth_rate
-from aero_dva_sim.scenario import AirspeedProfile, sweep_duration
-from aero_dva_sim.sweep_recording_io import default_jobs, record_sweep
-from aero_dva_sim.wing_model import AeroelasticModel
+from aero_dva import data_files
+from aero_dva.bag.sweep_recording_io import default_jobs, record_sweep
+from aero_dva.flight import sweep as sweep_batch
+from aero_dva.flight.scenario import AirspeedProfile, sweep_duration
+from aero_dva.flight.scenario_flight import FlightRuntime, load_runtime_config
+from aero_dva.wing.flutter import growth_rate
+from aero_dva.wing.model import AeroelasticModel
 from dva_offline.training import adapt_sweep
 
 TARGET = 1e4  # the issue: >= 10^4 x real time in aggregate
 
 
 def sweep_config(as_is: bool, airspeeds: int | None):
-    config = load_runtime_config({"scenario": str(paths.config_file("scenario_sweep.yaml"))})
+    config = load_runtime_config({"scenario": str(data_files.data_file("scenario_sweep.yaml"))})
     if not as_is:
         u_cr = FlightRuntime(config).critical_airspeed
         model = AeroelasticModel(config.wing, config.absorber, config.aero)

@@ -12,10 +12,10 @@ import time
 
 import numpy as np
 
-from aero_dva_sim.aerodynamics import TheodorsenAero
-from aero_dva_sim.flutter import flutter_speed
-from aero_dva_sim.wing_io import load_wing
-from aero_dva_sim.wing_model import AeroelasticModel
+from aero_dva.wing.aerodynamics import TheodorsenAero
+from aero_dva.wing.flutter import flutter_speed
+from aero_dva.wing.model import AeroelasticModel
+from aero_dva.wing.wing_io import load_wing
 
 
 def best(fn, repeats=20):

@@ -22,10 +22,10 @@ import time
 import numpy as np
 from scipy.signal import cont2discrete, dlsim
 
-from aero_dva_sim.flight_sim import BlockSimulator, ramp_airspeed, simulate_flights
-from aero_dva_sim.flutter import flutter_speed
-from aero_dva_sim.wing_io import load_wing
-from aero_dva_sim.wing_model import AeroelasticModel
+from aero_dva.flight.block_simulator import BlockSimulator, ramp_airspeed, simulate_flights
+from aero_dva.wing.flutter import flutter_speed
+from aero_dva.wing.model import AeroelasticModel
+from aero_dva.wing.wing_io import load_wing
 
 CLOCK = {"wall": time.perf_counter, "cpu": time.process_time}
 clock = CLOCK["wall"]

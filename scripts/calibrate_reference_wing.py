@@ -24,7 +24,7 @@ import sys
 import time
 from pathlib import Path
 
-from aero_dva_sim.wing_io import WingConfig, load_wing, save_wing
+from aero_dva.wing.wing_io import WingConfig, load_wing, save_wing
 from dva_offline import wing_calibration as wc
 
 

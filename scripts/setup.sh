@@ -57,7 +57,7 @@ for tool in cmake g++ make; do
 done
 
 # ---------------------------------------------------------------- 1. virtual environment
-venv_stamp="$MODE:$(hash_of "$SCRIPTS/requirements-python.txt" "$SCRIPTS/requirements-ros-jazzy-wheels.txt" "$REPO/offline/pyproject.toml" "$SCRIPTS/setup.sh")"
+venv_stamp="$MODE:$(hash_of "$SCRIPTS/requirements-python.txt" "$SCRIPTS/requirements-ros-jazzy-wheels.txt" "$REPO/aero_dva/pyproject.toml" "$REPO/offline/pyproject.toml" "$SCRIPTS/setup.sh")"
 if [[ -f "$VENV/.dva-venv-stamp" && "$(cat "$VENV/.dva-venv-stamp")" == "$venv_stamp" ]]; then
   say "virtual environment up to date ($VENV)"
 else
@@ -78,9 +78,10 @@ else
   fi
   say "installing Python packages"
   "${pip[@]}" install -r "$SCRIPTS/requirements-python.txt"
-  # setuptools warns loudly about editable installs; keep its output unless the install fails.
-  "${pip[@]}" install --no-deps -e "$REPO/offline" > "$VENV/offline-install.log" 2>&1 \
-    || { cat "$VENV/offline-install.log" >&2; die "installing offline/ failed (output above)"; }
+  # The domain package and the CLI, editable (their dependencies are pinned above). setuptools
+  # warns loudly about editable installs; keep its output unless the install fails.
+  "${pip[@]}" install --no-deps -e "$REPO/aero_dva" -e "$REPO/offline" > "$VENV/editable-install.log" 2>&1 \
+    || { cat "$VENV/editable-install.log" >&2; die "installing aero_dva/ and offline/ failed (output above)"; }
   echo "$venv_stamp" > "$VENV/.dva-venv-stamp"
   say "virtual environment ready in $((SECONDS - start)) s"
 fi
@@ -102,9 +103,9 @@ if [[ "$MODE" == wheels ]]; then
   sed -i "1s|.*|#!$VPY|" "$VENV/bin/ros2"
 fi
 
-# Pure-Python model code of the ROS packages is importable from the venv without sourcing
-# (the offline tools use it); the colcon install below serves `ros2 run` and the nodes.
-printf '%s\n' "$WS/src/aero_dva_sim" "$WS/src/dva_controller" > "$SITE/dva_workspace_sources.pth"
+# Earlier layouts put the ROS packages' sources on the venv's path; the domain package is a
+# declared, installed dependency now.
+rm -f "$SITE/dva_workspace_sources.pth"
 
 # ---------------------------------------------------------------- 2. colcon build of ros_ws
 # Only files that change what colcon installs count (Python sources are symlinked).
@@ -127,6 +128,8 @@ else
     colcon_args=(build --symlink-install --event-handlers console_cohesion- summary+
       --cmake-args -DPython3_EXECUTABLE="$VPY" -DBUILD_TESTING=OFF)
     mkdir -p "$WS/log"
+    # A file moved away in the sources leaves a dangling link in a symlink-install build.
+    [[ -d "$WS/build" ]] && find "$WS/build" -xtype l -delete
     if ! "$VPY" -m colcon "${colcon_args[@]}" > "$WS/log/colcon-build.txt" 2>&1; then
       tail -n 40 "$WS/log/colcon-build.txt" >&2
       die "colcon build failed; the full output is in $WS/log/colcon-build.txt"

@@ -158,11 +158,11 @@ def _finite_list(values):
 
 def _setup(args):
     """Model, density, critical airspeed, airspeed grid and c2 grid from the arguments."""
-    from aero_dva_sim.absorbers import MaxwellAbsorber
-    from aero_dva_sim.aerodynamics import TheodorsenAero
-    from aero_dva_sim.dva_design import bare_critical_airspeed
-    from aero_dva_sim.wing_io import load_wing
-    from aero_dva_sim.wing_model import AeroelasticModel
+    from aero_dva.control.dva_design import bare_critical_airspeed
+    from aero_dva.wing.absorbers import MaxwellAbsorber
+    from aero_dva.wing.aerodynamics import TheodorsenAero
+    from aero_dva.wing.model import AeroelasticModel
+    from aero_dva.wing.wing_io import load_wing
 
     cfg = load_wing(args.wing)
     if not isinstance(cfg.absorber, MaxwellAbsorber):
@@ -194,7 +194,7 @@ def _setup(args):
 def _solve(args, model, rho, speeds, grid):
     from tqdm import tqdm
 
-    from aero_dva_sim.optimal_damping import optimal_damping
+    from aero_dva.control.optimal_damping import optimal_damping
 
     bar = tqdm(total=speeds.size, desc="exact RMS", unit="airspeed", file=sys.stderr,
                leave=False)
@@ -260,7 +260,7 @@ def _curve_ratios(text: str) -> list[float]:
 def _simulation_check(args, model, rho, res, u_cr) -> dict:
     from tqdm import tqdm
 
-    from aero_dva_sim.optimal_damping import simulated_rms
+    from aero_dva.control.optimal_damping import simulated_rms
 
     if args.flights < 1 or not args.sim_duration > 0:
         raise ValueError("--flights must be >= 1 and --sim-duration > 0")
@@ -297,7 +297,7 @@ def _simulation_check(args, model, rho, res, u_cr) -> dict:
 
 
 def _optimal_c2(args) -> int:
-    from aero_dva_sim.optimal_damping import RMS_OUTPUTS, optimal_damping
+    from aero_dva.control.optimal_damping import RMS_OUTPUTS, optimal_damping
 
     model, rho, u_cr, speeds, grid = _setup(args)
     curves = _curve_ratios(args.curves)
@@ -405,8 +405,8 @@ def _fit_range(args, res, u_cr):
 
 
 def _schedule(args) -> int:
-    from dva_controller.airspeed_schedule import fit_airspeed_schedule
-    from dva_controller.schedule_io import load_schedule, save_schedule
+    from aero_dva.control.airspeed_schedule import fit_airspeed_schedule
+    from aero_dva.control.schedule_io import load_schedule, save_schedule
 
     model, rho, u_cr, speeds, grid = _setup(args)
     if args.damping_range is not None:

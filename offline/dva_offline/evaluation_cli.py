@@ -143,9 +143,9 @@ def _save(path, payload):
 def _best_fixed() -> dict:
     import numpy as np
 
-    from aero_dva_sim.flutter import NoFlutterError, flutter_speed
-    from aero_dva_sim.wing_io import load_wing
-    from aero_dva_sim.wing_model import AeroelasticModel
+    from aero_dva.wing.flutter import NoFlutterError, flutter_speed
+    from aero_dva.wing.model import AeroelasticModel
+    from aero_dva.wing.wing_io import load_wing
     from dva_offline.evaluation import best_fixed_damping
 
     cfg = load_wing(None)
@@ -168,7 +168,7 @@ def _best_fixed() -> dict:
 
 
 def _flight_argv(case, scenario: Path, bag: Path, made: dict, args) -> list[str]:
-    from aero_dva_sim.flight_runner import executable
+    from aero_dva_sim.run_flight import executable
 
     try:
         exe = executable("aero_dva_sim", "run_flight")
@@ -191,7 +191,7 @@ def _sliding_divergence(bag: Path, u_cr) -> dict:
     """U_div / U_cr from the bag with 1 s windows sliding by 0.05 s (evaluation.py says why)."""
     import numpy as np
 
-    from aero_dva_sim.flight_log_io import load_flight_log
+    from aero_dva.bag.flight_log_io import load_flight_log
     from dva_offline.evaluation import divergence_airspeed_sliding
 
     log = load_flight_log(bag)
@@ -238,7 +238,7 @@ def _fly(case, scenario: Path, out: Path, made: dict, args) -> dict:
 def _evaluate(args) -> int:
     from tqdm import tqdm
 
-    from aero_dva_sim import paths
+    from aero_dva import data_files
     from dva_offline.evaluation import (
         aggregate,
         case_grid,
@@ -267,7 +267,7 @@ def _evaluate(args) -> int:
     mus = parse_mu_list(args.mu)
     seeds = list(range(args.first_seed, args.first_seed + args.seeds))
     scenario_path = Path(args.scenario) if args.scenario else \
-        paths.config_file("scenario_ramp.yaml")
+        data_files.data_file("scenario_ramp.yaml")
     base = load_base_scenario(scenario_path)
     stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
     out = Path(args.out or f"runs/evaluation_{stamp}").resolve()
@@ -341,7 +341,7 @@ def _evaluate(args) -> int:
 
 def _outputs(out, args, mus, controllers, seeds, records, stats, key, table, made, log) -> dict:
     """results.md, plots, per-run reports; returns the files written."""
-    from aero_dva_sim.flight_log_io import load_flight_log
+    from aero_dva.bag.flight_log_io import load_flight_log
     from dva_offline.evaluation import CONTROLLER_LABELS
     from dva_offline.evaluation_io import plot_summary, plot_traces
     from dva_offline.run_report_io import write_report

@@ -20,8 +20,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from aero_dva_sim.scenario_io import scenario_from_dict
-from dva_controller.atomic_io import atomic_output
+from aero_dva.atomic_io import atomic_output
+from aero_dva.flight.scenario_io import scenario_from_dict
 from dva_offline.evaluation import CONTROLLER_LABELS, CONTROLLERS, CaseStats, FlightCase
 
 __all__ = ["flight_bag", "flight_record_path", "load_base_scenario", "load_records",

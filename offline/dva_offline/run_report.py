@@ -13,8 +13,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from aero_dva_sim.flight_log_io import FlightLog
-from aero_dva_sim.flight_summary import FlightSummary, summarize
+from aero_dva.bag.flight_log_io import FlightLog
+from aero_dva.bag.flight_summary import FlightSummary, summarize
 from dva_offline.evaluation import divergence_airspeed_sliding
 
 __all__ = ["RunData", "RunReport", "SpectrumTrack", "build_report", "report_markdown"]

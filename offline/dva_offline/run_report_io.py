@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from aero_dva_sim.flight_log_io import load_flight_log
-from aero_dva_sim.mcap_io import bag_topics, read_messages
+from aero_dva.bag.flight_log_io import load_flight_log
+from aero_dva.bag.mcap_io import bag_topics, read_messages
 from dva_offline.run_report import RunData, SpectrumTrack, build_report, report_markdown
 
 __all__ = ["ReportFiles", "inspect_rrd", "load_run", "write_plots", "write_report", "write_rrd"]

@@ -133,15 +133,15 @@ def _sweep(args) -> int:
 
     from tqdm import tqdm
 
-    from aero_dva_sim import paths
-    from aero_dva_sim.flight_runtime import FlightRuntime, load_runtime_config
-    from aero_dva_sim.flutter import flutter_speed, growth_rate
-    from aero_dva_sim.sweep_recording_io import default_jobs, record_sweep
-    from aero_dva_sim.wing_model import AeroelasticModel
+    from aero_dva import data_files
+    from aero_dva.bag.sweep_recording_io import default_jobs, record_sweep
+    from aero_dva.flight.scenario_flight import FlightRuntime, load_runtime_config
+    from aero_dva.wing.flutter import flutter_speed, growth_rate
+    from aero_dva.wing.model import AeroelasticModel
     from dva_offline.training import adapt_sweep
 
     scenario_path = Path(args.scenario) if args.scenario else \
-        paths.config_file("scenario_sweep.yaml")
+        data_files.data_file("scenario_sweep.yaml")
     config = load_runtime_config({"scenario": str(scenario_path)})
     if config.scenario.airspeed.kind != "steps":
         raise ValueError(f"--scenario {scenario_path}: not a sweep (airspeed kind "
@@ -249,7 +249,7 @@ def load_runtime_config_checked(config):
 # -- rbf --------------------------------------------------------------------------------------
 
 def _check_topics(bag) -> None:
-    from aero_dva_sim.mcap_io import TopicNotFoundError, bag_topics
+    from aero_dva.bag.mcap_io import TopicNotFoundError, bag_topics
 
     present = bag_topics(bag)
     for topic, what in TOPICS.items():
@@ -273,8 +273,8 @@ def _critical_airspeed(log) -> float | None:
 
 
 def _rbf(args) -> int:
-    from aero_dva_sim.flight_log_io import load_flight_log
-    from dva_controller.rbf_io import save_rbf_network
+    from aero_dva.bag.flight_log_io import load_flight_log
+    from aero_dva.control.rbf_io import save_rbf_network
     from dva_offline.training import (
         DEFAULT_SPREADS,
         build_dataset,

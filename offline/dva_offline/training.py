@@ -6,7 +6,7 @@ damper c2 are applied in turn; each (U, c2) pair gives a 2 s window at 1 kHz of 
 the network's 33 inputs. The output (label) of every window of an airspeed is the c2 that gave
 the lowest *measured* RMS at that airspeed: model-free, read from the log alone.
 
-Steps (all pure numerics on arrays of a :class:`~aero_dva_sim.flight_log_io.FlightLog`):
+Steps (all pure numerics on arrays of a :class:`~aero_dva.bag.flight_log_io.FlightLog`):
 
 1. :func:`find_dwells` cuts the log where the recorded applied c2 or the airspeed changes;
 2. :func:`build_dataset` takes the last ``window`` seconds of each dwell (the wing carries its
@@ -30,8 +30,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from aero_dva_sim.scenario import AirspeedProfile, Scenario, sweep_duration
-from dva_controller.rbf_network import (
+from aero_dva.control.rbf_network import (
     SPECTRUM_INPUT_DIM,
     OLSTrainingResult,
     fit_input_scaling,
@@ -39,7 +38,8 @@ from dva_controller.rbf_network import (
     spectrum_input_names,
     spectrum_input_vector,
 )
-from dva_controller.spectrum import DEFAULT_FREQUENCIES, scaled_spectrum
+from aero_dva.control.spectrum import DEFAULT_FREQUENCIES, scaled_spectrum
+from aero_dva.flight.scenario import AirspeedProfile, Scenario, sweep_duration
 
 __all__ = [
     "ACCELERATION_CHANNELS",
@@ -118,7 +118,7 @@ def adapt_sweep(scenario: Scenario, critical_airspeed: float,
     growth_rate : callable
         ``growth_rate(airspeeds_m_s, c2) -> ndarray`` [1/s], the largest real part of the
         wing's eigenvalues at each airspeed for one c2 (e.g.
-        :func:`aero_dva_sim.flutter.growth_rate` of the model).
+        :func:`aero_dva.wing.flutter.growth_rate` of the model).
     damping : sequence of float, optional
         [N s/m] c2 values to apply at each airspeed; default the scenario's.
     min_decay : float
@@ -240,7 +240,7 @@ class TrainingData:
     skipped : dict
         Dwells not used, by reason ("short", "gap", "no_airspeed").
     input_names, input_units : tuple of str
-        As :func:`dva_controller.rbf_network.spectrum_input_names`.
+        As :func:`aero_dva.control.rbf_network.spectrum_input_names`.
     """
 
     inputs: np.ndarray
@@ -265,7 +265,7 @@ def build_dataset(log, window: float = 2.0, channels: Sequence[str] = CHANNELS,
     Parameters
     ----------
     log : FlightLog
-        :func:`aero_dva_sim.flight_log_io.load_flight_log` of the sweep's bag.
+        :func:`aero_dva.bag.flight_log_io.load_flight_log` of the sweep's bag.
     window : float
         [s] window length; the last ``window`` seconds of each dwell are used.
     channels : sequence of str

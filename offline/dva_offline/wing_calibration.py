@@ -36,11 +36,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import brentq, minimize
 
-from aero_dva_sim import dva_design as dd
-from aero_dva_sim.absorbers import MaxwellAbsorber, PassiveAbsorber
-from aero_dva_sim.aerodynamics import QuasiSteadyAero
-from aero_dva_sim.flutter import flutter_speed
-from aero_dva_sim.wing_model import AeroelasticModel, WingParameters
+from aero_dva.control import dva_design as dd
+from aero_dva.wing.absorbers import MaxwellAbsorber, PassiveAbsorber
+from aero_dva.wing.aerodynamics import QuasiSteadyAero
+from aero_dva.wing.flutter import flutter_speed
+from aero_dva.wing.model import AeroelasticModel, WingParameters
 
 __all__ = [
     "BOUNDS",
@@ -286,7 +286,7 @@ def seed_ratios(wing: WingParameters, aero=None, density: float = AIR_DENSITY,
     0.5-2 U_cr, ``xtol = 1e-7``, ``optimise_passive``); ``fast=True`` brackets on 5 points
     over 0.95-1.6 U_cr (every seed ratio lies there) with a coarser passive optimiser
     (:func:`_best_passive`), about 4 times faster and within ~1e-4 of the exact ratios on the
-    reference wing (``tests/unit/test_wing_calibration.py``).
+    reference wing (``tests/unit/dva_offline/test_wing_calibration.py``).
     """
     aero = QuasiSteadyAero() if aero is None else aero
     u_cr = flutter_speed(AeroelasticModel(wing, None, aero), density).critical_airspeed

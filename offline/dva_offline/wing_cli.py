@@ -108,9 +108,9 @@ def _help(parser) -> int:
 
 def _setup(args, allow_section=True):
     """(wing, absorber, aero, density, source) from the arguments."""
-    from aero_dva_sim.aerodynamics import QuasiSteadyAero, aero_from_name
-    from aero_dva_sim.typical_section import section_to_wing
-    from aero_dva_sim.wing_io import load_section, load_wing
+    from aero_dva.wing.aerodynamics import QuasiSteadyAero, aero_from_name
+    from aero_dva.wing.typical_section import section_to_wing
+    from aero_dva.wing.wing_io import load_section, load_wing
 
     section = getattr(args, "section", None) if allow_section else None
     if section:
@@ -138,7 +138,7 @@ def _setup(args, allow_section=True):
 
 
 def _absorber(args, wing, file_absorber):
-    from aero_dva_sim.absorbers import MaxwellAbsorber, PassiveAbsorber
+    from aero_dva.wing.absorbers import MaxwellAbsorber, PassiveAbsorber
 
     kind = args.absorber
     if kind == "file":
@@ -166,7 +166,7 @@ def _absorber(args, wing, file_absorber):
 
 
 def _absorber_json(absorber):
-    from aero_dva_sim.wing_io import absorber_to_dict
+    from aero_dva.wing.wing_io import absorber_to_dict
 
     return absorber_to_dict(absorber)
 
@@ -197,10 +197,10 @@ def _tune_kwargs(args):
 # -- subcommands ----------------------------------------------------------------------------------
 
 def _flutter(args) -> int:
-    from aero_dva_sim.aerodynamics import TheodorsenAero
-    from aero_dva_sim.dva_design import critical_frequency, tuned_critical_airspeed
-    from aero_dva_sim.flutter import flutter_speed
-    from aero_dva_sim.wing_model import AeroelasticModel
+    from aero_dva.control.dva_design import critical_frequency, tuned_critical_airspeed
+    from aero_dva.wing.aerodynamics import TheodorsenAero
+    from aero_dva.wing.flutter import flutter_speed
+    from aero_dva.wing.model import AeroelasticModel
 
     wing, absorber, aero, rho, source = _setup(args)
     model = AeroelasticModel(wing, absorber, aero)
@@ -230,10 +230,10 @@ def _flutter(args) -> int:
 
 
 def _modal(args) -> int:
-    from aero_dva_sim.dva_design import best_damping_curve
-    from aero_dva_sim.flutter import NoFlutterError, flutter_speed
-    from aero_dva_sim.modal import modal_analysis
-    from aero_dva_sim.wing_model import AeroelasticModel
+    from aero_dva.control.dva_design import best_damping_curve
+    from aero_dva.wing.flutter import NoFlutterError, flutter_speed
+    from aero_dva.wing.modal import modal_analysis
+    from aero_dva.wing.model import AeroelasticModel
 
     wing, absorber, aero, rho, source = _setup(args)
     if aero.name == "theodorsen":
@@ -251,7 +251,7 @@ def _modal(args) -> int:
     if args.tune:
         from tqdm import tqdm
 
-        from aero_dva_sim.absorbers import MaxwellAbsorber
+        from aero_dva.wing.absorbers import MaxwellAbsorber
 
         if not isinstance(absorber, MaxwellAbsorber):
             raise ValueError("modal --tune supports --absorber maxwell (c2 only)")
@@ -281,8 +281,8 @@ def _modal(args) -> int:
 def _design(args) -> int:
     from tqdm import tqdm
 
-    from aero_dva_sim import dva_design as dd
-    from aero_dva_sim.wing_io import load_wing
+    from aero_dva.control import dva_design as dd
+    from aero_dva.wing.wing_io import load_wing
 
     cfg = load_wing(args.wing)
     wing, aero = cfg.wing, cfg.aero
@@ -304,8 +304,8 @@ def _design(args) -> int:
     steps.update()
     steps.close()
     if args.plot:
-        from aero_dva_sim.absorbers import PassiveAbsorber
-        from aero_dva_sim.wing_model import AeroelasticModel
+        from aero_dva.wing.absorbers import PassiveAbsorber
+        from aero_dva.wing.model import AeroelasticModel
         from dva_offline.wing_plots import plot_tuned
 
         model = AeroelasticModel(
@@ -332,11 +332,15 @@ def _rows(results, seed: dict) -> list[dict]:
 
 
 def _simulate(args) -> int:
-    from aero_dva_sim.absorbers import PassiveAbsorber
-    from aero_dva_sim.dva_design import best_damping_curve
-    from aero_dva_sim.flight_sim import divergence_airspeed, ramp_airspeed, simulate_flights
-    from aero_dva_sim.flutter import flutter_speed
-    from aero_dva_sim.wing_model import AeroelasticModel
+    from aero_dva.control.dva_design import best_damping_curve
+    from aero_dva.flight.block_simulator import (
+        divergence_airspeed,
+        ramp_airspeed,
+        simulate_flights,
+    )
+    from aero_dva.wing.absorbers import PassiveAbsorber
+    from aero_dva.wing.flutter import flutter_speed
+    from aero_dva.wing.model import AeroelasticModel
 
     wing, absorber, aero, rho, source = _setup(args, allow_section=False)
     if aero.name == "theodorsen":

@@ -21,7 +21,7 @@ try:
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
 
-    from aero_dva_sim.flight_runner import die_with_parent
+    from aero_dva_sim.run_flight import die_with_parent
 except ImportError as exc:  # pragma: no cover - environment problem, reported clearly
     raise pytest.UsageError(
         f"integration tests need rclpy and the built workspace ({exc}); run ./test.sh, or "

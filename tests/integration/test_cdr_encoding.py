@@ -21,10 +21,10 @@ from rclpy.node import Node
 from rclpy.serialization import deserialize_message, serialize_message
 from rosgraph_msgs.msg import Clock
 
-from aero_dva_sim import cdr_encoding as cdr
+from aero_dva.bag import cdr_encoding as cdr
+from aero_dva.bag.mcap_io import message_definition
+from aero_dva.flight.damper import DamperSnapshot, DamperStatus
 from aero_dva_sim import messages
-from aero_dva_sim.damper import DamperSnapshot, DamperStatus
-from aero_dva_sim.mcap_io import message_definition
 from dva_msgs.msg import (
     AccelerationBlock,
     DamperCommand,
@@ -33,6 +33,7 @@ from dva_msgs.msg import (
     FlightCondition,
     ForceBlock,
 )
+from dva_ros_common import conversions
 
 RNG = np.random.default_rng(5)
 
@@ -86,8 +87,8 @@ def _cases():
                      [("ok", "flight completed", {}), ("warn", "stale", {"a": 1})]):
         ros = messages.diagnostics(29.0, "simulator: flight", "aero_dva_sim", statuses)
         ours = cdr.encode_diagnostic_array(29.0, [
-            (_level(messages.DIAGNOSTIC_LEVELS[level]), "simulator: flight", text,
-             "aero_dva_sim", [(k, messages._text(v)) for k, v in vals.items()])
+            (_level(conversions.LEVELS[level]), "simulator: flight", text,
+             "aero_dva_sim", [(k, conversions._text(v)) for k, v in vals.items()])
             for level, text, vals in statuses])
         cases.append((ros, ours))
     return cases

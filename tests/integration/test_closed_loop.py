@@ -14,20 +14,20 @@ import pytest
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from aero_dva_sim.dva_design import best_damping_curve
-from aero_dva_sim.flight_runtime import FlightRuntime, load_runtime_config
-from aero_dva_sim.flutter import flutter_speed, growth_rate
-from aero_dva_sim.scenario import AirspeedProfile, Scenario
+from aero_dva.control.airspeed_schedule import fit_airspeed_schedule
+from aero_dva.control.dva_design import best_damping_curve
+from aero_dva.control.rbf_io import save_rbf_network
+from aero_dva.control.rbf_network import select_spread, spectrum_input_names, train_rbf_ols
+from aero_dva.control.spectrum import scaled_spectrum
+from aero_dva.flight.scenario import AirspeedProfile, Scenario
+from aero_dva.flight.scenario_flight import FlightRuntime, load_runtime_config
+from aero_dva.wing.flutter import flutter_speed, growth_rate
+from aero_dva.wing.model import AeroelasticModel
+from aero_dva.wing.wing_io import load_wing
 from aero_dva_sim.simulator_node import Simulator
-from aero_dva_sim.wing_io import load_wing
-from aero_dva_sim.wing_model import AeroelasticModel
 from dva_controller.airspeed_controller_node import AirspeedController
-from dva_controller.airspeed_schedule import fit_airspeed_schedule
 from dva_controller.fixed_controller_node import FixedController
 from dva_controller.rbf_controller_node import RBFController
-from dva_controller.rbf_io import save_rbf_network
-from dva_controller.rbf_network import select_spread, spectrum_input_names, train_rbf_ols
-from dva_controller.spectrum import scaled_spectrum
 from dva_controller.spectrum_node import SpectrumNode
 from dva_msgs.msg import (
     AccelerationBlock,

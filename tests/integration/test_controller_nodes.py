@@ -19,17 +19,18 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
 
+from aero_dva.control.airspeed_schedule import AirspeedSchedule
+from aero_dva.control.rbf_io import save_rbf_network
+from aero_dva.control.rbf_network import spectrum_input_names, train_rbf_ols
+from aero_dva.control.schedule_io import save_schedule
+from aero_dva.control.spectrum import scaled_spectrum
 from dva_controller import messages
 from dva_controller.airspeed_controller_node import AirspeedController
-from dva_controller.airspeed_schedule import AirspeedSchedule
 from dva_controller.rbf_controller_node import RBFController
-from dva_controller.rbf_io import save_rbf_network
-from dva_controller.rbf_network import spectrum_input_names, train_rbf_ols
-from dva_controller.schedule_io import save_schedule
-from dva_controller.spectrum import scaled_spectrum
 from dva_controller.spectrum_node import SpectrumNode
 from dva_msgs.msg import AccelerationBlock, DamperCommand, DamperState, FlightCondition
 from dva_msgs.msg import ScaledSpectrum as ScaledSpectrumMsg
+from dva_ros_common import conversions
 
 from .conftest import ros2_run_path
 
@@ -95,7 +96,7 @@ def _signals(n: int) -> np.ndarray:
 
 def _block(samples: np.ndarray, start: int) -> AccelerationBlock:
     chunk = samples[:, start : start + BLOCK]
-    stamp = messages.ns_to_time(T0_NS + round(start * 1e9 / FS))
+    stamp = conversions.ns_to_time(T0_NS + round(start * 1e9 / FS))
     return messages.acceleration_block(stamp, FS, start, *chunk)
 
 
@@ -209,7 +210,7 @@ def test_spectrum_node_rejects_bad_parameters(ros_context):
 
 # ---------------------------------------------------------------------------- airspeed
 def _condition(t_s: float, airspeed: float) -> FlightCondition:
-    return messages.flight_condition(messages.ns_to_time(round(t_s * 1e9)), airspeed)
+    return messages.flight_condition(conversions.ns_to_time(round(t_s * 1e9)), airspeed)
 
 
 def _airspeed_rig(executor, spin, ros_context, **params):
@@ -250,7 +251,7 @@ def test_airspeed_controller_commands_clamped_schedule(executor, spin, ros_conte
     # Even with /clock ahead of the input, a command carries its input's stamp.
     clock = probe.publisher(Clock, "/clock", 10)
     matched(executor, spin, clock)
-    tick = Clock(clock=messages.ns_to_time(50_000_000_000))
+    tick = Clock(clock=conversions.ns_to_time(50_000_000_000))
     assert spin(executor, lambda: clock.publish(tick)
                 or node.get_clock().now().nanoseconds == 50_000_000_000, 5.0)
     conditions.publish(_condition(40.0, 100.0))
@@ -307,7 +308,7 @@ def trained(tmp_path_factory):
 
 def _spectrum_msg(magnitudes: np.ndarray, damping: float, freqs=FREQS) -> ScaledSpectrumMsg:
     msg = ScaledSpectrumMsg()
-    msg.header.stamp = messages.ns_to_time(T0_NS)
+    msg.header.stamp = conversions.ns_to_time(T0_NS)
     msg.frequencies = [float(f) for f in freqs]
     msg.channel_names = ["plunge", "pitch"]
     msg.magnitudes = np.asarray(magnitudes, dtype=float).ravel().tolist()

@@ -9,7 +9,7 @@ import subprocess
 import pytest
 from rclpy.node import Node
 
-from aero_dva_sim.flight_log_io import load_flight_log
+from aero_dva.bag.flight_log_io import load_flight_log
 from dva_msgs.msg import DamperCommand
 
 from .conftest import ros2_run_path

@@ -161,8 +161,8 @@ def _summary_lines(result, baseline_detail: str = "") -> list[str]:
 
 
 def _cmd_flight(args) -> int:
-    from aero_dva_sim.flight_log_io import load_flight_log
-    from aero_dva_sim.wing_io import load_wing
+    from aero_dva.bag.flight_log_io import load_flight_log
+    from aero_dva.wing.wing_io import load_wing
     from dva_offline.discrepancy import engine
     from dva_offline.discrepancy.flight_domain import (
         FlightDomain,

@@ -19,7 +19,7 @@ coherent with the force well above the modes), so the residual w_j (H_model,j - 
 relative error scaled to the median point's noise and a correct model leaves residuals of about
 equal size everywhere (the engine's noise floor and consistency test assume that).
 
-Baseline: :class:`~aero_dva_sim.wing_model.AeroelasticModel` of the wing file (reference wing
+Baseline: :class:`~aero_dva.wing.model.AeroelasticModel` of the wing file (reference wing
 by default) with its Maxwell DVA and aerodynamics, calibrated by three parameters: pitch
 stiffness k_alpha, plunge stiffness k and the structural damping factor beta (each within a
 factor 1.5 of the file's value).
@@ -43,9 +43,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import lfilter
 
-from aero_dva_sim.aerodynamics import QuasiSteadyAero, TheodorsenAero, WagnerAero
-from aero_dva_sim.hidden_plant import pitch_moment_input
-from aero_dva_sim.wing_model import AeroelasticModel
+from aero_dva.flight.hidden_plant import pitch_moment_input
+from aero_dva.wing.aerodynamics import QuasiSteadyAero, TheodorsenAero, WagnerAero
+from aero_dva.wing.model import AeroelasticModel
 from dva_offline.discrepancy.engine import (
     DecisionRule,
     ModelSpec,
@@ -136,7 +136,7 @@ class FlightArrays:
 
 
 def arrays_from_log(log) -> FlightArrays:
-    """Check a :class:`~aero_dva_sim.flight_log_io.FlightLog` and take the needed channels.
+    """Check a :class:`~aero_dva.bag.flight_log_io.FlightLog` and take the needed channels.
 
     Raises FlightDataError naming what is missing.
     """
@@ -167,7 +167,7 @@ class FlightDomain:
     ----------
     data : FlightArrays
     wing_file : WingConfig
-        From :func:`aero_dva_sim.wing_io.load_wing` (its wing, Maxwell absorber, aerodynamics).
+        From :func:`aero_dva.wing.wing_io.load_wing` (its wing, Maxwell absorber, aerodynamics).
     settings : FlightSettings, optional
     """
 

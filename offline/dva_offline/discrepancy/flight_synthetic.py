@@ -1,8 +1,8 @@
 """Test flights that hide one plant effect (the generator of the flight-domain tests).
 
 Not used by the engine. A case is a stepped flight of the reference wing recorded through the
-batch path (:func:`aero_dva_sim.batch_recording_io.record_runtime`) into an MCAP bag, flown
-with a hidden plant (:mod:`aero_dva_sim.hidden_plant`) that the log does not reveal:
+batch path (:func:`aero_dva.bag.batch_recording_io.record_runtime`) into an MCAP bag, flown
+with a hidden plant (:mod:`aero_dva.flight.hidden_plant`) that the log does not reveal:
 
 - three airspeeds drawn in 0.55-0.85 U_cr, flown in a random order and then again in the same
   order; at each visit a low c2 (100-300 N s/m) and a high c2 (900-1500 N s/m) are held for
@@ -53,7 +53,7 @@ class FlightCase:
 
 
 def _plant(effect, rng, noise, duration):
-    from aero_dva_sim.hidden_plant import PlantOptions
+    from aero_dva.flight.hidden_plant import PlantOptions
 
     params: dict = {}
     fields: dict = {"sensor_noise": noise}
@@ -101,9 +101,9 @@ def generate_flight(effect: str | None, seed: int, out_dir, dwell: float = 4.0) 
     dwell : float
         [s] seconds per (airspeed, c2) pair; the flight lasts 12 dwells.
     """
-    from aero_dva_sim.batch_recording_io import record_runtime
-    from aero_dva_sim.flight_runtime import FlightRuntime, load_runtime_config
-    from aero_dva_sim.scenario import AirspeedProfile, Scenario
+    from aero_dva.bag.batch_recording_io import record_runtime
+    from aero_dva.flight.scenario import AirspeedProfile, Scenario
+    from aero_dva.flight.scenario_flight import FlightRuntime, load_runtime_config
 
     rng = np.random.default_rng([int(seed), 77])
     three = rng.permutation(np.sort(rng.uniform(0.55, 0.85, 3)))

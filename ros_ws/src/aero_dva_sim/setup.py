@@ -14,17 +14,18 @@ setup(
         (f"share/{PACKAGE}", ["package.xml"]),
         (f"share/{PACKAGE}/config", glob("config/*.yaml")),
     ],
-    install_requires=["setuptools"],
+    # aero-dva: the ROS-free domain package (aero_dva/), installed by scripts/setup.sh
+    install_requires=["setuptools", "aero-dva"],
     zip_safe=True,
     maintainer="aero-dva maintainers",
     maintainer_email="maintainers@aero-dva.org",
-    description="Pitch-plunge aeroelastic wing with a tunable Maxwell-element DVA.",
+    description="Simulator, recorder and run_flight nodes of the wing with a tunable Maxwell DVA.",
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
             "mcap_recorder = aero_dva_sim.mcap_recorder_node:main",
             "simulator = aero_dva_sim.simulator_node:main",
-            "run_flight = aero_dva_sim.flight_runner:main",
+            "run_flight = aero_dva_sim.run_flight:main",
         ],
     },
 )

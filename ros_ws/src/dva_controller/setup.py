@@ -14,7 +14,8 @@ setup(
         (f"share/{PACKAGE}", ["package.xml"]),
         (f"share/{PACKAGE}/config", glob("config/*.yaml")),
     ],
-    install_requires=["setuptools"],
+    # aero-dva: the ROS-free domain package (aero_dva/), installed by scripts/setup.sh
+    install_requires=["setuptools", "aero-dva"],
     zip_safe=True,
     maintainer="aero-dva maintainers",
     maintainer_email="maintainers@aero-dva.org",

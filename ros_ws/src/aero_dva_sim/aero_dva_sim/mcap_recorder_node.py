@@ -20,19 +20,16 @@ flush_period : float, default 1.0
 from __future__ import annotations
 
 import importlib
-import signal
 import sys
 import time
 from pathlib import Path
 
-import rclpy
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile, QoSReliabilityPolicy
 
-from aero_dva_sim.mcap_io import BagWriter, MessageDefinitionNotFound, qos_profile_yaml
-from aero_dva_sim.ros_executor import RCLError, make_executor, spin
+from aero_dva.bag.mcap_io import BagWriter, MessageDefinitionNotFound, qos_profile_yaml
+from dva_ros_common.node_tools import run_node
 
 
 def message_class(type_name: str):
@@ -132,30 +129,7 @@ class McapRecorder(Node):
 
 
 def main(args=None) -> int:
-    rclpy.init(args=args)
-    node = None
-    try:
-        executor = make_executor()  # first: a bad choice must not leave a bag behind
-        node = McapRecorder()
-        executor.add_node(node)
-        spin(executor)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except RCLError:
-        if rclpy.ok():
-            raise  # otherwise a signal arrived while the node was starting: a clean stop
-    except (FileExistsError, ValueError) as exc:
-        print(f"mcap_recorder: error: {exc}", file=sys.stderr)
-        return 2
-    finally:
-        # A second Ctrl-C while the bag is being closed must not cut the close short.
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
-        signal.signal(signal.SIGTERM, signal.SIG_IGN)
-        if node is not None:
-            node.close()
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(McapRecorder, "mcap_recorder", args)
 
 
 if __name__ == "__main__":

@@ -1,9 +1,9 @@
 """``simulator``: flies a scenario with the wing and the tunable Maxwell DVA, and is the clock.
 
-Each step simulates one block of samples (exact ZOH, :class:`~aero_dva_sim.flight_sim.
+Each step simulates one block of samples (exact ZOH, :class:`~aero_dva.flight.block_simulator.
 BlockSimulator`), publishes it, and advances ``/clock``; the rest of the graph runs on that sim
 time (``use_sim_time:=true``). The damper applies the latest accepted ``dva/damper_command``
-through :class:`~aero_dva_sim.damper.DamperModel` (range, lag, stale fallback, rejection of
+through :class:`~aero_dva.flight.damper.DamperModel` (range, lag, stale fallback, rejection of
 absurd commands). A stepped-sweep scenario applies its own c2 values and ignores commands.
 
 Parameters (SI units)
@@ -42,18 +42,15 @@ import sys
 import time
 
 import numpy as np
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.task import Future
 from rosgraph_msgs.msg import Clock as ClockMsg
 
+from aero_dva.flight.damper import DamperStatus
+from aero_dva.flight.scenario_flight import FlightRuntime, load_runtime_config
 from aero_dva_sim import messages
-from aero_dva_sim.damper import DamperStatus
-from aero_dva_sim.flight_runtime import FlightRuntime, load_runtime_config
-from aero_dva_sim.ros_executor import RCLError, make_executor, spin
 from dva_msgs.msg import (
     AccelerationBlock,
     DamperCommand,
@@ -62,6 +59,8 @@ from dva_msgs.msg import (
     FlightCondition,
     ForceBlock,
 )
+from dva_ros_common.conversions import time_to_seconds
+from dva_ros_common.node_tools import run_node
 
 POLL_PERIOD = 0.005  # [s] wall time between checks before the start and while held
 DATA_TOPICS = ("wing/acceleration", "wing/displacement", "wing/excitation", "flight/condition",
@@ -81,6 +80,8 @@ class Simulator(Node):
         self._wait_for_nodes = [n for n in self.get_parameter("wait_for_nodes").value if n]
         self._wait_timeout = float(self.get_parameter("wait_timeout").value)
         self._exit_on_end = bool(self.get_parameter("exit_on_end").value)
+        # run_node spins until ``done``: the end of the flight, or shutdown without exit_on_end
+        self.done = self.finished if self._exit_on_end else None
 
         self._pub = {
             "wing/acceleration": self.create_publisher(AccelerationBlock, "wing/acceleration", 50),
@@ -146,7 +147,7 @@ class Simulator(Node):
         result = self.runtime.command(msg.damping, msg.source)
         if result is not None and result.accepted:
             # The command acts from the next block on; its stamp is its input's time.
-            stamp = messages.to_seconds(msg.header.stamp)
+            stamp = time_to_seconds(msg.header.stamp)
             self._latencies.append(self.runtime.time - stamp)
             self._last_command_stamp = max(stamp, self._last_command_stamp or 0.0)
             self._controller_silent = False
@@ -300,30 +301,8 @@ class Simulator(Node):
 
 
 def main(args=None) -> int:
-    rclpy.init(args=args)
-    node = None
-    try:
-        executor = make_executor()  # first: a bad choice must not leave a bag behind
-        node = Simulator()
-        executor.add_node(node)
-        spin(executor, node.finished)
-        if not node._exit_on_end:
-            spin(executor)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except RCLError:
-        if rclpy.ok():
-            raise  # otherwise a signal arrived while the node was starting: a clean stop
-    except (ValueError, FileNotFoundError) as exc:
-        print(f"simulator: error: {exc}", file=sys.stderr)
-        return 2
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(Simulator, "simulator", args)
 
 
 if __name__ == "__main__":
     sys.exit(main())
-

@@ -10,11 +10,11 @@ Parameters
 ----------
 a0 : float, default -2150.0
     [N s/m] intercept of eq. 7.1 (used when ``schedule_file`` is empty). The defaults are the
-    example of :mod:`dva_controller.schedule_io`, not a fit to any wing: fit one offline.
+    example of :mod:`aero_dva.control.schedule_io`, not a fit to any wing: fit one offline.
 a1 : float, default 31.5
     [N s^2/m^2] slope of eq. 7.1 (used when ``schedule_file`` is empty).
 schedule_file : str, default ""
-    JSON schedule (:func:`dva_controller.schedule_io.load_schedule`); when set, its a0, a1 and
+    JSON schedule (:func:`aero_dva.control.schedule_io.load_schedule`); when set, its a0, a1 and
     ranges replace the parameters above.
 extrapolate : bool, default true
     Continue the line outside the schedule file's fitted airspeed range (the seed's use);
@@ -43,11 +43,12 @@ import sys
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 
+from aero_dva.control.airspeed_schedule import AirspeedSchedule
+from aero_dva.control.schedule_io import load_schedule
 from dva_controller import messages
-from dva_controller.airspeed_schedule import AirspeedSchedule
-from dva_controller.ros_node_tools import InputHealth, Status, bounded, refuse_changes, run_node
-from dva_controller.schedule_io import load_schedule
 from dva_msgs.msg import DamperCommand, FlightCondition
+from dva_ros_common import conversions
+from dva_ros_common.node_tools import InputHealth, Status, bounded, refuse_changes, run_node
 
 NODE_NAME = "airspeed_controller"
 MAX_DAMPING = 1.0e6  # [N s/m] far above any damper of this size class; larger is a unit error
@@ -160,7 +161,7 @@ class AirspeedController(Node):
         if not (math.isfinite(u) and 0.0 <= u <= self.max_airspeed):
             self.counts["rejected"] += 1
             self._health.report(
-                messages.WARN,
+                conversions.WARN,
                 "rejected_airspeed",
                 f"flight condition ignored: airspeed {u} m/s is not in [0, "
                 f"{self.max_airspeed:g}] m/s",
@@ -176,7 +177,7 @@ class AirspeedController(Node):
         c2 = self.command_for(u)
         self._command_pub.publish(
             messages.damper_command(
-                messages.ns_to_time(stamp_ns), c2, DamperCommand.SOURCE_AIRSPEED_SCHEDULE
+                conversions.ns_to_time(stamp_ns), c2, DamperCommand.SOURCE_AIRSPEED_SCHEDULE
             )
         )
         self._last_command_ns = stamp_ns
@@ -185,7 +186,7 @@ class AirspeedController(Node):
 
     def _status(self) -> Status:
         text = f"last command {self.last_command:.6g} N s/m"
-        return messages.OK, text, {"last_command": self.last_command}
+        return conversions.OK, text, {"last_command": self.last_command}
 
 
 def main(args=None) -> int:

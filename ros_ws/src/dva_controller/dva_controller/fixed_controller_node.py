@@ -18,8 +18,8 @@ from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 
 from dva_controller.messages import damper_command
-from dva_controller.ros_node_tools import bounded, run_node
 from dva_msgs.msg import DamperCommand
+from dva_ros_common.node_tools import bounded, run_node
 
 NODE_NAME = "fixed_controller"
 MAX_DAMPING = 1.0e6  # [N s/m] far above any damper of this size class; larger is a unit error

@@ -6,15 +6,13 @@ derived from a block's header stamp do not accumulate floating-point error.
 """
 from __future__ import annotations
 
-import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from builtin_interfaces.msg import Time
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
-from dva_controller.spectrum import ScaledSpectrum as SpectrumResult
+from aero_dva.control.spectrum import ScaledSpectrum as SpectrumResult
 from dva_msgs.msg import (
     AccelerationBlock,
     DamperCommand,
@@ -22,28 +20,12 @@ from dva_msgs.msg import (
     FlightCondition,
     ScaledSpectrum,
 )
-
-#: Channels of ``dva_msgs/AccelerationBlock``, by field name.
-ACCELERATION_CHANNELS = ("plunge", "pitch", "leading_edge")
-
-#: Diagnostic levels as ints (``DiagnosticStatus`` stores them as one byte).
-OK, WARN, ERROR, STALE = 0, 1, 2, 3
+from dva_ros_common.conversions import time_to_ns
 
 _NS = 1_000_000_000
 
-
-def time_to_ns(stamp: Time) -> int:
-    """Nanoseconds since the epoch of a ``builtin_interfaces/Time``."""
-    return int(stamp.sec) * _NS + int(stamp.nanosec)
-
-
-def ns_to_time(ns: int) -> Time:
-    """``builtin_interfaces/Time`` of ``ns`` nanoseconds (>= 0)."""
-    ns = int(ns)
-    if ns < 0:
-        raise ValueError(f"a ROS time must be >= 0 ns, got {ns}")
-    return Time(sec=ns // _NS, nanosec=ns % _NS)
-
+#: Channels of ``dva_msgs/AccelerationBlock``, by field name.
+ACCELERATION_CHANNELS = ("plunge", "pitch", "leading_edge")
 
 def damper_command(stamp: Time, damping: float, source: str) -> DamperCommand:
     """A ``dva_msgs/DamperCommand`` for c2 = ``damping`` [N s/m] from controller ``source``."""
@@ -149,7 +131,7 @@ def scaled_spectrum_message(
         Frame of the acceleration blocks.
     channel_names : sequence of str
         One name per row of ``spectrum.magnitudes``.
-    spectrum : dva_controller.spectrum.ScaledSpectrum
+    spectrum : aero_dva.control.spectrum.ScaledSpectrum
         The window's spectrum.
     hop : float
         [s] time between consecutive window starts.
@@ -261,42 +243,3 @@ def flight_condition(stamp: Time, airspeed: float, air_density: float = 1.2) -> 
 def applied_damping(msg: DamperState) -> float:
     """[N s/m] c2 acting in the model according to a ``dva_msgs/DamperState`` (may be NaN)."""
     return float(msg.applied_damping)
-
-
-def _text(value) -> str:
-    if isinstance(value, float):
-        return "nan" if math.isnan(value) else f"{value:.9g}"
-    return str(value)
-
-
-def diagnostic_array(
-    stamp: Time,
-    level: int,
-    name: str,
-    message: str,
-    values: Mapping[str, object] | None = None,
-    hardware_id: str = "",
-) -> DiagnosticArray:
-    """A ``diagnostic_msgs/DiagnosticArray`` holding one status.
-
-    Parameters
-    ----------
-    level : int
-        One of ``OK``, ``WARN``, ``ERROR``, ``STALE`` (0..3).
-    name : str
-        Status name, by convention ``"<node>: <what>"``.
-    values : mapping, optional
-        Key/value pairs; values are converted to text.
-    """
-    if level not in (OK, WARN, ERROR, STALE):
-        raise ValueError(f"level must be 0..3, got {level}")
-    status = DiagnosticStatus()
-    status.level = bytes([level])
-    status.name = name
-    status.message = message
-    status.hardware_id = hardware_id
-    status.values = [KeyValue(key=str(k), value=_text(v)) for k, v in (values or {}).items()]
-    msg = DiagnosticArray()
-    msg.header.stamp = stamp
-    msg.status = [status]
-    return msg

@@ -5,9 +5,9 @@ followed by the current c2 (the spectrum's ``damping`` field, the c2 applied dur
 window); ``network.predict`` of it, clamped to ``[damping_min, damping_max]``, is published as
 ``dva/damper_command`` (source "rbf_network").
 
-The network file (.npz, :func:`dva_controller.rbf_io.load_rbf_network`, no pickle) is checked
+The network file (.npz, :func:`aero_dva.control.rbf_io.load_rbf_network`, no pickle) is checked
 at start-up: its input dimension must be ``len(channels) * len(frequencies) + 1`` and its input
-names and units those of :func:`dva_controller.rbf_network.spectrum_input_names` for the
+names and units those of :func:`aero_dva.control.rbf_network.spectrum_input_names` for the
 ``channels`` and ``frequencies`` parameters. A missing, corrupt or mismatched file stops the
 node with a one-line error naming the file (exit code 2).
 
@@ -48,13 +48,14 @@ import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 
+from aero_dva.control.rbf_io import load_rbf_network
+from aero_dva.control.rbf_network import RBFNetwork, spectrum_input_names, spectrum_input_vector
+from aero_dva.control.spectrum import DEFAULT_FREQUENCIES, WINDOW_FUNCTIONS
 from dva_controller import messages
-from dva_controller.rbf_io import load_rbf_network
-from dva_controller.rbf_network import RBFNetwork, spectrum_input_names, spectrum_input_vector
-from dva_controller.ros_node_tools import InputHealth, Status, bounded, refuse_changes, run_node
-from dva_controller.spectrum import DEFAULT_FREQUENCIES, WINDOW_FUNCTIONS
 from dva_controller.spectrum_node import checked_frequencies
 from dva_msgs.msg import DamperCommand, ScaledSpectrum
+from dva_ros_common import conversions
+from dva_ros_common.node_tools import InputHealth, Status, bounded, refuse_changes, run_node
 
 NODE_NAME = "rbf_controller"
 MAX_DAMPING = 1.0e6  # [N s/m] far above any damper of this size class; larger is a unit error
@@ -220,7 +221,8 @@ class RBFController(Node):
                 problem = f"the network's output is {c2}"
         if problem is not None:
             self.counts["rejected"] += 1
-            self._health.report(messages.WARN, "rejected_spectrum", f"spectrum ignored: {problem}")
+            self._health.report(conversions.WARN, "rejected_spectrum",
+                                f"spectrum ignored: {problem}")
             return
         self.last_activation = activation
         if activation < FAR_ACTIVATION:
@@ -228,7 +230,7 @@ class RBFController(Node):
         stamp_ns = spectrum.stamp_ns
         self._command_pub.publish(
             messages.damper_command(
-                messages.ns_to_time(stamp_ns), c2, DamperCommand.SOURCE_RBF_NETWORK
+                conversions.ns_to_time(stamp_ns), c2, DamperCommand.SOURCE_RBF_NETWORK
             )
         )
         self.last_command = c2
@@ -241,8 +243,8 @@ class RBFController(Node):
                 f"last input is far from every training centre (largest activation "
                 f"{self.last_activation:.2g}): the output is close to the bias"
             )
-            return messages.WARN, text, values
-        return messages.OK, f"last command {self.last_command:.6g} N s/m", values
+            return conversions.WARN, text, values
+        return conversions.OK, f"last command {self.last_command:.6g} N s/m", values
 
 
 def main(args=None) -> int:

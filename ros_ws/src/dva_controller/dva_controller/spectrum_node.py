@@ -1,7 +1,7 @@
 """``spectrum``: sliding-window scaled magnitude spectra of the wing's accelerations (eq. 7.3).
 
 Every ``hop`` seconds of samples, the last ``window_duration`` seconds of each channel are
-analysed at ``frequencies`` (:class:`~dva_controller.spectrum.SlidingSpectrum`) and published
+analysed at ``frequencies`` (:class:`~aero_dva.control.spectrum.SlidingSpectrum`) and published
 as one ``dva_msgs/ScaledSpectrum`` whose stamp is the time of the window's last sample (from the
 block header stamps, so sim time when the simulator stamps its blocks with it).
 
@@ -42,10 +42,11 @@ import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 
+from aero_dva.control.spectrum import DEFAULT_FREQUENCIES, WINDOW_FUNCTIONS, SlidingSpectrum
 from dva_controller import messages
-from dva_controller.ros_node_tools import InputHealth, Status, bounded, refuse_changes, run_node
-from dva_controller.spectrum import DEFAULT_FREQUENCIES, WINDOW_FUNCTIONS, SlidingSpectrum
 from dva_msgs.msg import AccelerationBlock, DamperState, ScaledSpectrum
+from dva_ros_common import conversions
+from dva_ros_common.node_tools import InputHealth, Status, bounded, refuse_changes, run_node
 
 NODE_NAME = "spectrum"
 QOS_DEPTH = 100  # blocks of 10-50 ms: a few seconds of slack at 20x real time before a gap
@@ -184,7 +185,7 @@ class SpectrumNode(Node):
             event = result.reset
             self.counts["resets"] += 1
             self._health.report(
-                messages.WARN,
+                conversions.WARN,
                 f"reset_{event.reason.value}",
                 event.describe(),
                 reason=event.reason.value,
@@ -204,7 +205,7 @@ class SpectrumNode(Node):
             dropped = old.reset().dropped_samples
             self.counts["resets"] += 1
             self._health.report(
-                messages.WARN,
+                conversions.WARN,
                 "reset_sample_rate",
                 f"spectrum window reset: sample rate changed from {old.sample_rate:g} to "
                 f"{rate:g} Hz at index {index} (expected index {expected}); "
@@ -230,7 +231,7 @@ class SpectrumNode(Node):
             self._reject(
                 "unusable_sample_rate",
                 self._problem,
-                level=messages.ERROR,
+                level=conversions.ERROR,
                 index=index,
                 sample_rate=rate,
             )
@@ -244,7 +245,7 @@ class SpectrumNode(Node):
             empty = [c for c, s in zip(self.channels, spectrum.band_sums) if not s > 0.0]
             self.counts["empty_windows"] += 1
             self._health.report(
-                messages.WARN,
+                conversions.WARN,
                 "empty_window",
                 f"window {window.first_sample_index}..{window.stop_sample_index - 1} not "
                 f"published: no signal in the band on {empty}",
@@ -254,7 +255,7 @@ class SpectrumNode(Node):
         damping = window.mean_damping
         if not math.isfinite(damping):
             damping = self._damping
-        stamp = messages.ns_to_time(block.sample_time_ns(window.stop_sample_index - 1))
+        stamp = conversions.ns_to_time(block.sample_time_ns(window.stop_sample_index - 1))
         self._spectrum_pub.publish(
             messages.scaled_spectrum_message(
                 stamp, block.frame_id, self.channels, spectrum, self._sliding.hop, damping
@@ -263,7 +264,7 @@ class SpectrumNode(Node):
         self.counts["spectra"] += 1
 
     # ------------------------------------------------------------------ diagnostics
-    def _reject(self, event: str, text: str, level: int = messages.WARN, **values) -> None:
+    def _reject(self, event: str, text: str, level: int = conversions.WARN, **values) -> None:
         self.counts["rejected"] += 1
         self._health.report(level, event, text, **values)
 
@@ -273,8 +274,8 @@ class SpectrumNode(Node):
             values.update(sample_rate=self._sliding.sample_rate,
                           expected_index=self._sliding.expected_index)
         if self._problem is not None:
-            return messages.ERROR, self._problem, values
-        return messages.OK, f"{self.counts['spectra']} spectra published", values
+            return conversions.ERROR, self._problem, values
+        return conversions.OK, f"{self.counts['spectra']} spectra published", values
 
 
 def main(args=None) -> int:

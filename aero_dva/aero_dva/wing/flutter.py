@@ -1,0 +1,269 @@
+"""Critical airspeed (flutter or divergence) and flutter frequency.
+
+Method: the *growth rate* ``g(U)`` = largest real part [1/s] of the system's eigenvalues
+(ignoring exactly neutral ones, ``|lambda| < NEUTRAL``: the free integrator of a locked Maxwell
+damper and the aerodynamic lag states at ``U = 0``) is sampled on a grid of airspeeds; local
+maxima between grid points are refined so that a mode that goes unstable only briefly is not
+missed; the first sign change is then bracketed and solved with Brent's method to a relative
+tolerance far below 1e-6. With quasi-steady or finite-state aerodynamics ``g`` comes from the
+eigenvalues of ``A(U) = A0 + U A1 + U^2 A2``; with Theodorsen aerodynamics each structural
+mode is converged by the p-k method (C(k) frozen at the mode's own reduced frequency), which
+is exact where the damping crosses zero, i.e. at the flutter point.
+
+:class:`NoFlutterError` (a ValueError) is raised when the range holds no instability.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import brentq, minimize_scalar
+
+from aero_dva.wing.aerodynamics import TheodorsenAero
+from aero_dva.wing.checks import non_negative, real_scalar
+
+__all__ = ["FlutterResult", "NoFlutterError", "flutter_speed", "flutter_vs_density",
+           "growth_rate"]
+
+NEUTRAL = 1e-7
+"""[rad/s] Eigenvalues smaller than this are neutral integrators, not instabilities."""
+
+
+class NoFlutterError(ValueError):
+    """No flutter or divergence in the searched airspeed range."""
+
+
+@dataclass(frozen=True)
+class FlutterResult:
+    """Onset of instability.
+
+    Attributes
+    ----------
+    critical_airspeed : float
+        [m/s]
+    flutter_frequency : float
+        [Hz] ``|Im lambda| / (2 pi)`` of the mode that goes unstable (0 for divergence).
+    kind : str
+        ``"flutter"`` (oscillatory) or ``"divergence"`` (real eigenvalue).
+    density : float
+        [kg/m^3]
+    eigenvalue : complex
+        [rad/s] The critical eigenvalue at ``critical_airspeed``.
+    """
+
+    critical_airspeed: float
+    flutter_frequency: float
+    kind: str
+    density: float
+    eigenvalue: complex
+
+
+def _pick(eigs: np.ndarray):
+    """Largest real part over non-neutral eigenvalues (last axis) and the eigenvalue."""
+    masked = np.where(np.abs(eigs) < NEUTRAL, -np.inf, eigs.real)
+    idx = np.argmax(masked, axis=-1)
+    lam = np.take_along_axis(eigs, idx[..., None], axis=-1)[..., 0]
+    return np.take_along_axis(masked, idx[..., None], axis=-1)[..., 0], lam
+
+
+class _EigenGrowth:
+    """Growth rate from the polynomial ``A(U)`` (quasi-steady and finite-state models)."""
+
+    def __init__(self, model, density, damping):
+        self.a0, self.a1, self.a2 = model.polynomial(density, damping)
+
+    def matrices(self, u):
+        u = np.asarray(u, dtype=float)[..., None, None]
+        return self.a0 + u * self.a1 + u * u * self.a2
+
+    def grid(self, u):
+        return _pick(np.linalg.eigvals(self.matrices(u)))
+
+    def __call__(self, u):
+        g, lam = _pick(np.linalg.eigvals(self.matrices(u)))
+        return float(g), complex(lam)
+
+
+class _PkGrowth:
+    """Growth rate by the p-k method with Theodorsen's function."""
+
+    def __init__(self, model, density, damping, u_start):
+        self.model, self.density, self.damping = model, density, damping
+        self.b = model.wing.chord / 2.0
+        # Wind-off modes (k -> inf at U = 0), then continued to the first airspeed.
+        lam = np.linalg.eigvals(model.frequency_frozen(0.0, density, 1e9, damping))
+        osc = lam[lam.imag > 1e-6]
+        modes = osc[np.argsort(np.abs(osc))]
+        for u in np.linspace(0.0, u_start, 9)[1:]:
+            modes = self.modes_at(max(u, 1e-6), modes)
+        self.modes = modes
+
+    def _converge(self, u, guess, system=None):
+        system = system or self.model.frequency_frozen_factory(u, self.density, self.damping)
+        lam = guess
+        for _ in range(100):
+            k = max(lam.imag, 0.0) * self.b / max(u, 1e-9)
+            eigs = np.linalg.eigvals(system(k))
+            upper = eigs[eigs.imag > -1e-12]
+            new = upper[np.argmin(np.abs(upper - lam))]
+            if abs(new - lam) <= 1e-12 * max(abs(new), 1.0):
+                return new
+            lam = new
+        return lam
+
+    def modes_at(self, u, guesses):
+        system = self.model.frequency_frozen_factory(u, self.density, self.damping)
+        return np.array([self._converge(u, g, system) for g in guesses])
+
+    def grid(self, u):
+        growth, lams, stored = [], [], []
+        guesses = self.modes
+        for ui in np.asarray(u, dtype=float):
+            guesses = self.modes_at(ui, guesses)
+            stored.append(guesses)
+            j = int(np.argmax(guesses.real))
+            growth.append(guesses[j].real)
+            lams.append(guesses[j])
+        self._grid_u = np.asarray(u, dtype=float)
+        self._grid_modes = stored
+        return np.array(growth), np.array(lams)
+
+    def __call__(self, u):
+        # Continue from the modes converged at the nearest grid airspeed below u.
+        i = max(int(np.searchsorted(self._grid_u, u, side="right")) - 1, 0)
+        modes = self.modes_at(u, self._grid_modes[i])
+        j = int(np.argmax(modes.real))
+        return float(modes[j].real), complex(modes[j])
+
+
+def growth_rate(model, airspeed, density: float, damping=None) -> np.ndarray:
+    """Largest real part [1/s] of the (non-neutral) eigenvalues at each airspeed.
+
+    Quasi-steady or finite-state aerodynamics; ``airspeed`` any shape [m/s].
+    """
+    g, _ = _EigenGrowth(model, density, damping).grid(airspeed)
+    return g
+
+
+def flutter_speed(model, density: float = 1.2, airspeed_range=None, damping=None,
+                  n_grid: int = 64, xtol: float = 1e-10) -> FlutterResult:
+    """Lowest airspeed at which the model becomes unstable, and the flutter frequency.
+
+    Parameters
+    ----------
+    model : AeroelasticModel
+    density : float
+        Air density [kg/m^3], > 0.
+    airspeed_range : (float, float), optional
+        Searched airspeeds [m/s], ``0 <= low < high``; the model must be stable at ``low``.
+        Default: ``(0, 100)``, then ``(0, 400)``, ``(0, 1600)``, ... up to 1e5 m/s, so that
+        the grid is always fine compared with the critical airspeed.
+    damping : float, optional
+        Tunable damper [N s/m] (``c2`` or ``c1``), held fixed; default the absorber's.
+    n_grid : int
+        Grid points for bracketing (local maxima between them are refined).
+    xtol : float
+        Relative tolerance on the critical airspeed.
+
+    Returns
+    -------
+    FlutterResult
+
+    Raises
+    ------
+    NoFlutterError
+        No instability in ``airspeed_range``.
+    ValueError
+        Bad arguments, or the model is already unstable at the low end of the range.
+    """
+    rho = non_negative(density, "density")
+    if rho <= 0:
+        raise ValueError("density must be > 0")
+    if airspeed_range is None:
+        high = 100.0
+        while True:
+            try:
+                return flutter_speed(model, rho, (0.0, high), damping, n_grid, xtol)
+            except NoFlutterError:
+                if high >= 1e5:
+                    raise NoFlutterError(
+                        f"no flutter or divergence below {high:g} m/s at density {rho:g} kg/m^3"
+                    ) from None
+                high *= 4.0
+    try:
+        low, high = (real_scalar(v, "airspeed_range") for v in airspeed_range)
+    except (TypeError, ValueError) as exc:
+        raise ValueError("airspeed_range must be two airspeeds (low, high) in m/s") from exc
+    if not (0.0 <= low < high and np.isfinite(high)):
+        raise ValueError(f"airspeed_range must satisfy 0 <= low < high, got {(low, high)}")
+    if int(n_grid) < 4:
+        raise ValueError("n_grid must be >= 4")
+    if isinstance(model.aero, TheodorsenAero):
+        low = max(low, 1e-3 * high)
+        growth = _PkGrowth(model, rho, damping, low)
+        n_grid = max(4, int(n_grid) // 2)  # each p-k point is costly; maxima are refined
+    else:
+        growth = _EigenGrowth(model, rho, damping)
+    u = np.linspace(low, high, int(n_grid))
+    g, lam = growth.grid(u)
+    # Zero structural damping leaves the wind-off modes exactly neutral: allow round-off.
+    tol = 1e-9 * max(float(np.max(np.abs(lam))), 1.0)
+    if g[0] > tol:
+        raise ValueError(
+            f"the model is already unstable at the low end of airspeed_range ({low:g} m/s)"
+        )
+    bracket = _first_bracket(growth, u, g, high, tol)
+    if bracket is None:
+        raise NoFlutterError(
+            f"no flutter or divergence between {low:g} and {high:g} m/s at density {rho:g} "
+            "kg/m^3"
+        )
+    a, b = bracket
+    u_cr = brentq(lambda x: growth(x)[0], a, b, xtol=xtol * b, rtol=4 * np.finfo(float).eps,
+                  maxiter=200)
+    _, lam_cr = growth(u_cr)
+    kind = "flutter" if abs(lam_cr.imag) > NEUTRAL else "divergence"
+    return FlutterResult(
+        critical_airspeed=float(u_cr),
+        flutter_frequency=abs(lam_cr.imag) / (2 * np.pi) if kind == "flutter" else 0.0,
+        kind=kind,
+        density=rho,
+        eigenvalue=lam_cr,
+    )
+
+
+def _first_bracket(growth, u, g, high, tol):
+    """The first interval ``(a, b)`` with ``g(a) < 0 < g(b)``, refining local maxima."""
+    for i in range(1, len(u)):
+        if g[i] > tol:
+            if g[i - 1] >= 0:
+                raise ValueError("the model goes unstable right above the low end of "
+                                 "airspeed_range; start the range higher")
+            return u[i - 1], u[i]
+        # A local maximum of the samples may hide a short excursion above zero.
+        if i + 1 < len(u) and g[i] >= g[i - 1] and g[i] >= g[i + 1]:
+            res = minimize_scalar(lambda x: -growth(x)[0], bounds=(u[i - 1], u[i + 1]),
+                                  method="bounded", options={"xatol": 1e-9 * high})
+            if -res.fun > tol:
+                return u[i - 1], float(res.x)
+    return None
+
+
+def flutter_vs_density(model, densities, airspeed_range=None, damping=None):
+    """Critical airspeed [m/s] and flutter frequency [Hz] at each density (NaN if none).
+
+    Returns
+    -------
+    critical_airspeed, flutter_frequency : ndarray, shape (n_rho,)
+    """
+    rhos = np.atleast_1d(np.asarray(densities, dtype=float))
+    u = np.full(rhos.shape, np.nan)
+    f = np.full(rhos.shape, np.nan)
+    for i, rho in enumerate(rhos):
+        try:
+            r = flutter_speed(model, rho, airspeed_range, damping)
+        except NoFlutterError:
+            continue
+        u[i], f[i] = r.critical_airspeed, r.flutter_frequency
+    return u, f

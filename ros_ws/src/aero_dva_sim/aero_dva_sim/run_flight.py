@@ -1,0 +1,249 @@
+"""``run_flight``: fly one scenario through the node graph and summarise the recorded bag.
+
+Starts the nodes as separate processes, exactly as ``ros2 run`` would (recorder, the chosen
+controller and, for the RBF network, the spectrum node; the simulator last), waits for the
+simulator to end the flight, stops the others with SIGINT so the recorder closes its bag, then
+reads the bag back and prints a summary. Every node uses sim time from the simulator's /clock.
+
+Unless ``--domain-id`` is given, the graph runs on a ROS_DOMAIN_ID reserved for this run, so
+several runs (or tests) on one machine do not hear each other.
+"""
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+CONTROLLERS = ("fixed", "schedule", "rbf", "none")
+# Default bound [s sim] on how far the flight may run ahead of the newest command's input:
+# one 50 ms block for the per-block schedule, the 20 Hz period for the fixed controller, one
+# 0.1 s spectrum hop plus a block for the RBF network.
+DEFAULT_COMMAND_LAG = {"schedule": 0.05, "fixed": 0.1, "rbf": 0.15, "none": 0.0}
+
+
+def executable(package: str, name: str) -> str:
+    """``<prefix of package>/lib/<package>/<name>``, resolved as ``ros2 run`` does."""
+    from ament_index_python.packages import PackageNotFoundError, get_package_prefix
+
+    try:
+        path = Path(get_package_prefix(package)) / "lib" / package / name
+    except PackageNotFoundError:
+        raise SystemExit(f"run_flight: error: package '{package}' not found; "
+                         "source scripts/env.sh (or run ./run.sh)") from None
+    if not os.access(path, os.X_OK):
+        raise SystemExit(f"run_flight: error: no executable {path}")
+    return str(path)
+
+
+def _params(**values) -> list[str]:
+    out = []
+    for key, value in values.items():
+        if value is None or value == "":  # rcl cannot parse an empty override
+            continue
+        text = str(value).lower() if isinstance(value, bool) else str(value)
+        out += ["-p", f"{key}:={text}"]
+    return out
+
+
+def build_commands(args, bag: Path) -> dict[str, list[str]]:
+    """The processes of the graph, in start order (the simulator last)."""
+    sim_time = {"use_sim_time": True}
+    commands = {
+        "mcap_recorder": [executable("aero_dva_sim", "mcap_recorder"), "--ros-args",
+                          *_params(output=bag, **sim_time)],
+    }
+    if args.controller == "rbf":
+        commands["spectrum"] = [executable("dva_controller", "spectrum"), "--ros-args",
+                                *_params(**sim_time)]
+        commands["rbf_controller"] = [executable("dva_controller", "rbf_controller"),
+                                      "--ros-args",
+                                      *_params(network_file=args.network, **sim_time)]
+    elif args.controller == "schedule":
+        commands["airspeed_controller"] = [executable("dva_controller", "airspeed_controller"),
+                                           "--ros-args",
+                                           *_params(schedule_file=args.schedule, **sim_time)]
+    elif args.controller == "fixed":
+        commands["fixed_controller"] = [executable("dva_controller", "fixed_controller"),
+                                        "--ros-args",
+                                        *_params(damping=args.damping, rate=20.0, **sim_time)]
+    # The flight starts once every other node of the graph is up (none misses its start).
+    others = list(commands)
+    commands["simulator"] = [
+        executable("aero_dva_sim", "simulator"), "--ros-args",
+        *_params(scenario=args.scenario, wing=args.wing, absorber=args.absorber,
+                 real_time_factor=args.real_time_factor, wait_for_subscribers=1,
+                 wait_for_nodes="[" + ",".join(others) + "]",
+                 max_command_lag=DEFAULT_COMMAND_LAG[args.controller]
+                 if args.max_command_lag is None else args.max_command_lag,
+                 damper_timeout=1e9 if args.controller == "none" else args.damper_timeout),
+    ]
+    return commands
+
+
+def die_with_parent() -> None:
+    """In a child before exec: on Linux, get SIGTERM when the runner dies (even by SIGKILL), so
+    no node outlives its run and talks on a ROS_DOMAIN_ID that is no longer reserved."""
+    try:
+        import ctypes
+
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass  # not Linux: the runner's finally-block still stops the nodes
+
+
+def _stop(process: subprocess.Popen, timeout: float) -> int:
+    if process.poll() is None:
+        process.send_signal(signal.SIGINT)
+        try:
+            process.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait()
+    return process.returncode
+
+
+def run(args) -> dict:
+    """Run the graph; return the summary as a dict (raises SystemExit on failure)."""
+    from aero_dva.bag.flight_log_io import load_flight_log
+    from aero_dva.bag.flight_summary import summarize
+
+    stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
+    scenario_name = Path(args.scenario).stem if args.scenario else "ramp"
+    bag = Path(args.output or f"runs/{scenario_name}_{args.controller}_{stamp}").resolve()
+    if bag.exists():
+        raise SystemExit(f"run_flight: error: {bag} exists; choose another --output")
+    logs = bag.with_name(bag.name + "_logs")
+    logs.mkdir(parents=True)
+    commands = build_commands(args, bag)
+    env = dict(os.environ, ROS_DOMAIN_ID=str(args.domain_id), PYTHONUNBUFFERED="1")
+    processes: dict[str, subprocess.Popen] = {}
+    started = time.monotonic()
+    try:
+        for name, argv in commands.items():
+            with open(logs / f"{name}.log", "wb") as log:
+                processes[name] = subprocess.Popen(argv, env=env, stdout=log,
+                                                   stderr=subprocess.STDOUT,
+                                                   preexec_fn=die_with_parent)
+        simulator = processes["simulator"]
+        try:
+            simulator.wait(timeout=args.timeout)
+        except subprocess.TimeoutExpired:
+            raise SystemExit(f"run_flight: error: the flight took longer than {args.timeout} s; "
+                             f"node logs in {logs}") from None
+        for name, process in processes.items():
+            if name != "simulator" and process.poll() is not None:
+                print(f"run_flight: warning: {name} exited early with {process.returncode}; "
+                      f"see {logs / (name + '.log')}", file=sys.stderr)
+        time.sleep(0.5)  # let the recorder take the last messages in flight off the wire
+    finally:
+        codes = {name: _stop(p, timeout=15.0) for name, p in reversed(processes.items())}
+    wall = time.monotonic() - started
+    if codes.get("simulator") not in (0, None):
+        raise SystemExit(f"run_flight: error: simulator failed ({codes['simulator']}); "
+                         f"see {logs / 'simulator.log'}")
+    log = load_flight_log(bag)
+    summary = summarize(log).to_dict()
+    final = next((d["values"] for d in reversed(log.diagnostics)
+                  if d["name"] == "simulator: flight" and "wall_time_s" in d["values"]), {})
+    summary.update(controller=args.controller, bag=str(bag), node_logs=str(logs),
+                   wall_time=wall, exit_codes=codes,
+                   flight_wall_time=float(final.get("wall_time_s", "nan")),
+                   command_latency_median=float(final.get("command_latency_median_s", "nan")))
+    return {k: (None if isinstance(v, float) and math.isnan(v) else v)
+            for k, v in summary.items()}
+
+
+def _format(summary: dict) -> str:
+    def number(key, fmt):
+        value = summary.get(key)
+        return "n/a" if value is None else format(value, fmt)
+
+    diverged = summary["divergence_airspeed"] is not None
+    lines = [
+        f"controller           {summary['controller']}",
+        f"flown                {number('duration', '.2f')} s of sim time in "
+        f"{number('flight_wall_time', '.1f')} s wall "
+        f"({summary['duration'] / (summary['flight_wall_time'] or math.inf):.1f}x real time; "
+        f"{summary['wall_time']:.1f} s with starting and stopping the nodes)",
+        f"command latency      {number('command_latency_median', '.3f')} s sim time from a "
+        "sample to its command acting (median)",
+        f"airspeed             {number('airspeed_start', '.1f')} -> "
+        f"{number('airspeed_end', '.1f')} m/s (U_cr without DVA "
+        f"{number('critical_airspeed', '.2f')} m/s)",
+        "divergence           " + (
+            f"at {number('divergence_airspeed', '.1f')} m/s = "
+            f"{number('divergence_ratio', '.3f')} U_cr" if diverged
+            else "none within the flight"),
+        f"leading-edge RMS     {number('leading_edge_rms', '.3e')} m (before divergence)",
+        f"mean applied c2      {number('mean_damping', '.0f')} N s/m",
+        f"bag (MCAP)           {summary['bag']}",
+        f"node logs            {summary['node_logs']}",
+    ]
+    return "\n".join(lines)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="run_flight",
+        description="Fly a scenario through the ROS 2 node graph (simulator, controller, "
+                    "recorder as separate processes), record it to MCAP and print a summary.")
+    parser.add_argument("--scenario", default="",
+                        help="scenario YAML (default: the package's scenario_ramp.yaml, "
+                             "0.8 -> 1.2 U_cr in 30 s)")
+    parser.add_argument("--wing", default="", help="wing YAML (default: the reference wing)")
+    parser.add_argument("--absorber", choices=("maxwell", "none"), default="maxwell")
+    parser.add_argument("--controller", choices=CONTROLLERS, default="fixed",
+                        help="who commands c2 (default: fixed)")
+    parser.add_argument("--damping", type=float, default=None,
+                        help="c2 [N s/m] for --controller fixed (default: the node's default)")
+    parser.add_argument("--schedule", default=None, help="airspeed schedule JSON (schedule)")
+    parser.add_argument("--network", default=None, help="RBF network .npz (rbf)")
+    parser.add_argument("--real-time-factor", type=float, default=20.0,
+                        help="sim seconds per wall second; 0 = as fast as possible (default 20)")
+    parser.add_argument("--max-command-lag", type=float, default=None,
+                        help="[s] sim time the flight may run ahead of the newest command's "
+                             "input (default per controller: schedule 0.05, fixed 0.1, rbf 0.15; "
+                             "0 = free running)")
+    parser.add_argument("--damper-timeout", type=float, default=0.5,
+                        help="[s] sim time without commands before the fallback c2 applies")
+    parser.add_argument("--output", default=None,
+                        help="bag directory to create (default runs/<scenario>_<controller>_"
+                             "<UTC time>)")
+    parser.add_argument("--domain-id", type=int, default=None,
+                        help="ROS_DOMAIN_ID (default: one reserved for this run)")
+    parser.add_argument("--timeout", type=float, default=600.0,
+                        help="[s] wall time allowed for the flight (default 600)")
+    parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    for option, needed in (("schedule", "schedule"), ("network", "rbf")):
+        if args.controller == needed and not getattr(args, option):
+            print(f"run_flight: error: --controller {needed} needs --{option} FILE",
+                  file=sys.stderr)
+            return 2
+    with contextlib.ExitStack() as stack:
+        if args.domain_id is None:
+            from domain_coordinator import domain_id
+
+            args.domain_id = stack.enter_context(domain_id())
+        try:
+            summary = run(args)
+        except SystemExit as exc:
+            print(exc, file=sys.stderr)
+            return 1
+    print(json.dumps(summary, indent=2) if args.json else _format(summary))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,196 @@
+"""ROS glue shared by every node: the executor and how it spins, the body of ``main``,
+bounded parameters and input health on ``/diagnostics``.
+
+Executor: rclpy's default executor rebuilds its wait set in Python for every callback (about
+1-2 ms per simulated block in the simulator and the recorder, profiled), which held the node
+graph near 10x real time on 2 cores. Jazzy ships ``rclpy.experimental.EventsExecutor`` (a C++
+event queue; the same callbacks, timers, futures and raw subscriptions). ``DVA_EXECUTOR``
+chooses: ``events`` (default) or ``single_threaded`` (rclpy's default). The events executor of
+the Jazzy wheels neither returns from an unbounded spin when the context is shut down
+(SIGINT/SIGTERM) nor from ``spin_until_future_complete`` without a timeout, so :func:`spin`
+always spins in bounded slices and checks between them.
+
+:class:`InputHealth` declares the parameters
+
+stale_timeout : float, default 1.0
+    [s] ROS time without input after which the periodic status turns WARN.
+diagnostic_period : float, default 1.0
+    [s] ROS time between periodic status reports on ``/diagnostics``; also the least wall time
+    between two reports of the same kind of event.
+"""
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import time
+from collections.abc import Callable, Collection, Mapping
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
+from rclpy.exceptions import ParameterException
+from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+from rclpy.node import Node
+from rclpy.task import Future
+
+from dva_ros_common.conversions import ERROR, WARN, diagnostic_array, diagnostic_status
+
+#: A node's own status: level, message and extra key/values for ``/diagnostics``.
+Status = tuple[int, str, Mapping[str, object]]
+
+
+def bounded(description: str, low: float, high: float) -> ParameterDescriptor:
+    """Descriptor of a float parameter limited to ``[low, high]``."""
+    return ParameterDescriptor(
+        description=description,
+        floating_point_range=[FloatingPointRange(from_value=low, to_value=high)],
+    )
+
+
+def refuse_changes(node: Node, names: Collection[str]) -> None:
+    """Refuse run-time changes of the parameters ``names``, which the node reads at start-up."""
+
+    def check(params) -> SetParametersResult:
+        for param in params:
+            if param.name in names:
+                return SetParametersResult(
+                    successful=False, reason=f"'{param.name}' is read at start-up"
+                )
+        return SetParametersResult(successful=True)
+
+    node.add_on_set_parameters_callback(check)
+
+
+class InputHealth:
+    """Diagnostics of a node driven by one input topic.
+
+    Events (:meth:`report`) and a periodic status go to ``/diagnostics`` under the status name
+    ``"<node>: <subject>"``. The status is the node's own (``status()``) with its ``counts``,
+    except that stale input replaces it with a WARN; only a node's ERROR outranks stale input.
+    """
+
+    def __init__(
+        self,
+        node: Node,
+        subject: str,
+        input_topic: str,
+        counts: Mapping[str, int],
+        status: Callable[[], Status],
+    ) -> None:
+        stale = node.declare_parameter(
+            "stale_timeout", 1.0, bounded("input age reported as stale [s]", 1.0e-3, 3600.0)
+        )
+        period = node.declare_parameter(
+            "diagnostic_period", 1.0, bounded("status period [s]", 1.0e-2, 3600.0)
+        )
+        self._node = node
+        self._input_topic = input_topic
+        self._counts = counts
+        self._status = status
+        self._stale_ns = round(float(stale.value) * 1e9)
+        self._period = float(period.value)
+        self.name = f"{node.get_fully_qualified_name().lstrip('/')}: {subject}"
+        self._last_input_ns: int | None = None
+        self._first_tick_ns: int | None = None
+        self._last_report: dict[str, float] = {}
+        self._pub = node.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        node.create_timer(self._period, self._publish_status)
+
+    def mark_input(self) -> int:
+        """Note that input arrived; return the node's ROS time of it [ns]."""
+        self._last_input_ns = self._node.get_clock().now().nanoseconds
+        return self._last_input_ns
+
+    def report(self, level: int, event: str, text: str, **values) -> None:
+        """Publish one event on /diagnostics, at most once per period for each kind of event
+        (wall time, so a stopped sim clock cannot mute it); the caller's counts take every one."""
+        wall = time.monotonic()
+        last = self._last_report.get(event)
+        if last is not None and wall - last < self._period:
+            return
+        self._last_report[event] = wall
+        self._node.get_logger().warning(text)
+        self._publish(level, text, dict(event=event, **values))
+
+    def _publish_status(self) -> None:
+        now = self._node.get_clock().now().nanoseconds
+        if self._first_tick_ns is None or now < self._first_tick_ns:
+            self._first_tick_ns = now  # start, or the clock jumped back (a new sim run)
+        since = self._last_input_ns if self._last_input_ns is not None else self._first_tick_ns
+        age = max(now - since, 0) / 1e9
+        level, text, values = self._status()
+        if now - since > self._stale_ns and level != ERROR:
+            level, text = WARN, f"stale input: no {self._input_topic} for {age:.3g} s"
+        self._publish(level, text, dict(self._counts, event="status", input_age=age, **values))
+
+    def _publish(self, level: int, text: str, values: Mapping[str, object]) -> None:
+        stamp = self._node.get_clock().now().to_msg()
+        status = diagnostic_status(level, self.name, text, values)
+        self._pub.publish(diagnostic_array(stamp, [status]))
+
+
+#: What rclpy raises when a node is built on a context that a signal has just shut down.
+RCLError = _rclpy.RCLError
+ENV_VAR = "DVA_EXECUTOR"
+EXECUTORS = ("events", "single_threaded")
+SLICE = 0.1  # [s] wall time between checks for shutdown
+
+
+def make_executor() -> Executor:
+    """A new executor of the kind ``$DVA_EXECUTOR`` names (default: events)."""
+    kind = os.environ.get(ENV_VAR) or "events"
+    if kind not in EXECUTORS:
+        raise ValueError(f"{ENV_VAR}={kind!r} is not one of {', '.join(EXECUTORS)}")
+    try:
+        from rclpy.experimental import EventsExecutor
+    except ImportError:  # an rclpy older than Jazzy
+        kind = "single_threaded"
+    return EventsExecutor() if kind == "events" else SingleThreadedExecutor()
+
+
+def spin(executor: Executor, until: Future | None = None) -> None:
+    """Spin until ``until`` is done (for ever without one); raise ExternalShutdownException
+    when the context is shut down (Ctrl-C, SIGTERM), as ``rclpy.spin`` does."""
+    until = until or Future()
+    while not until.done():
+        if not rclpy.ok():
+            raise ExternalShutdownException()
+        executor.spin_until_future_complete(until, timeout_sec=SLICE)
+
+
+def run_node(node_class: Callable[[], Node], node_name: str, args=None) -> int:
+    """Body of a node's ``main``: the exit code (2 with a one-line error for bad parameters or
+    files).
+
+    The node spins until its ``done`` future completes, if it has one that is not None, else
+    until shutdown. A node with a ``close()`` method has it called once at the end, with
+    SIGINT and SIGTERM ignored so that a second Ctrl-C cannot cut it short (the recorder closes
+    its bag there). Errors while spinning are left to raise, so they keep their traceback.
+    """
+    rclpy.init(args=args)
+    node = None
+    try:
+        try:
+            executor = make_executor()  # first: a bad choice must not leave files behind
+            node = node_class()
+        except (ValueError, OSError, ParameterException) as exc:  # file errors included
+            print(f"{node_name}: error: {exc}", file=sys.stderr)
+            return 2
+        executor.add_node(node)
+        spin(executor, getattr(node, "done", None))
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass  # Ctrl-C or SIGTERM: a clean exit
+    except RCLError:
+        if rclpy.ok():
+            raise  # otherwise a signal arrived while the node was starting: a clean exit
+    finally:
+        if node is not None:
+            if hasattr(node, "close"):
+                signal.signal(signal.SIGINT, signal.SIG_IGN)
+                signal.signal(signal.SIGTERM, signal.SIG_IGN)
+                node.close()
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0

@@ -1,0 +1,104 @@
+"""Flight logs: a bag written the way the simulator publishes reads back into exact arrays."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from aero_dva.bag.flight_log_io import load_flight_log
+from aero_dva.bag.flight_summary import summarize
+from aero_dva.bag.mcap_io import BagReadError, BagWriter
+
+RATE, BLOCK = 1000.0, 50
+
+
+def _stamp(t: float) -> dict:
+    ns = int(round(t * 1e9))
+    return {"stamp": {"sec": ns // 10**9, "nanosec": ns % 10**9}, "frame_id": "wing"}
+
+
+def _write_flight(bag, leading_edge, airspeed, skip_blocks=(), u_cr=100.0, diverged=False):
+    n = leading_edge.size
+    with BagWriter(bag) as writer:
+        writer.add_topic("/wing/displacement", "dva_msgs/msg/DisplacementBlock")
+        writer.add_topic("/flight/condition", "dva_msgs/msg/FlightCondition")
+        writer.add_topic("/dva/damper_state", "dva_msgs/msg/DamperState")
+        writer.add_topic("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray")
+        for b, i0 in enumerate(range(0, n, BLOCK)):
+            t0 = i0 / RATE
+            t_ns = int(round(t0 * 1e9))
+            sl = slice(i0, i0 + BLOCK)
+            if b not in skip_blocks:
+                writer.write("/wing/displacement", {
+                    "header": _stamp(t0), "sample_rate": RATE, "first_sample_index": i0,
+                    "plunge": np.zeros(BLOCK), "pitch": np.zeros(BLOCK),
+                    "leading_edge": leading_edge[sl], "absorber_stroke": np.zeros(BLOCK)}, t_ns)
+            writer.write("/flight/condition", {"header": _stamp(t0), "airspeed": airspeed[i0],
+                                               "air_density": 1.2}, t_ns)
+            writer.write("/dva/damper_state", {"header": _stamp(t0), "applied_damping": 700.0,
+                                               "status": 0, "source": "fixed"}, t_ns)
+        text = "wing diverged at U = 118 m/s" if diverged else "flight completed"
+        writer.write("/diagnostics", {"header": _stamp(n / RATE), "status": [{
+            "level": 2 if diverged else 0, "name": "simulator: flight",
+            "message": text, "hardware_id": "aero_dva_sim",
+            "values": [{"key": "critical_airspeed_no_dva", "value": str(u_cr)}]}]},
+            int(n / RATE * 1e9))
+
+
+def _ramp(n):
+    return 80.0 + 40.0 * np.arange(n) / n
+
+
+def test_blocks_are_placed_by_index_and_gaps_stay_nan(tmp_path):
+    n = 1000
+    le = np.sin(np.arange(n) * 0.1) * 1e-3
+    _write_flight(tmp_path / "bag", le, _ramp(n), skip_blocks=(3,))
+    log = load_flight_log(tmp_path / "bag")
+    assert log.sample_rate == RATE and log.time.size == n
+    missing = np.isnan(log.displacements[2])
+    assert missing.sum() == BLOCK == log.missing_samples
+    assert missing[3 * BLOCK:4 * BLOCK].all()
+    np.testing.assert_array_equal(log.displacements[2][~missing], le[~missing])
+    # Per-block airspeed is held over the block's samples.
+    np.testing.assert_array_equal(log.airspeed[:BLOCK], np.full(BLOCK, 80.0))
+    assert log.applied_damping[0] == 700.0
+    assert log.diagnostics[-1]["values"]["critical_airspeed_no_dva"] == "100.0"
+
+
+def test_summary_finds_divergence_of_a_growing_response(tmp_path):
+    n = 30000
+    t = np.arange(n) / RATE
+    rng = np.random.default_rng(0)
+    le = 1e-3 * rng.standard_normal(n)
+    grow = t > 24.0  # response grows from t = 24 s (U = 112 m/s) on
+    le[grow] *= np.exp(2.0 * (t[grow] - 24.0))
+    airspeed = _ramp(n)
+    _write_flight(tmp_path / "bag", le, airspeed, diverged=True)
+    summary = summarize(load_flight_log(tmp_path / "bag"))
+    assert summary.critical_airspeed == 100.0
+    assert 112.0 < summary.divergence_airspeed < 116.0
+    assert summary.divergence_ratio == pytest.approx(summary.divergence_airspeed / 100.0)
+    assert summary.stopped_by_simulator
+    before = airspeed < summary.divergence_airspeed
+    assert summary.leading_edge_rms == pytest.approx(np.sqrt(np.mean(le[before] ** 2)))
+    assert 1e-3 < summary.leading_edge_rms < 1e-2  # includes the onset of the growth
+    assert summary.mean_damping == 700.0
+
+
+def test_bounded_flight_has_no_divergence(tmp_path):
+    n = 10000
+    le = 1e-3 * np.random.default_rng(1).standard_normal(n)
+    _write_flight(tmp_path / "bag", le, _ramp(n))
+    summary = summarize(load_flight_log(tmp_path / "bag"))
+    assert math.isnan(summary.divergence_airspeed)
+    assert summary.to_dict()["divergence_airspeed"] is None
+    assert not summary.stopped_by_simulator
+
+
+def test_missing_topic_is_named(tmp_path):
+    with BagWriter(tmp_path / "bag") as writer:
+        writer.add_topic("/flight/condition", "dva_msgs/msg/FlightCondition")
+        writer.write("/flight/condition", {"airspeed": 80.0, "air_density": 1.2}, 0)
+    with pytest.raises(BagReadError, match="/wing/displacement"):
+        load_flight_log(tmp_path / "bag")

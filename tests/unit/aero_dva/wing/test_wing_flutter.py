@@ -1,0 +1,149 @@
+"""Flutter solver, modal analysis with mode tracking, and the textbook typical section."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from aero_dva.wing.absorbers import PassiveAbsorber
+from aero_dva.wing.aerodynamics import QuasiSteadyAero, TheodorsenAero, WagnerAero
+from aero_dva.wing.flutter import (
+    NoFlutterError,
+    _first_bracket,
+    flutter_speed,
+    flutter_vs_density,
+    growth_rate,
+)
+from aero_dva.wing.modal import modal_analysis
+from aero_dva.wing.model import AeroelasticModel
+from aero_dva.wing.typical_section import TypicalSection, section_to_wing
+from aero_dva.wing.wing_io import load_wing
+
+# Hodges & Pierce, Introduction to Structural Dynamics and Aeroelasticity, 2nd ed. (2011),
+# section 5.5, figs. 5.19-5.20 (p-k method with Theodorsen's function): a = -1/5, e = -1/10
+# (x_alpha = e - a = 1/10), mu = 20, r^2 = 6/25, sigma = 2/5. The damping of the pitch-dominated
+# branch crosses zero at U / (b omega_theta) ~ 2.17 on the figure's airspeed axis (read off the
+# plot; AeroBeams.jl and Aeroelasticity.jl reproduce the same example at "around 2.2").
+HODGES_PIERCE = TypicalSection(semichord=1.0, mass_ratio=20.0, radius_of_gyration_sq=6 / 25,
+                               frequency_ratio=2 / 5, static_unbalance=0.1, elastic_axis=-0.2,
+                               pitch_frequency=1.0, air_density=1.0)
+HP_REDUCED_FLUTTER_SPEED = 2.17
+
+
+@pytest.fixture(scope="module")
+def reference():
+    return load_wing()
+
+
+def test_typical_section_theodorsen_matches_hodges_pierce():
+    wing = section_to_wing(HODGES_PIERCE)
+    res = flutter_speed(AeroelasticModel(wing, None, TheodorsenAero()), 1.0, (0.0, 4.0))
+    v = res.critical_airspeed / HODGES_PIERCE.reference_speed
+    assert v == pytest.approx(HP_REDUCED_FLUTTER_SPEED, rel=0.02)
+    assert res.kind == "flutter"
+    # Flutter frequency between the uncoupled plunge (0.4) and pitch (1.0) frequencies.
+    assert 0.4 < 2 * np.pi * res.flutter_frequency < 1.0
+
+
+def test_finite_state_wagner_agrees_with_theodorsen_and_quasi_steady_does_not():
+    wing = section_to_wing(HODGES_PIERCE)
+    wagner = flutter_speed(AeroelasticModel(wing, None, WagnerAero()), 1.0, (0.0, 4.0))
+    theo = flutter_speed(AeroelasticModel(wing, None, TheodorsenAero()), 1.0, (0.0, 4.0))
+    qs = flutter_speed(AeroelasticModel(wing, None, QuasiSteadyAero()), 1.0, (0.0, 4.0))
+    assert wagner.critical_airspeed == pytest.approx(theo.critical_airspeed, rel=0.01)
+    assert wagner.flutter_frequency == pytest.approx(theo.flutter_frequency, rel=0.01)
+    assert abs(qs.critical_airspeed / theo.critical_airspeed - 1) > 0.1
+
+
+def test_critical_airspeed_is_precise_to_1e_6(reference):
+    model = AeroelasticModel(reference.wing)
+    res = flutter_speed(model, 1.2)
+    u = res.critical_airspeed
+    g = growth_rate(model, np.array([u * (1 - 1e-7), u * (1 + 1e-7)]), 1.2)
+    assert g[0] < 0 < g[1]
+    # The unstable eigenvalue is on the imaginary axis at the flutter frequency.
+    a, _ = model.matrices(u, 1.2)
+    lam = np.linalg.eigvals(a)
+    j = np.argmax(lam.real)
+    assert abs(lam[j].real) < 1e-6 * abs(lam[j])
+    assert abs(lam[j].imag) / (2 * np.pi) == pytest.approx(res.flutter_frequency, rel=1e-9)
+
+
+def test_precision_with_maxwell_absorber_and_its_stiff_node(reference):
+    for c2 in (0.0, 1e-6, 700.0, np.inf):
+        model = AeroelasticModel(reference.wing, reference.absorber.replace(damping=c2))
+        res = flutter_speed(model, 1.2)
+        g = growth_rate(model, res.critical_airspeed * np.array([1 - 1e-7, 1 + 1e-7]), 1.2)
+        assert g[0] < 0 < g[1], c2
+
+
+def test_no_flutter_in_range_is_a_clear_error(reference):
+    model = AeroelasticModel(reference.wing)
+    with pytest.raises(NoFlutterError, match="no flutter"):
+        flutter_speed(model, 1.2, (0.0, 50.0))
+    with pytest.raises(ValueError, match="already unstable"):
+        flutter_speed(model, 1.2, (150.0, 300.0))
+    with pytest.raises(ValueError, match="density"):
+        flutter_speed(model, -1.0)
+    with pytest.raises(ValueError, match="airspeed_range"):
+        flutter_speed(model, 1.2, (100.0, 50.0))
+
+
+def test_a_short_excursion_between_grid_points_is_not_missed():
+    """A mode unstable only within 1.05 +- 0.004, between negative grid samples, is found."""
+
+    def g(u):
+        return -0.05 - 0.1 * (u - 1.05) ** 2 + 0.06 * np.exp(-(((u - 1.05) / 0.01) ** 2))
+
+    class Growth:
+        def __call__(self, u):
+            return g(u), 0j
+
+    u = np.linspace(0.0, 2.0, 21)  # step 0.1: samples at 1.0 and 1.1 are negative
+    samples = np.array([g(x) for x in u])
+    assert np.all(samples < 0)
+    a, b = _first_bracket(Growth(), u, samples, 2.0, 1e-12)
+    assert g(a) < 0 < g(b) and 0.9 <= a < 1.046 < b <= 1.1
+
+
+def test_flutter_speed_falls_as_density_rises(reference):
+    model = AeroelasticModel(reference.wing)
+    u, f = flutter_vs_density(model, [0.6, 0.9, 1.2, 1.5])
+    assert np.all(np.diff(u) < 0)
+    assert np.all(np.isfinite(f))
+
+
+def test_modal_tracking_follows_the_flutter_mode(reference):
+    model = AeroelasticModel(reference.wing)
+    res_f = flutter_speed(model, 1.2)
+    u_cr = res_f.critical_airspeed
+    res = modal_analysis(model, np.linspace(0.0, 1.2 * u_cr, 241), 1.2)
+    assert sorted(res.labels) == ["rotational", "translational"]
+    assert res.frequency.shape == (2, 241)
+    # Fig. 6.2: one tracked branch crosses zero damping at U_cr, at the flutter frequency.
+    i_cr = np.searchsorted(res.airspeed, u_cr)
+    j = int(np.argmin(res.damping_ratio[:, i_cr + 1]))
+    assert res.damping_ratio[j, i_cr - 1] > 0 > res.damping_ratio[j, i_cr + 1]
+    assert res.frequency[j, i_cr] == pytest.approx(res_f.flutter_frequency, rel=0.01)
+    assert res.labels[j] == "rotational"  # as in the seed's fig. 6.2
+    # Tracking keeps the flutter branch continuous: no jumps between neighbouring airspeeds.
+    # (A branch that splits into two real roots moves fast near the split, as it should.)
+    steps = np.abs(np.diff(res.eigenvalues[j]))
+    assert steps.max() < 0.02 * np.abs(res.eigenvalues[j]).max()
+    assert res.min_damping_ratio[i_cr + 1] < 0 < res.min_damping_ratio[i_cr - 1]
+
+
+def test_theodorsen_pk_handles_an_absorber(reference):
+    wing = reference.wing
+    bare = flutter_speed(AeroelasticModel(wing, None, TheodorsenAero()), 1.2)
+    dva = PassiveAbsorber(40.0, 9.156e4, 860.0, wing.leading_edge)
+    with_dva = flutter_speed(AeroelasticModel(wing, dva, TheodorsenAero()), 1.2)
+    assert with_dva.critical_airspeed != pytest.approx(bare.critical_airspeed, rel=1e-3)
+
+
+@pytest.mark.parametrize("field,value", [
+    ("mass_ratio", -1.0), ("radius_of_gyration_sq", 0.001), ("elastic_axis", 1.5),
+    ("pitch_frequency", float("nan")),
+])
+def test_bad_sections_are_named(field, value):
+    with pytest.raises(ValueError, match=field if field != "radius_of_gyration_sq" else "radius"):
+        HODGES_PIERCE.replace(**{field: value})
