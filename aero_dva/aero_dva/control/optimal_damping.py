@@ -14,9 +14,9 @@ is then refined by a bounded scalar minimisation on the interval between its two
 neighbours: ``scipy.optimize.minimize_scalar(method="bounded")`` (Brent's golden-section
 search with parabolic interpolation), run for all airspeeds at once by
 :func:`bounded_minimize_batch`, which takes the same steps and returns the same values as the
-separate calls but evaluates the RMS of all airspeeds of one step in one batch (one
-``minimize_scalar`` call per airspeed costs about 1 ms per evaluation in overhead, which for
-200 airspeeds would be longer than the whole grid). The refined value is kept only if it
+separate calls but evaluates the RMS of all airspeeds of one step in one batch (the per-call
+overhead of separate ``minimize_scalar`` calls would outweigh the whole grid; see
+``bench/bench_optimal_damping.py`` and docs/performance.md). The refined value is kept only if it
 improves on the grid value. An airspeed at which no grid value of ``c2`` is stable has no
 optimum (NaN, minimum RMS ``inf``).
 

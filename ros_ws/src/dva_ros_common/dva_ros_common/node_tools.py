@@ -1,14 +1,14 @@
 """ROS glue shared by every node: the executor and how it spins, the body of ``main``,
 bounded parameters and input health on ``/diagnostics``.
 
-Executor: rclpy's default executor rebuilds its wait set in Python for every callback (about
-1-2 ms per simulated block in the simulator and the recorder, profiled), which held the node
-graph near 10x real time on 2 cores. Jazzy ships ``rclpy.experimental.EventsExecutor`` (a C++
-event queue; the same callbacks, timers, futures and raw subscriptions). ``DVA_EXECUTOR``
-chooses: ``events`` (default) or ``single_threaded`` (rclpy's default). The events executor of
-the Jazzy wheels neither returns from an unbounded spin when the context is shut down
-(SIGINT/SIGTERM) nor from ``spin_until_future_complete`` without a timeout, so :func:`spin`
-always spins in bounded slices and checks between them.
+Executor: rclpy's default executor rebuilds its wait set in Python for every callback, which
+held the node graph far below the events executor's rate (``bench/bench_graph.py`` measures both;
+docs/performance.md). Jazzy ships ``rclpy.experimental.EventsExecutor`` (a C++ event queue; the
+same callbacks, timers, futures and raw subscriptions). ``DVA_EXECUTOR`` chooses: ``events``
+(default) or ``single_threaded`` (rclpy's default). The events executor of the Jazzy wheels
+neither returns from an unbounded spin when the context is shut down (SIGINT/SIGTERM) nor from
+``spin_until_future_complete`` without a timeout, so :func:`spin` always spins in bounded
+slices and checks between them.
 
 :class:`InputHealth` declares the parameters
 
