@@ -100,6 +100,23 @@ def isolator_stiffness(omega, h, mass: float, quantity: str):
     return z + w2m, 1.0 / np.abs(z)
 
 
+def sort_elements(fit: MaxwellFit) -> MaxwellFit:
+    """The same fit with its elements in ascending time constant (a unique report order)."""
+    model = fit.model
+    order = np.argsort(model.time_constants, kind="stable")
+    if model.n_elements < 2 or np.all(order == np.arange(model.n_elements)):
+        return fit
+
+    def pick(seq):
+        return tuple(seq[i] for i in order)
+
+    return replace(
+        fit, model=model.with_elements(pick(model.maxwell_k), pick(model.maxwell_c)),
+        element_types=pick(fit.element_types), maxwell_k_std=pick(fit.maxwell_k_std),
+        maxwell_c_std=pick(fit.maxwell_c_std),
+    )
+
+
 def _tau_grid(omega, n: int) -> np.ndarray:
     """Log grid of time constants over the band the data can resolve [s]."""
     w = omega[omega > 0]
@@ -194,7 +211,7 @@ def fit_unconstrained(omega, h, mass, k, n, quantity="receptance", starts=None) 
         warnings.simplefilter("ignore", FitWarning)
         fit = _finish(problem, best.x, value, best.success, len(guesses), "least_squares", [],
                       False)
-    return replace(fit, constraint_error=float("nan"))
+    return sort_elements(replace(fit, constraint_error=float("nan")))
 
 
 def modal_standard_errors(fit: MaxwellFit, omega, h, quantity="receptance"):
