@@ -164,5 +164,5 @@ def test_heavily_damped_system_with_no_half_power_point_is_not_refused(capsys, t
     assert payload["natural_frequency_rad_s"] == pytest.approx(true.natural_frequency_rad_s,
                                                                rel=0.005)
     code, _, err = run(capsys, *args, "--modal-estimate", "half-power")
-    assert code == 2 and "does not fall to the half-power level below" in err
+    assert code == 2 and "does not fall to the half-power level (peak / sqrt 2) below" in err
     assert "--modal-estimate fit" in err and len(err.strip().splitlines()) == 1
