@@ -1,4 +1,4 @@
-"""``dva isolator``: modal analysis, identification, FRF estimation and plots (seed ch. 3-5).
+"""``dva isolator``: modal analysis, identification, FRF estimation, plots (Zhang 2006, ch. 3-5).
 
 All values on the command line and in files are SI: kg, N/m, N s/m, Pa, m, m^2, Hz (rad/s where
 named).
@@ -477,8 +477,8 @@ def register(subparsers) -> None:
     p.add_argument("file", help="CSV with time_s, force and response columns")
     p.add_argument("--out", required=True, help="output FRF CSV")
     p.add_argument("--fs", type=float, default=None, help="sampling rate [Hz] (default: time_s)")
-    p.add_argument("--nfft", type=int, default=10000, help="FFT/segment length (seed: 10000)")
-    p.add_argument("--window", default="boxcar", help="window (seed: none = boxcar)")
+    p.add_argument("--nfft", type=int, default=10000, help="FFT/segment length (study: 10000)")
+    p.add_argument("--window", default="boxcar", help="window (study: none = boxcar)")
     p.add_argument("--estimator", choices=("h1", "h2"), default="h1")
     p.add_argument("--force-column", default="force_n")
     p.add_argument("--response-column", action="append", default=None,
@@ -493,7 +493,7 @@ def register(subparsers) -> None:
         description="Reads one row per excitation frequency: frequency_hz plus real,imag or "
                     "force_amplitude_n,force_phase_deg,response_amplitude,response_phase_deg. "
                     "w_n is the zero crossing of Re(H), zeta comes from the half-power points "
-                    "of |receptance| (seed section 5.2).",
+                    "of |receptance| (study section 5.2).",
     )
     p.add_argument("file", help="stepped-sine CSV")
     frf_input(p, default_format="stepped-sine")
