@@ -5,7 +5,8 @@ w_n in 5-35 Hz), computes its FRF at 400 points over 1-60 Hz, multiplies it by (
 with complex Gaussian alpha of RMS ``noise``, writes it as CSV or UFF 58, and runs the CLI
 (``identify FILE --quantity Q --mass 1 --static-stiffness k --json``, default: up to 2
 elements, w_n and zeta from the unconstrained fit). Rows: noise x quantity x format, plus the
-half-power estimate (``--modal-estimate half-power``, the former default) for comparison.
+half-power estimate (``--modal-estimate half-power``, the former default) for comparison and
+two rows where the static stiffness given is 2 % off the truth.
 
 Columns: FRF error against the data / noise (median, 95th percentile), |w_n error| and
 |zeta error| relative to the truth [%] (median, 95th percentile), the share of cases meeting
@@ -35,7 +36,7 @@ F_HZ = np.linspace(1.0, 60.0, 400)
 NOISES = (0.001, 0.005, 0.01, 0.02)
 
 
-def run_case(rng, noise, quantity, fmt, workdir: Path, extra=()) -> dict:
+def run_case(rng, noise, quantity, fmt, workdir: Path, extra=(), k_factor=1.0) -> dict:
     """One random system through the CLI; returns errors against the truth or the refusal."""
     system = random_mv_system(rng)
     true = modal_properties(system)
@@ -49,7 +50,7 @@ def run_case(rng, noise, quantity, fmt, workdir: Path, extra=()) -> dict:
     t0 = time.perf_counter()
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
         code = cli.main(["isolator", "identify", str(path), "--quantity", quantity,
-                         "--mass", "1", "--static-stiffness", repr(system.k), "--json",
+                         "--mass", "1", "--static-stiffness", repr(k_factor * system.k), "--json",
                          *extra])
     seconds = time.perf_counter() - t0
     row = {"zeta": true.damping_ratio, "seconds": seconds}
@@ -94,18 +95,22 @@ def main() -> None:
         parser.error("--cases must be >= 1")
     cli.SUBCOMMAND_MODULES = {"isolator": "dva_offline.isolator.cli"}
     rng = np.random.default_rng(args.seed)
-    rows = [(f"{100 * s:g} % | {q} | {f} | fit", s, q, f, ())
+    rows = [(f"{100 * s:g} % | {q} | {f} | fit", s, q, f, (), 1.0)
             for s in NOISES for q in ("receptance", "accelerance") for f in ("csv", "uff58")]
     rows.append(("0.5 % | receptance | csv | half-power", 0.005, "receptance", "csv",
-                 ("--modal-estimate", "half-power")))
+                 ("--modal-estimate", "half-power"), 1.0))
+    # Sensitivity: the static stiffness passed is 2 % off the truth (a static test's error).
+    for sign in (1, -1):
+        rows.append((f"0.5 % | receptance | csv | fit, static stiffness {sign * 2:+d} %", 0.005,
+                     "receptance", "csv", (), 1.0 + sign * 0.02))
     lines, times = [], []
     t_start = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp, tqdm(total=len(rows) * args.cases,
                                                     desc="identify") as bar:
-        for label, noise, quantity, fmt, extra in rows:
+        for label, noise, quantity, fmt, extra, k_factor in rows:
             cases = []
             for _ in range(args.cases):
-                cases.append(run_case(rng, noise, quantity, fmt, Path(tmp), extra))
+                cases.append(run_case(rng, noise, quantity, fmt, Path(tmp), extra, k_factor))
                 bar.update()
             times += [c["seconds"] for c in cases]
             lines.append(summarise(label, cases))
