@@ -166,3 +166,25 @@ def test_heavily_damped_system_with_no_half_power_point_is_not_refused(capsys, t
     code, _, err = run(capsys, *args, "--modal-estimate", "half-power")
     assert code == 2 and "does not fall to the half-power level (peak / sqrt 2) below" in err
     assert "--modal-estimate fit" in err and len(err.strip().splitlines()) == 1
+
+
+# Table 4.1 M-M-V systems (k_i in kN/m, c_i in N s/m; m = 1 kg, k = 12 kN/m, c = 40 N s/m).
+TABLE_4_1 = {"A": ((12, 20), (24, 20)), "B": ((12, 80), (24, 120)), "C": ((12, 2000), (24, 2000)),
+             "D": ((24, 20), (12, 80)), "E": ((24, 20), (12, 2000)), "F": ((12, 80), (24, 2000))}
+
+
+@pytest.mark.parametrize("name", sorted(TABLE_4_1))
+def test_table_4_1_two_element_systems_from_noisy_data(name):
+    """Two-element truths (zeta 0.11-0.43): w_n, zeta from 0.5 % noisy data as in the issue."""
+    (k1, c1), (k2, c2) = TABLE_4_1[name]
+    system = MaxwellModel(1.0, 12 * KN, 40.0, (k1 * KN, k2 * KN), (c1, c2))
+    true = modal_properties(system)
+    omega = np.linspace(0.0, 2.5 * true.natural_frequency_rad_s, 300)[1:]
+    rng = np.random.default_rng(sorted(TABLE_4_1).index(name))
+    h = add_complex_noise(frf(system, omega), SIGMA, rng)
+    result = identify(omega, h, 1.0, 12 * KN, n_elements=2)
+    mf = result.modal_fit
+    assert result.fit.frf_error <= 2 * SIGMA
+    assert mf.natural_frequency_rad_s == pytest.approx(true.natural_frequency_rad_s, rel=0.005)
+    assert mf.damping_ratio == pytest.approx(true.damping_ratio, rel=0.02)
+    assert abs(mf.damping_ratio - true.damping_ratio) < 4 * mf.damping_ratio_std
