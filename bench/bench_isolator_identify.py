@@ -49,9 +49,13 @@ def run_case(rng, noise, quantity, fmt, workdir: Path, extra=(), k_factor=1.0) -
     out, err = io.StringIO(), io.StringIO()
     t0 = time.perf_counter()
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        code = cli.main(["isolator", "identify", str(path), "--quantity", quantity,
-                         "--mass", "1", "--static-stiffness", repr(k_factor * system.k), "--json",
-                         *extra])
+        try:
+            code = cli.main(["isolator", "identify", str(path), "--quantity", quantity,
+                             "--mass", "1", "--static-stiffness", repr(k_factor * system.k),
+                             "--json", *extra])
+        except Exception as exc:  # a crash is a failure of the case, reported as refused
+            code = 1
+            print(f"crash: {exc!r}", file=err)
     seconds = time.perf_counter() - t0
     row = {"zeta": true.damping_ratio, "seconds": seconds}
     if code != 0:

@@ -127,8 +127,9 @@ def check_constraints(constrained: MaxwellFit, modal: ModalFit, omega, h, wn_tar
     """F-test of the imposed w_n, zeta against the unconstrained fit, and which one fails."""
     ssr_c = weighted_ssr(constrained.model, omega, h, quantity)
     f_stat, p = f_test(ssr_c, modal.ssr, 2, modal.dof)
-    z_w = (wn_target - modal.natural_frequency_rad_s) / modal.natural_frequency_std
-    z_z = (zeta_target - modal.damping_ratio) / modal.damping_ratio_std
+    with np.errstate(divide="ignore", invalid="ignore"):  # exact data: zero standard errors
+        z_w = np.float64(wn_target - modal.natural_frequency_rad_s) / modal.natural_frequency_std
+        z_z = np.float64(zeta_target - modal.damping_ratio) / modal.damping_ratio_std
     rejected = p < alpha
     named: tuple[str, ...] = ()
     message = ""

@@ -108,7 +108,8 @@ def sort_elements(fit: MaxwellFit) -> MaxwellFit:
         return fit
 
     def pick(seq):
-        return tuple(seq[i] for i in order)
+        # element_types is empty when the model has no complex pair (nothing to classify).
+        return tuple(seq[i] for i in order) if len(seq) == order.size else tuple(seq)
 
     return replace(
         fit, model=model.with_elements(pick(model.maxwell_k), pick(model.maxwell_c)),
