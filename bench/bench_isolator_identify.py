@@ -107,7 +107,7 @@ def main() -> None:
     for sign in (1, -1):
         rows.append((f"0.5 % | receptance | csv | fit, static stiffness {sign * 2:+d} %", 0.005,
                      "receptance", "csv", (), 1.0 + sign * 0.02))
-    lines, times = [], []
+    lines, times, refusals = [], [], {}
     t_start = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp, tqdm(total=len(rows) * args.cases,
                                                     desc="identify") as bar:
@@ -118,6 +118,10 @@ def main() -> None:
                 bar.update()
             times += [c["seconds"] for c in cases]
             lines.append(summarise(label, cases))
+            for c in cases:
+                if c["refused"] is not None:
+                    reason = c["refused"].split(": ")[-1][:90]
+                    refusals[(label, reason)] = refusals.get((label, reason), 0) + 1
     wall = time.perf_counter() - t_start
     print(f"\n{args.cases} random M-V systems per row (zeta 0.05-0.45, w_n 5-35 Hz), 400 "
           f"points 1-60 Hz, seed {args.seed}; median / 95th percentile")
@@ -125,6 +129,8 @@ def main() -> None:
           "abs w_n error % | abs zeta error % | within 2x noise, 0.5 %, 2 % | refused |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     print("\n".join(lines))
+    for (label, reason), count in refusals.items():
+        print(f"refused {count}x in row '{label}': {reason}")
     print(f"\nCLI time per case (in-process, file read + fit): median {np.median(times):.2f} s, "
           f"max {np.max(times):.2f} s; total {wall:.0f} s on this machine")
 
