@@ -1,4 +1,4 @@
-"""``dva isolator``: modal analysis, identification, FRF estimation and plots (seed ch. 3-5).
+"""``dva isolator``: modal analysis, identification, FRF estimation, plots (Zhang 2006, ch. 3-5).
 
 All values on the command line and in files are SI: kg, N/m, N s/m, Pa, m, m^2, Hz (rad/s where
 named).
@@ -8,7 +8,6 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -122,42 +121,48 @@ def _check_units(args, omega, h, mass, static_stiffness, wn) -> None:
         ) from None
 
 
+def _fit_json(fit) -> dict:
+    """JSON of one fit: parameters with standard errors, modal solution, FRF error, warnings."""
+    model = fit.model
+    return {
+        "method": fit.method,
+        "c": model.c,
+        "c_std": fit.c_std,
+        "n_elements": model.n_elements,
+        "elements": _elements_json(model, fit.element_types, fit.maxwell_k_std,
+                                   fit.maxwell_c_std),
+        "natural_frequency_rad_s": fit.modal.natural_frequency_rad_s if fit.modal else None,
+        "damping_ratio": fit.modal.damping_ratio if fit.modal else None,
+        "frf_error": fit.frf_error,
+        "warnings": list(fit.warnings),
+    }
+
+
+def _r_squared(model, omega, h) -> float:
+    """1 - ||H_model - H||^2 / ||H - mean H||^2 over the receptance points."""
+    resid = frf(model, omega) - h
+    return float(1.0 - np.sum(np.abs(resid) ** 2) / np.sum(np.abs(h - h.mean()) ** 2))
+
+
+def _rough_natural_frequency(args, omega, h):
+    """Given w_n, else the zero crossing of Re(H) (only for the fast unit check), else None."""
+    if args.natural_frequency_rad_s is not None:
+        return args.natural_frequency_rad_s
+    from dva_offline.isolator.frf_estimation import natural_frequency_zero_crossing
+
+    try:
+        return natural_frequency_zero_crossing(omega, h)
+    except ValueError:
+        return None
+
+
 def _cmd_identify(args) -> int:
     if not args.mass > 0:
         raise ValueError(f"--mass must be > 0 kg, got {args.mass}")
     if not args.static_stiffness > 0:
         raise ValueError(f"--static-stiffness must be > 0 N/m, got {args.static_stiffness}")
-    data = _read_frf(args)
-    omega, h = to_receptance(data, args.mass)
-    if args.natural_frequency_rad_s is None or args.damping_ratio is None:
-        try:
-            est = estimate_modal(omega, h)
-        except ValueError as exc:
-            raise ValueError(
-                f"{args.file}: {exc}; give --natural-frequency-rad-s and --damping-ratio"
-            ) from None
-    wn = args.natural_frequency_rad_s or est.natural_frequency_rad_s
-    zeta = args.damping_ratio if args.damping_ratio is not None else est.damping_ratio
-    _check_units(args, omega, h, args.mass, args.static_stiffness, wn)
-    # scipy.optimize is imported only once the input has passed its checks (fast errors).
-    from dva_offline.isolator.maxwell_fit import FitWarning, fit_maxwell_model
-    from dva_offline.isolator.order_selection import select_model_order
-
-    kwargs = dict(objective=args.objective, weighting=args.weighting)
-    selection = None
-    # Fit warnings are reported in the output ("warnings"), not as Python warnings.
-    warnings.simplefilter("ignore", FitWarning)
     if args.elements == "auto":
-        selection = select_model_order(
-            omega, h, args.mass, args.static_stiffness, wn, zeta,
-            max_elements=args.max_elements, **kwargs,
-        )
-        if selection.fit is None:
-            raise ValueError(
-                "order selection chose a Voigt model (no Maxwell element improves the held-out "
-                "FRF error); use --elements N to force a Maxwell model"
-            )
-        fit = selection.fit
+        n = args.max_elements
     else:
         try:
             n = int(args.elements)
@@ -165,37 +170,81 @@ def _cmd_identify(args) -> int:
             raise ValueError(
                 f"--elements must be an integer or 'auto', got {args.elements!r}"
             ) from None
-        fit = fit_maxwell_model(omega, h, args.mass, args.static_stiffness, n, wn, zeta, **kwargs)
+    if n < 1:
+        raise ValueError(f"--elements must be >= 1, got {n}")
+    data = _read_frf(args)
+    omega, h = to_receptance(data, args.mass)
+    if args.modal_estimate == "half-power" and (args.natural_frequency_rad_s is None
+                                                or args.damping_ratio is None):
+        try:
+            estimate_modal(omega, h)
+        except ValueError as exc:
+            raise ValueError(
+                f"{args.file}: {exc}; use --modal-estimate fit or give "
+                "--natural-frequency-rad-s and --damping-ratio"
+            ) from None
+    rough = _rough_natural_frequency(args, omega, h)
+    if rough is not None:
+        _check_units(args, omega, h, args.mass, args.static_stiffness, rough)
+    # scipy.optimize is imported only once the input has passed its checks (fast errors).
+    from dva_offline.isolator.identification import identify
+
+    result = identify(
+        omega, h, args.mass, args.static_stiffness, n, args.natural_frequency_rad_s,
+        args.damping_ratio, args.modal_estimate, objective=args.objective,
+        weighting=args.weighting,
+    )
+    mf = result.modal_fit
+    _check_units(args, omega, h, args.mass, args.static_stiffness, mf.natural_frequency_rad_s)
+    fit = result.fit
     model = fit.model
-    payload = {
-        "file": str(args.file),
-        "mass_kg": model.mass,
-        "static_stiffness_n_per_m": model.k,
-        "c": model.c,
-        "c_std": fit.c_std,
-        "n_elements": model.n_elements,
-        "elements": _elements_json(model, fit.element_types, fit.maxwell_k_std,
-                                   fit.maxwell_c_std),
+    wn, zeta = result.target_natural_frequency_rad_s, result.target_damping_ratio
+    payload = {"file": str(args.file), "mass_kg": model.mass,
+               "static_stiffness_n_per_m": model.k, **_fit_json(fit)}
+    payload.update({
         "element_types": [t.label for t in fit.element_types],
-        "natural_frequency_rad_s": fit.modal.natural_frequency_rad_s if fit.modal else None,
-        "damping_ratio": fit.modal.damping_ratio if fit.modal else None,
         "target_natural_frequency_rad_s": wn,
         "target_damping_ratio": zeta,
-        "frf_error": fit.frf_error,
+        "target_sources": {"natural_frequency": result.target_sources[0],
+                           "damping_ratio": result.target_sources[1]},
+        "modal_estimate": {
+            "method": "modal solution of the unconstrained fit",
+            "natural_frequency_rad_s": mf.natural_frequency_rad_s,
+            "natural_frequency_std": mf.natural_frequency_std,
+            "damping_ratio": mf.damping_ratio,
+            "damping_ratio_std": mf.damping_ratio_std,
+        },
         "frf_error_definition": "||H_model - H||_2 / ||H||_2 over the receptance points",
-        "warnings": list(fit.warnings),
+        "r_squared": _r_squared(model, omega, h),
+        "unconstrained_fit": _fit_json(mf.fit),
+        "constraint_check": None,
+        "order": {
+            "requested": mf.requested_elements, "selected": model.n_elements,
+            "orders": list(mf.orders), "frf_errors": list(mf.order_frf_errors),
+            "f_test_p_values": list(mf.order_p_values),
+            "reductions": list(result.reductions),
+        },
+        "warnings": list(result.warnings),
         "covariates": sorted(data.covariates),
-    }
+    })
+    check = result.constraint_check
+    if check is not None:
+        payload["constraint_check"] = {
+            "f_statistic": check.f_statistic, "p_value": check.p_value, "dof": check.dof,
+            "frf_error_constrained": check.frf_error_constrained,
+            "frf_error_unconstrained": check.frf_error_unconstrained,
+            "z_natural_frequency": check.z_natural_frequency,
+            "z_damping_ratio": check.z_damping_ratio, "rejected": check.rejected,
+            "constraints": list(check.named), "message": check.message,
+        }
+    if args.elements == "auto":
+        payload["order_selection"] = {
+            "orders": list(mf.orders), "frf_errors": list(mf.order_frf_errors),
+            "selected_order": model.n_elements,
+        }
     if args.quantity == "modulus":
         payload["geometry_factor_m"] = geometry_factor(args.area, args.thickness,
                                                        args.geometry_factor)
-    if selection is not None:
-        payload["order_selection"] = {
-            "orders": list(selection.orders),
-            "holdout_errors": list(selection.holdout_errors),
-            "train_errors": list(selection.train_errors),
-            "selected_order": selection.selected_order,
-        }
     if args.plot:
         from dva_offline.isolator.plots import plot_frf
 
@@ -209,20 +258,26 @@ def _cmd_identify(args) -> int:
         plot_frf(args.plot, [(measured, f_hz, h, "k."), (label, f_hz, frf(model, omega), "r-")],
                  "receptance", title)
         payload["plot"] = str(args.plot)
+    src = {"fit": "unconstrained fit", "half-power": "zero crossing / half power",
+           "given": "given"}
     lines = [
-        f"target: w_n = {wn:.3f} rad/s, zeta = {zeta:.4f}; static stiffness {model.k:.6g} N/m",
+        f"from the data (unconstrained fit): w_n = {mf.natural_frequency_rad_s:.6g} +- "
+        f"{mf.natural_frequency_std:.2g} rad/s, zeta = {mf.damping_ratio:.5g} +- "
+        f"{mf.damping_ratio_std:.2g}, FRF error {mf.fit.frf_error:.4f}",
+        f"target: w_n = {wn:.3f} rad/s ({src[result.target_sources[0]]}), zeta = {zeta:.4f} "
+        f"({src[result.target_sources[1]]}); static stiffness {model.k:.6g} N/m",
+        f"elements: {model.n_elements} of at most {mf.requested_elements}",
+        *(f"order rule: {r}" for r in result.reductions),
         f"c = {model.c:.6g} +- {fit.c_std:.2g} N s/m",
         *(f"element {i + 1}: k = {e['k']:.6g} +- {e['k_std']:.2g} N/m, c = {e['c']:.6g} +- "
           f"{e['c_std']:.2g} N s/m, Type {e['type']} (w_n tau = {e['omega_tau']:.3f})"
           for i, e in enumerate(payload["elements"])),
-        f"relative FRF error {fit.frf_error:.4f}",
-        *(f"warning: {w}" for w in fit.warnings),
+        f"relative FRF error {fit.frf_error:.4f}, R^2 = {payload['r_squared']:.6f}",
+        *([f"constraint check: F = {check.f_statistic:.3g}, p = {check.p_value:.2g}"
+           + (" (rejected)" if check.rejected else " (consistent with the data)")]
+          if check is not None else []),
+        *(f"warning: {w}" for w in result.warnings),
     ]
-    if selection is not None:
-        errors = ", ".join(f"{o} element(s) {e:.4f}" for o, e in
-                           zip(selection.orders, selection.holdout_errors))
-        lines.insert(1, f"order selection, held-out FRF error: {errors} -> "
-                        f"{selection.selected_order}")
     _emit(args, payload, lines)
     return 0
 
@@ -400,12 +455,18 @@ def register(subparsers) -> None:
     p.add_argument("--mass", type=float, required=True, help="isolated mass [kg]")
     p.add_argument("--static-stiffness", type=float, required=True,
                    help="static stiffness k [N/m]")
-    p.add_argument("--elements", default="2", help="number of Maxwell elements, or 'auto'")
+    p.add_argument("--elements", default="2",
+                   help="largest number of Maxwell elements (degenerate ones are merged or "
+                        "dropped by the order rule), or 'auto' (= --max-elements)")
     p.add_argument("--max-elements", type=int, default=3, help="largest order for 'auto'")
     p.add_argument("--natural-frequency-rad-s", type=float, default=None,
-                   help="measured w_n; default: zero crossing of Re(H)")
+                   help="w_n to impose exactly [rad/s]; default: estimated (--modal-estimate)")
     p.add_argument("--damping-ratio", type=float, default=None,
-                   help="measured zeta; default: half-power points")
+                   help="zeta to impose exactly; default: estimated (--modal-estimate)")
+    p.add_argument("--modal-estimate", choices=("fit", "half-power"), default="fit",
+                   help="how w_n and zeta are estimated when not given: modal solution of an "
+                        "unconstrained fit (default, any damping) or zero crossing of Re(H) "
+                        "and half-power points (light damping only)")
     p.add_argument("--objective", choices=("l2", "l1"), default="l2")
     p.add_argument("--weighting", choices=("relative", "none"), default="relative")
     p.add_argument("--plot", metavar="FILE.png", help="write measured vs model FRF")
@@ -416,8 +477,8 @@ def register(subparsers) -> None:
     p.add_argument("file", help="CSV with time_s, force and response columns")
     p.add_argument("--out", required=True, help="output FRF CSV")
     p.add_argument("--fs", type=float, default=None, help="sampling rate [Hz] (default: time_s)")
-    p.add_argument("--nfft", type=int, default=10000, help="FFT/segment length (seed: 10000)")
-    p.add_argument("--window", default="boxcar", help="window (seed: none = boxcar)")
+    p.add_argument("--nfft", type=int, default=10000, help="FFT/segment length (study: 10000)")
+    p.add_argument("--window", default="boxcar", help="window (study: none = boxcar)")
     p.add_argument("--estimator", choices=("h1", "h2"), default="h1")
     p.add_argument("--force-column", default="force_n")
     p.add_argument("--response-column", action="append", default=None,
@@ -432,7 +493,7 @@ def register(subparsers) -> None:
         description="Reads one row per excitation frequency: frequency_hz plus real,imag or "
                     "force_amplitude_n,force_phase_deg,response_amplitude,response_phase_deg. "
                     "w_n is the zero crossing of Re(H), zeta comes from the half-power points "
-                    "of |receptance| (seed section 5.2).",
+                    "of |receptance| (study section 5.2).",
     )
     p.add_argument("file", help="stepped-sine CSV")
     frf_input(p, default_format="stepped-sine")

@@ -1,6 +1,6 @@
-"""Type A / B / C classification of Maxwell elements (seed section 3.1, Fig. 3.1).
+"""Type A / B / C classification of Maxwell elements (study section 3.1, Fig. 3.1).
 
-The seed defines the types only qualitatively: Type A is damping dominant (small tau_i), Type C
+The study defines the types only qualitatively: Type A is damping dominant (small tau_i), Type C
 stiffness dominant (large tau_i), Type B neither, and says the boundaries depend on the other
 parameters. We make that reproducible with the element's own complex stiffness at the system's
 natural frequency w_n:
@@ -14,12 +14,12 @@ The rule is symmetric on a log scale:
 * Type C  if w_n tau_i > 2     (storage part more than twice the loss part: mostly a spring),
 * Type B  otherwise            (phase of K_i between 26.6 and 63.4 degrees).
 
-Checked against every label the seed prints (see
+Checked against every label the study prints (see
 tests/unit/dva_offline/isolator/test_isolator_element_types.py and docs/isolator.md): it agrees
 with all labels of Tables 3.3, 3.5-3.7, 4.1, 4.2, 4.5, 4.6, 5.4 and 5.5, and disagrees only with
-the three Type B labels of Table 5.6's first elements (w_n tau = 0.26-0.36), which the seed assigns
-by an indirect argument. No threshold on w_n tau (nor on tau alone) can reproduce all of the seed's
-labels.
+the three Type B labels of Table 5.6's first elements (w_n tau = 0.26-0.36), which the study
+assigns by an indirect argument. No threshold on w_n tau (nor on tau alone) can reproduce all of
+the study's labels.
 """
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
 """Measured-data front end of chapter 5: FRF estimation and modal parameter estimation.
 
 * H1 / H2 FRF estimates from force and response time series with Welch's averaged
-  periodogram (section 5.2): the seed uses 5000 Hz sampling, a 10000-point FFT and no window
+  periodogram (section 5.2): the study uses 5000 Hz sampling, a 10000-point FFT and no window
   (boxcar), which are the defaults here; segments overlap by half (scipy's default).
 * Stepped-sine FRF: least-squares sine fit of force and response at each excitation frequency.
 * Natural frequency from the zero crossing of the FRF's real part, damping ratio from the
@@ -54,7 +54,7 @@ def estimate_frf(
         Input force [N].
     response : array_like, shape (T,) or (C, T)
         Response channels (e.g. three accelerometers [m/s^2]); time on the last axis. The FRFs
-        of the channels are averaged, as the seed averages its three accelerometers.
+        of the channels are averaged, as the study averages its three accelerometers.
     fs : float
         Sampling frequency [Hz].
     nfft : int

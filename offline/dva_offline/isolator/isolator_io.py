@@ -313,3 +313,41 @@ def read_uff58(path, quantity: str, index: int = 0) -> FrfData:
         return FrfData(np.asarray(ds["x"], dtype=float), values, quantity)
     except ValueError as exc:
         raise ValueError(f"{path}: {exc}") from None
+
+
+#: UFF 58 ordinate data types (record 9 field 1: 12 acceleration, 8 displacement, 13 force).
+_UFF_ORDINATE = {"receptance": 8, "accelerance": 12}
+
+
+def write_uff58(path, frequency_hz, values, quantity: str) -> None:
+    """Write one FRF as a universal file dataset 58 (needs the optional pyuff).
+
+    Parameters
+    ----------
+    path : str or Path
+        Output ``.uff`` file (overwritten).
+    frequency_hz : array_like, shape (N,)
+        Evenly or unevenly spaced frequencies [Hz].
+    values : array_like, shape (N,)
+        Complex FRF [SI units of ``quantity``].
+    quantity : {"receptance", "accelerance"}
+    """
+    try:
+        import pyuff  # optional dependency
+    except ImportError:
+        raise ValueError(
+            f"{path}: writing universal files (UFF 58) needs the optional package pyuff; "
+            "install it with: pip install 'dva-offline[uff]'"
+        ) from None
+    if quantity not in _UFF_ORDINATE:
+        raise ValueError(f"quantity must be one of {tuple(_UFF_ORDINATE)}, got {quantity!r}")
+    f = np.asarray(frequency_hz, dtype=float)
+    d = np.diff(f)
+    even = bool(np.allclose(d, d[0], rtol=1e-9))
+    ds = pyuff.prepare_58(
+        func_type=4, rsp_node=1, rsp_dir=3, ref_node=1, ref_dir=3,
+        data=np.asarray(values, dtype=complex), x=f, id1=quantity, rsp_ent_name="mass",
+        ref_ent_name="mass", abscissa_spacing=1 if even else 0,
+        ordinate_spec_data_type=_UFF_ORDINATE[quantity], orddenom_spec_data_type=13,
+    )
+    pyuff.UFF(str(path)).write_sets(ds, mode="overwrite")

@@ -1,18 +1,18 @@
-"""General Maxwell model identification by constrained optimisation (seed section 4.3).
+"""General Maxwell model identification by constrained optimisation (study section 4.3).
 
 Eq. (4.11) fits the model FRF to a measured FRF over the 2n + 1 unknowns (c, k_i, c_i), with
 m and k known, subject to eq. (4.12): the model's natural frequency and damping ratio equal the
-measured ones. The seed solves it by SQP; we use scipy's SLSQP with these choices:
+measured ones. The study solves it by SQP; we use scipy's SLSQP with these choices:
 
 * Parameters scaled to O(1): theta = (c / c_ref, ln(k_i / k_ref), ln(c_i / c_ref)) with
   k_ref = m w_n^2 and c_ref = m w_n. The logs keep k_i, c_i > 0; c may be negative, as in the
-  seed's Tables 5.5-5.6 (we flag it).
+  study's Tables 5.5-5.6 (we flag it).
 * Eq. (4.12) is imposed in the equivalent, smooth form D(lambda*) = 0, where
   lambda* = -zeta w_n + j w_n sqrt(1 - zeta^2) is the measured eigenvalue and
   D(s) = m s^2 + c s + k + sum k_i c_i s / (k_i + c_i s). After the fit we check with the
   eigenvalues of eq. (4.2) that lambda* is the model's complex pair.
 * Objective: eq. (4.11) uses sum |H(kappa) - H_j|; the default here is the smooth sum of
-  squares (``objective="l2"``), ``"l1"`` is the seed's. Residuals are weighted by 1/|H_j|
+  squares (``objective="l2"``), ``"l1"`` is the study's. Residuals are weighted by 1/|H_j|
   (``weighting="relative"``, the maximum-likelihood choice for the multiplicative noise of
   eq. 4.13) or by one global scale (``"none"``).
 * Analytic gradients of the objective and constraints, vectorised over frequency.
@@ -338,7 +338,7 @@ def _finish(problem, theta, objective_value, success, n_starts, method, notes, c
         )
     if c < 0:
         notes.append(
-            f"primary damping c = {c:.4g} N s/m is negative (the seed allows it, Tables "
+            f"primary damping c = {c:.4g} N s/m is negative (the study allows it, Tables "
             "5.5-5.6, but the primary damper alone is then non-physical)"
         )
     bound = 9.0

@@ -1,4 +1,4 @@
-"""Single-mass isolator represented by a general Maxwell model (seed eq. 3.1-3.2, 4.1-4.2).
+"""Single-mass isolator represented by a general Maxwell model (study eq. 3.1-3.2, 4.1-4.2).
 
 A mass ``m`` sits on a Voigt pair (spring ``k`` parallel to damper ``c``) and ``n`` Maxwell
 elements (spring ``k_i`` in series with damper ``c_i``) in parallel. ``n = 0`` is the Voigt model,
@@ -19,7 +19,7 @@ QUANTITIES = ("receptance", "accelerance", "transmissibility", "stiffness")
 
 @dataclass(frozen=True)
 class MaxwellModel:
-    """Parameters of a general Maxwell isolator model (seed Fig. 4.1).
+    """Parameters of a general Maxwell isolator model (study Fig. 4.1).
 
     Attributes
     ----------
@@ -28,7 +28,7 @@ class MaxwellModel:
     k : float
         Primary spring stiffness [N/m] (the static stiffness of the mount).
     c : float
-        Primary damping coefficient [N s/m]. The seed allows negative values (Tables 5.5-5.6).
+        Primary damping coefficient [N s/m]. The study allows negative values (Tables 5.5-5.6).
     maxwell_k : tuple of float
         Spring stiffness k_i of each Maxwell element [N/m], each > 0.
     maxwell_c : tuple of float
@@ -122,7 +122,7 @@ class ModalProperties:
 def state_matrix(model: MaxwellModel) -> np.ndarray:
     """State matrix A of eq. (4.2) for the state (x', x, x_1, ..., x_n).
 
-    The seed's printed matrix has typos in the rows of x_2..x_n; the rows here follow from
+    The study's printed matrix has typos in the rows of x_2..x_n; the rows here follow from
     eq. (4.1): c_i x_i' = k_i (x - x_i), i.e. x_i' = (x - x_i) / tau_i.
 
     Returns

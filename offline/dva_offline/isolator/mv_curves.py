@@ -1,6 +1,6 @@
 """Maxwell-Voigt identification by constant-frequency / constant-damping curves (section 3.4).
 
-The seed draws curves of constant w_mv (Fig. 3.5) and constant zeta_mv (Fig. 3.8) in the
+The study draws curves of constant w_mv (Fig. 3.5) and constant zeta_mv (Fig. 3.8) in the
 (k_1, c_1) plane and reads their intersection for each trial primary damper c. The
 intersection has a closed form: lambda = -zeta w + j w sqrt(1 - zeta^2) is a root of
 
@@ -11,7 +11,7 @@ With P = m lambda^2 + c lambda + k and dividing by k_1 c_1 this is *linear* in (
     P / c_1 + P lambda / k_1 = -lambda,
 
 one complex equation = two real equations, so for each c there is exactly one intersection
-(k_1, c_1); it is physical when both are positive. Sweeping c gives the seed's family of
+(k_1, c_1); it is physical when both are positive. Sweeping c gives the study's family of
 solutions (Tables 3.5-3.7), bounded by Voigt Model K (c -> -inf) and Voigt Model M (k_1 -> 0).
 """
 from __future__ import annotations

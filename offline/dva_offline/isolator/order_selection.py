@@ -1,6 +1,6 @@
 """Model-order selection: Voigt -> M-V -> M-M-V -> ... on held-out frequency points.
 
-Beyond the seed, which picks the number of Maxwell elements by inspection (section 4.3.2).
+Beyond the study, which picks the number of Maxwell elements by inspection (section 4.3.2).
 Every ``holdout_every``-th frequency point is held out; each order is fitted to the rest and
 scored by its relative RMS FRF error on the held-out points. Order 0 is the better of Voigt
 Model M and Model K (section 3.4) on the training points. The selected order is the smallest

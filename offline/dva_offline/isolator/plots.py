@@ -2,7 +2,7 @@
 studies of chapter 3 (Figs. 3.2-3.11).
 
 matplotlib with the Agg backend; imported only by the CLI and tests that ask for plots.
-The seed does not print the k_1 / c_1 values of its curve families; we use the nominal M-V
+The study does not print the k_1 / c_1 values of its curve families; we use the nominal M-V
 model of Table 3.1 (m = 1 kg, k = 12 kN/m, c = 40 N s/m) and families around k_1 = 12 kN/m,
 c_1 = 40 N s/m.
 """
@@ -174,7 +174,7 @@ def _contours(ax, mass, k, c, what, levels):
 
 
 def parametric_study_figures(out_dir) -> list[Path]:
-    """Write Figs. 3.2-3.11 of the seed as PNGs into ``out_dir``; returns their paths."""
+    """Write Figs. 3.2-3.11 of the study as PNGs into ``out_dir``; returns their paths."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     m, k, c = NOMINAL["mass"], NOMINAL["k"], NOMINAL["c"]
