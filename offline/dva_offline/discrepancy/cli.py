@@ -308,7 +308,7 @@ def register(subparsers) -> None:
     p = sub.add_parser("flight", help="flight log (MCAP) against the wing + Maxwell DVA model")
     p.add_argument("file", help="rosbag2 directory or .mcap file of a flight (simulator node "
                                "or batch recorder)")
-    p.add_argument("--wing", default=None, help="wing file (default: the reference wing)")
+    p.add_argument("--wing", default=None, help="wing file (default: the chapter-6 wing)")
     p.add_argument("--namespace", default="", help="topic namespace of the flight")
     p.add_argument("--band", default="2,20", help="frequency band LOW,HIGH [Hz] (default 2,20)")
     p.add_argument("--window", type=float, default=1.0,

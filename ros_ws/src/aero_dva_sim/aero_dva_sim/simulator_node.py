@@ -9,7 +9,7 @@ absurd commands). A stepped-sweep scenario applies its own c2 values and ignores
 Parameters (SI units)
 ---------------------
 scenario : str            scenario YAML (default: the package's scenario_ramp.yaml)
-wing : str                wing YAML (default: the package's reference wing)
+wing : str                wing YAML (default: the package's chapter-6 wing)
 absorber : str            "maxwell" (default) or "none"
 absorber_mass [kg], absorber_stiffness k1 [N/m], absorber_series_stiffness k2 [N/m],
 absorber_position [m from the gravity centre, + toward the leading edge]
