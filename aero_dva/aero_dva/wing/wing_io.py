@@ -21,6 +21,8 @@ Unknown keys are errors (they are usually typos).
 from __future__ import annotations
 
 import dataclasses
+import hashlib
+import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -43,6 +45,7 @@ __all__ = [
     "load_wing",
     "reference_wing_path",
     "save_wing",
+    "wing_fingerprint",
 ]
 
 _ABSORBERS = {"passive": PassiveAbsorber, "maxwell": MaxwellAbsorber}
@@ -165,6 +168,17 @@ def save_wing(path, config: WingConfig) -> None:
         data["absorber"] = absorber_to_dict(config.absorber)
     with open(path, "w", encoding="utf-8") as fh:
         yaml.safe_dump(data, fh, sort_keys=False)
+
+
+def wing_fingerprint(config: WingConfig) -> str:
+    """A short hash of everything in a wing file that the flight depends on (wing, density,
+    aerodynamics, absorber): two files with the same fingerprint fly the same wing."""
+    data = {"wing": dataclasses.asdict(config.wing), "air_density": config.air_density,
+            "aero": config.aero.name, "absorber": absorber_to_dict(config.absorber)}
+    if isinstance(config.aero, QuasiSteadyAero):
+        data["pitch_damping"] = config.aero.pitch_damping
+    text = json.dumps(data, sort_keys=True, default=repr)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
 def load_section(path) -> TypicalSection:
