@@ -12,7 +12,8 @@ airspeed. The plan here:
 - **c2 values** at each (U, rho): ``n_damping`` evenly spaced over the interval around the
   exact optimum c2*(U, rho) (:func:`aero_dva.control.optimal_damping.optimal_damping`) on which
   the wing decays at ``min_decay`` 1/s or faster, cut to c2* +- ``max_offset``; a condition
-  with no such c2 is left out (and listed);
+  with no such c2 is left out (and listed); where the interval is a single grid point, that
+  one c2 is recorded;
 - **each dwell starts from its stationary state** (drawn by the recording, see
   :mod:`dva_offline.training_recording`), so no dwell inherits a transient from the one before
   and the window is a sample of the stationary response the labels describe.
@@ -259,7 +260,9 @@ def make_training_plan(model, critical_airspeed: float, base_density: float,
                 continue
             a = max(lows[i, j], best[i, j] - s.max_offset)
             b = min(highs[i, j], best[i, j] + s.max_offset)
-            values = np.linspace(a, b, s.n_damping) if s.n_damping > 1 else [best[i, j]]
+            # distinct values only: equal neighbours would merge into one dwell in the log
+            values = np.unique(np.linspace(a, b, s.n_damping)) if s.n_damping > 1 \
+                else [best[i, j]]
             rows += [(speeds[j], factor * base_density, float(c), i * n_u + j)
                      for c in values]
     if not rows:

