@@ -160,6 +160,11 @@ def paired(values: Sequence[float]) -> PairedStat:
     return PairedStat(int(x.size), mean, mean - half, mean + half)
 
 
+def _median(values) -> float:
+    x = np.asarray(values, dtype=float)
+    return float(np.median(x[np.isfinite(x)])) if np.isfinite(x).any() else math.nan
+
+
 def summarise(records: Sequence[FlightRecord], controllers: Sequence[str],
               cases: Sequence[str]) -> list[dict]:
     """Per (controller, case): mean divergence ratio, mean RMS ratio to the best fixed c2 on
@@ -191,9 +196,8 @@ def summarise(records: Sequence[FlightRecord], controllers: Sequence[str],
                 else math.nan,
                 "mean_rms": float(np.nanmean([r.rms for r in own])),
                 "mean_c2": float(np.nanmean([r.mean_damping for r in own])),
-                "median_peak_activation": float(np.nanmedian(
-                    [r.median_peak_activation for r in own])) if controller == "rbf"
-                else math.nan,
+                "median_peak_activation": _median(
+                    [r.median_peak_activation for r in own]),
                 "divergence_difference": paired(ddiff),
                 "rms_change": paired(np.asarray(ratio) - 1.0),
             })
