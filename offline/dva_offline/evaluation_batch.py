@@ -171,7 +171,8 @@ def summarise(records: Sequence[FlightRecord], controllers: Sequence[str],
     the same seed, and the paired differences with their 95 % intervals.
 
     ``divergence_difference`` = U_div/U_cr minus that of the best fixed c2 (same seed),
-    ``rms_change`` = RMS / RMS of the best fixed c2 - 1 (negative: less vibration); both over
+    ``rms_change`` = RMS / RMS of the best fixed c2 - 1 (negative: less vibration),
+    ``divergence_to_oracle`` = U_div/U_cr minus the oracle's (when it is flown); each over
     the seeds on which both flights have the value.
     """
     table = {(r.controller, r.case, r.seed): r for r in records}
@@ -182,6 +183,7 @@ def summarise(records: Sequence[FlightRecord], controllers: Sequence[str],
             if not own:
                 continue
             ref = {r.seed: table.get((REFERENCE, case, r.seed)) for r in own}
+            oracle = {r.seed: table.get(("oracle", case, r.seed)) for r in own}
             div = [r.divergence_ratio for r in own]
             ddiff = [r.divergence_ratio - ref[r.seed].divergence_ratio
                      for r in own if ref[r.seed] is not None]
@@ -200,5 +202,8 @@ def summarise(records: Sequence[FlightRecord], controllers: Sequence[str],
                     [r.median_peak_activation for r in own]),
                 "divergence_difference": paired(ddiff),
                 "rms_change": paired(np.asarray(ratio) - 1.0),
+                "divergence_to_oracle": paired(
+                    [r.divergence_ratio - oracle[r.seed].divergence_ratio
+                     for r in own if oracle[r.seed] is not None]),
             })
     return rows

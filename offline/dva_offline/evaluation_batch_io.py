@@ -42,6 +42,13 @@ def _interval(stat: Mapping, scale: float, spec: str) -> str:
     return f"{text} [{format(low * scale, spec)}, {format(high * scale, spec)}]{mark}"
 
 
+def _oracle(row: Mapping) -> str:
+    stat = row.get("divergence_to_oracle")
+    if row["controller"] == "oracle" or not stat or not stat["n"]:
+        return "-"
+    return _interval(stat, 1.0, "+.4f")
+
+
 def markdown_results(payload: Mapping) -> str:
     """The results table and the boundaries as markdown."""
     lines = [
@@ -51,9 +58,9 @@ def markdown_results(payload: Mapping) -> str:
         f"{payload['rms_range_ratio'][1]:g} U_cr. Differences are paired (same seed) "
         "against the best fixed c2, with 95 % t-intervals over the seeds; * marks an interval "
         "that excludes zero.", "",
-        "| case | controller | U_div/U_cr | diff. to fixed [U_cr] | RMS ratio | RMS change "
-        "[%] | mean c2 [N s/m] | activation |",
-        "|---|---|---|---|---|---|---|---|"]
+        "| case | controller | U_div/U_cr | diff. to fixed [U_cr] | diff. to oracle [U_cr] | "
+        "RMS ratio | RMS change [%] | mean c2 [N s/m] | activation |",
+        "|---|---|---|---|---|---|---|---|---|"]
     for row in payload["results"]:
         div = _f(row["mean_divergence_ratio"], ".4f")
         if row["diverged"] < row["flights"]:
@@ -62,7 +69,7 @@ def markdown_results(payload: Mapping) -> str:
         lines.append(
             f"| {row['case']} | {LABELS.get(row['controller'], row['controller'])} | {div} | "
             f"{'-' if fixed else _interval(row['divergence_difference'], 1.0, '+.4f')} | "
-            f"{_f(row['mean_rms_ratio'], '.4f')} | "
+            f"{_oracle(row)} | {_f(row['mean_rms_ratio'], '.4f')} | "
             f"{'-' if fixed else _interval(row['rms_change'], 100.0, '+.2f')} | "
             f"{_f(row['mean_c2'], '.0f')} | {_f(row['median_peak_activation'], '.3f')} |")
     bounds = payload.get("boundaries") or {}

@@ -226,8 +226,7 @@ def _row_json(row: dict) -> dict:
     def clean(v):
         return None if isinstance(v, float) and not math.isfinite(v) else v
 
-    out = {k: clean(v) for k, v in row.items()
-           if k not in ("divergence_difference", "rms_change")}
-    out["divergence_difference"] = row["divergence_difference"].to_dict()
-    out["rms_change"] = row["rms_change"].to_dict()
+    stats = ("divergence_difference", "rms_change", "divergence_to_oracle")
+    out = {k: clean(v) for k, v in row.items() if k not in stats}
+    out.update({k: row[k].to_dict() for k in stats})
     return out

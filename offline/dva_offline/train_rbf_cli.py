@@ -183,15 +183,29 @@ def _rbf(args) -> int:
         summary["plot"] = str(Path(args.plot).resolve())
     summary["wall_time_s"] = time.monotonic() - started
     if args.json:
-        print(json.dumps(summary))
+        print(json.dumps(_clean(summary), allow_nan=False))
     else:
         _print(summary, outcome)
     return 0
 
 
+def _clean(value):
+    """NaN and inf as null (strict JSON)."""
+    if isinstance(value, dict):
+        return {k: _clean(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_clean(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
 def _summary(args, bag, data, labels, outcome, wing, u_cr) -> dict:
+    from dva_offline.training import condition_predictability
+
     val, trn = outcome.validation_metrics, outcome.training_metrics
     held = ~outcome.train_mask
+    readout = condition_predictability(data, outcome.train_mask)
     return {
         "bag": str(bag.resolve()), "network": None, "labels": labels.method, "wing": wing,
         "windows": data.n_windows, "training_windows": int(outcome.train_mask.sum()),
@@ -209,6 +223,7 @@ def _summary(args, bag, data, labels, outcome, wing, u_cr) -> dict:
         "training_r2": trn.r2, "training_rmse": trn.rmse,
         "label_range": [float(labels.damping.min()), float(labels.damping.max())],
         "label_std": float(np.std(labels.targets)),
+        "spectra_airspeed_r2": readout["airspeed"], "spectra_density_r2": readout["density"],
         "per_spread": [{"spread": float(s), "training_rmse": t.rmse, "validation_rmse": v.rmse,
                         "validation_r2": v.r2,
                         "median_peak_activation": v.median_peak_activation}
@@ -216,6 +231,10 @@ def _summary(args, bag, data, labels, outcome, wing, u_cr) -> dict:
                                           outcome.validation)],
         "plot": None,
     }
+
+
+def _r2(value) -> str:
+    return "-" if value is None or not math.isfinite(value) else f"{value:.3f}"
 
 
 def _print(summary: dict, outcome) -> None:
@@ -239,6 +258,8 @@ def _print(summary: dict, outcome) -> None:
           f"{summary['validation_rmse']:.2f} N s/m, output {summary['output_min']:.1f} .. "
           f"{summary['output_max']:.1f} N s/m, median peak activation "
           f"{summary['median_peak_activation']:.3f}")
+    print(f"one window's spectra: linear read-out R^2 on the held-out windows, airspeed "
+          f"{_r2(summary['spectra_airspeed_r2'])}, density {_r2(summary['spectra_density_r2'])}")
     print(f"saved               {summary['network']}")
     if summary["plot"]:
         print(f"plot                {summary['plot']}")

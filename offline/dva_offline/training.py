@@ -60,6 +60,7 @@ __all__ = [
     "TrainingOutcome",
     "adapt_sweep",
     "build_dataset",
+    "condition_predictability",
     "find_dwells",
     "network_c2_per_condition",
     "network_metrics",
@@ -520,3 +521,21 @@ def network_c2_per_condition(network, data: TrainingData, labels) -> np.ndarray:
     out = np.zeros(labels.n_conditions)
     np.add.at(out, labels.condition_index, pred)
     return out / np.bincount(labels.condition_index, minlength=labels.n_conditions)
+
+
+def condition_predictability(data: TrainingData, train_mask: np.ndarray) -> dict[str, float]:
+    """How much of the airspeed and of the density one window's spectra carry.
+
+    Least squares of each on the 32 scaled spectrum values (and a constant) over the training
+    windows, R^2 on the held-out windows: a linear read-out, a lower bound of what the network
+    can extract. NaN where the held-out windows have one value only.
+    """
+    x = np.column_stack([data.inputs[:, :-1], np.ones(data.n_windows)])
+    out = {}
+    for name, y in (("airspeed", data.airspeed), ("density", data.density)):
+        coef, *_ = np.linalg.lstsq(x[train_mask], y[train_mask], rcond=None)
+        held = y[~train_mask]
+        sst = float(np.sum((held - held.mean()) ** 2))
+        err = x[~train_mask] @ coef - held
+        out[name] = 1.0 - float(err @ err) / sst if sst > 0 else math.nan
+    return out
