@@ -172,8 +172,9 @@ def summarise(records: Sequence[FlightRecord], controllers: Sequence[str],
 
     ``divergence_difference`` = U_div/U_cr minus that of the best fixed c2 (same seed),
     ``rms_change`` = RMS / RMS of the best fixed c2 - 1 (negative: less vibration),
-    ``divergence_to_oracle`` = U_div/U_cr minus the oracle's (when it is flown); each over
-    the seeds on which both flights have the value.
+    ``divergence_to_oracle`` = U_div/U_cr minus the oracle's, ``divergence_to_schedule`` and
+    ``rms_to_schedule`` the same against the airspeed schedule (the study's key comparison;
+    when those are flown); each over the seeds on which both flights have the value.
     """
     table = {(r.controller, r.case, r.seed): r for r in records}
     rows = []
@@ -184,6 +185,7 @@ def summarise(records: Sequence[FlightRecord], controllers: Sequence[str],
                 continue
             ref = {r.seed: table.get((REFERENCE, case, r.seed)) for r in own}
             oracle = {r.seed: table.get(("oracle", case, r.seed)) for r in own}
+            schedule = {r.seed: table.get(("schedule", case, r.seed)) for r in own}
             div = [r.divergence_ratio for r in own]
             ddiff = [r.divergence_ratio - ref[r.seed].divergence_ratio
                      for r in own if ref[r.seed] is not None]
@@ -205,5 +207,11 @@ def summarise(records: Sequence[FlightRecord], controllers: Sequence[str],
                 "divergence_to_oracle": paired(
                     [r.divergence_ratio - oracle[r.seed].divergence_ratio
                      for r in own if oracle[r.seed] is not None]),
+                "divergence_to_schedule": paired(
+                    [r.divergence_ratio - schedule[r.seed].divergence_ratio
+                     for r in own if schedule[r.seed] is not None]),
+                "rms_to_schedule": paired(
+                    [r.rms / schedule[r.seed].rms - 1.0
+                     for r in own if schedule[r.seed] is not None]),
             })
     return rows

@@ -72,6 +72,14 @@ def markdown_results(payload: Mapping) -> str:
             f"{_oracle(row)} | {_f(row['mean_rms_ratio'], '.4f')} | "
             f"{'-' if fixed else _interval(row['rms_change'], 100.0, '+.2f')} | "
             f"{_f(row['mean_c2'], '.0f')} | {_f(row['median_peak_activation'], '.3f')} |")
+    rbf = [r for r in payload["results"] if r["controller"] == "rbf"
+           and (r.get("divergence_to_schedule") or {}).get("n")]
+    if rbf:
+        lines += ["", "RBF network minus airspeed schedule, same seeds (the study's key claim: "
+                  "under density variation the network beats the schedule):", "",
+                  "| case | U_div/U_cr difference | RMS change [%] |", "|---|---|---|"]
+        lines += [f"| {r['case']} | {_interval(r['divergence_to_schedule'], 1.0, '+.4f')} | "
+                  f"{_interval(r['rms_to_schedule'], 100.0, '+.2f')} |" for r in rbf]
     bounds = payload.get("boundaries") or {}
     if bounds:
         laws = sorted({law for rows in bounds.values() for law in rows},

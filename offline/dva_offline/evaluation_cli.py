@@ -226,7 +226,8 @@ def _row_json(row: dict) -> dict:
     def clean(v):
         return None if isinstance(v, float) and not math.isfinite(v) else v
 
-    stats = ("divergence_difference", "rms_change", "divergence_to_oracle")
+    stats = ("divergence_difference", "rms_change", "divergence_to_oracle",
+             "divergence_to_schedule", "rms_to_schedule")
     out = {k: clean(v) for k, v in row.items() if k not in stats}
     out.update({k: row[k].to_dict() for k in stats})
     return out

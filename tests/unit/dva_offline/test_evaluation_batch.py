@@ -9,8 +9,10 @@ import pytest
 from scipy import stats
 
 from aero_dva import data_files
+from aero_dva.control.airspeed_schedule import AirspeedSchedule
 from aero_dva.control.rbf_io import save_rbf_network
 from aero_dva.control.rbf_network import InputScaling, RBFNetwork, spectrum_input_names
+from aero_dva.control.schedule_io import save_schedule
 from aero_dva.flight.scenario_io import load_scenario
 from dva_offline import cli
 from dva_offline.closed_loop import FlightOutcome
@@ -100,14 +102,17 @@ def _network_file(path):
 
 def test_cli_mini_evaluation(tmp_path, capsys):
     network = _network_file(tmp_path / "net.npz")
+    schedule = save_schedule(AirspeedSchedule(-1060.0, 14.6, (110.0, 115.0), (0.0, 2500.0)),
+                             tmp_path / "schedule.json")
     out = tmp_path / "ev"
     assert cli.main(["evaluate", "--out", str(out), "--seeds", "2", "--cases", "rho0,1Hz",
-                     "--controllers", "rbf,oracle", "--network", str(network), "--fixed-c2",
+                     "--network", str(network), "--schedule", str(schedule), "--fixed-c2",
                      "625", "--json"]) == 0
     payload = json.loads(capsys.readouterr().out)
-    assert payload["controllers"] == ["fixed", "rbf", "oracle"] and payload["flights"] == 12
+    controllers = ("fixed", "schedule", "rbf", "oracle")
+    assert payload["controllers"] == list(controllers) and payload["flights"] == 16
     rows = {(r["controller"], r["case"]): r for r in payload["results"]}
-    assert set(rows) == {(c, k) for c in ("fixed", "rbf", "oracle") for k in ("rho0", "1Hz")}
+    assert set(rows) == {(c, k) for c in controllers for k in ("rho0", "1Hz")}
     for key, row in rows.items():
         assert row["flights"] == 2 and 1.05 < row["mean_divergence_ratio"] < 1.25
         assert row["mean_rms_ratio"] == (1.0 if key[0] == "fixed" else row["mean_rms_ratio"])
@@ -116,8 +121,14 @@ def test_cli_mini_evaluation(tmp_path, capsys):
     assert bounds["rho0"]["fixed"]["floquet"] is None
     assert 1.10 < bounds["1Hz"]["fixed"]["floquet"] < bounds["rho0"]["fixed"]["frozen"]
     records = json.loads((out / "records.json").read_text())
-    assert len(records) == 12 and {r["seed"] for r in records} == {1, 2}
+    assert len(records) == 16 and {r["seed"] for r in records} == {1, 2}
+    by = {(r["controller"], r["case"], r["seed"]): r for r in records}
+    rbf = rows[("rbf", "rho0")]
+    assert rbf["divergence_to_schedule"]["mean"] == pytest.approx(np.mean(
+        [by[("rbf", "rho0", s)]["divergence_ratio"] - by[("schedule", "rho0", s)][
+            "divergence_ratio"] for s in (1, 2)]))
     table = (out / "results.md").read_text()
     assert "| rho0 | best fixed c2 |" in table and "Floquet" in table
+    assert "RBF network minus airspeed schedule" in table
     for name in ("rms_change.png", "c2_traces.png"):
         assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
