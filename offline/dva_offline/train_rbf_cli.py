@@ -142,11 +142,23 @@ def _rbf(args) -> int:
     log = load_flight_log(bag)
     data = build_dataset(log, window=args.window)
     wing, u_cr = None, _bag_value(log, "critical_airspeed_no_dva")
+    dropped = 0
     u_cr = float(u_cr) if u_cr is not None else None
     if args.labels == "exact":
         model, wing, u_cr = _labelling_wing(args, bag, log)
         labels = label_exact(data, model)
     else:
+        # A condition recorded with one c2 offers no choice: its windows are left out.
+        from dva_offline.training import select_windows
+        from dva_offline.training_labels import conditions_of
+
+        _, _, index = conditions_of(data.airspeed, data.density)
+        counts = np.array([np.unique(data.damping[index == k]).size
+                           for k in range(index.max() + 1)])
+        single = counts[index] < 2
+        if single.any() and not single.all():
+            data = select_windows(data, ~single)
+        dropped = int(single.sum()) if not single.all() else 0
         labels = label_min_rms(data)
     outcome = train_network(data, labels, spreads=spreads,
                             validation_every=args.validation_every,
@@ -154,6 +166,7 @@ def _rbf(args) -> int:
                             max_candidates=args.max_candidates)
     val, trn = outcome.validation_metrics, outcome.training_metrics
     summary = _summary(args, bag, data, labels, outcome, wing, u_cr)
+    summary["windows_left_out_single_c2"] = dropped
     if val.median_peak_activation < args.min_activation:
         held = summary["windows"] - summary["training_windows"]
         raise ValueError(
@@ -242,6 +255,9 @@ def _print(summary: dict, outcome) -> None:
     print(f"data set            {summary['windows']} windows of {summary['window_s']:g} s x 33 "
           f"inputs, {summary['conditions']} conditions: {summary['airspeeds']} airspeeds x "
           f"densities {summary['densities']} kg/m^3")
+    if summary.get("windows_left_out_single_c2"):
+        print(f"left out            {summary['windows_left_out_single_c2']} windows of "
+              "conditions recorded with one c2 (no argmin to take)")
     a, b = summary["label_range"]
     print(f"labels              {summary['labels']}: c2 {a:.1f} .. {b:.1f} N s/m (std over "
           f"windows {summary['label_std']:.1f})")

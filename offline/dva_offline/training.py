@@ -64,6 +64,7 @@ __all__ = [
     "find_dwells",
     "network_c2_per_condition",
     "network_metrics",
+    "select_windows",
     "split_by_airspeed",
     "train_network",
 ]
@@ -352,6 +353,13 @@ def build_dataset(log, window: float = 2.0, channels: Sequence[str] = CHANNELS,
         damping=np.array(c2s), rms=np.array(rms), window_start=np.array(starts, dtype=int),
         window=float(window), sample_rate=rate, skipped=skipped, input_names=names,
         input_units=units)
+
+
+def select_windows(data: TrainingData, keep) -> TrainingData:
+    """The windows ``keep`` (bool mask or indices) of ``data``."""
+    keep = np.asarray(keep)
+    per_window = ("inputs", "airspeed", "density", "damping", "rms", "window_start")
+    return replace(data, **{name: getattr(data, name)[keep] for name in per_window})
 
 
 # -- split, training --------------------------------------------------------------------------
