@@ -9,6 +9,7 @@ import argparse
 import importlib
 import os
 import sys
+import warnings
 
 from dva_offline import __version__
 
@@ -22,6 +23,7 @@ SUBCOMMAND_MODULES = {
     "train": "dva_offline.train_cli",
     "evaluate": "dva_offline.evaluation_cli",
     "report": "dva_offline.run_report_cli",
+    "bag": "dva_offline.bag_cli",
 }
 
 
@@ -50,9 +52,12 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    # A warning (e.g. reading a cut bag with --allow-truncated) is one line, said once.
+    warnings.formatwarning = lambda message, *_, **__: f"dva {args.command}: warning: {message}\n"
+    warnings.simplefilter("once", RuntimeWarning)
     try:
         return int(args.func(args) or 0)
-    except (CliError, ValueError, TypeError, FileNotFoundError) as exc:
+    except (CliError, ValueError, TypeError, FileNotFoundError, FileExistsError) as exc:
         # Input problems are reported in one line naming the bad input, never as a traceback
         # (DVA_DEBUG=1 shows the traceback when hunting a bug).
         if os.environ.get("DVA_DEBUG"):

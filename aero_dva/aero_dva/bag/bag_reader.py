@@ -29,6 +29,7 @@ __all__ = [
     "bag_files",
     "bag_topics",
     "deserialize",
+    "file_summary",
     "read_messages",
 ]
 
@@ -150,7 +151,7 @@ def bag_files(path, allow_truncated: bool = False) -> list[Path]:
     return files
 
 
-def _summary(path: Path):
+def file_summary(path: Path):
     """The file's MCAP summary, or None if it has none (not closed, cut or corrupt)."""
     with open(path, "rb") as stream:
         try:
@@ -170,7 +171,7 @@ def _schema_type(schema) -> str:
 
 def _file_topics(path: Path, bag: Path, allow_truncated: bool) -> dict[str, TopicInfo]:
     """Topics of one MCAP file from its summary, or by a scan if allowed."""
-    summary = _summary(path)
+    summary = file_summary(path)
     if summary is not None:
         counts = summary.statistics.channel_message_counts if summary.statistics else {}
         return {ch.topic: TopicInfo(ch.topic, _schema_type(summary.schemas.get(ch.schema_id)),
@@ -284,7 +285,7 @@ def read_messages(
 
 def _records(file: Path, selected: set[str], log_time_order: bool):
     """(schema, channel, message) of the selected topics: indexed, or scanned if damaged."""
-    if _summary(file) is None:
+    if file_summary(file) is None:
         for item in _scan(file):
             if item.channel.topic in selected:
                 yield item.schema, item.channel, item.message

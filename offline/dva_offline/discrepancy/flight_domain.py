@@ -43,6 +43,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import lfilter
 
+from aero_dva.bag import channels
 from aero_dva.flight.hidden_plant import pitch_moment_input
 from aero_dva.wing.aerodynamics import QuasiSteadyAero, TheodorsenAero, WagnerAero
 from aero_dva.wing.model import AeroelasticModel
@@ -142,11 +143,11 @@ def arrays_from_log(log) -> FlightArrays:
     """
     missing = []
     if np.all(np.isnan(log.accelerations)):
-        missing.append("/wing/acceleration (accelerations)")
+        missing.append(f"{channels.ACCELERATION.absolute()} (accelerations)")
     if np.all(np.isnan(log.force)):
-        missing.append("/wing/excitation (aileron force)")
+        missing.append(f"{channels.EXCITATION.absolute()} (aileron force)")
     if np.all(np.isnan(log.applied_damping)):
-        missing.append("/dva/damper_state (c2)")
+        missing.append(f"{channels.DAMPER_STATE.absolute()} (c2)")
     if missing:
         raise FlightDataError("the log lacks " + ", ".join(missing)
                               + "; a flight log needs force, accelerations, flight condition "

@@ -19,7 +19,6 @@ flush_period : float, default 1.0
 """
 from __future__ import annotations
 
-import importlib
 import sys
 import time
 from pathlib import Path
@@ -28,14 +27,10 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile, QoSReliabilityPolicy
 
-from aero_dva.bag.mcap_io import BagWriter, MessageDefinitionNotFound, qos_profile_yaml
+from aero_dva.bag.bag_writer import BagWriter, qos_profile_yaml
+from aero_dva.bag.schemas import MessageDefinitionNotFound
+from dva_ros_common.conversions import message_class
 from dva_ros_common.node_tools import run_node
-
-
-def message_class(type_name: str):
-    """The Python class of ``pkg/msg/Type`` (rosidl_runtime_py is not available everywhere)."""
-    package, _, name = type_name.split("/")
-    return getattr(importlib.import_module(f"{package}.msg"), name)
 
 
 class McapRecorder(Node):

@@ -43,9 +43,9 @@ import sys
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 
+from aero_dva.bag import channels as ch
 from aero_dva.control.airspeed_schedule import AirspeedSchedule
 from aero_dva.control.schedule_io import load_schedule
-from dva_controller import messages
 from dva_msgs.msg import DamperCommand, FlightCondition
 from dva_ros_common import conversions
 from dva_ros_common.node_tools import InputHealth, Status, bounded, refuse_changes, run_node
@@ -137,11 +137,11 @@ class AirspeedController(Node):
         self.last_command = math.nan
         self._last_command_ns: int | None = None
         self._health = InputHealth(
-            self, "airspeed schedule", "flight/condition", self.counts, self._status
+            self, "airspeed schedule", ch.FLIGHT_CONDITION.name, self.counts, self._status
         )
 
-        self._command_pub = self.create_publisher(DamperCommand, "dva/damper_command", 10)
-        self.create_subscription(FlightCondition, "flight/condition", self._on_condition, 10)
+        self._command_pub = self.create_publisher(DamperCommand, ch.DAMPER_COMMAND.name, 10)
+        self.create_subscription(FlightCondition, ch.FLIGHT_CONDITION.name, self._on_condition, 10)
         refuse_changes(self, _READ_AT_START)
         self.get_logger().info(
             f"c2 = {self.schedule.a0:g} + {self.schedule.a1:g} U N s/m ({origin}), "
@@ -156,7 +156,7 @@ class AirspeedController(Node):
     def _on_condition(self, msg: FlightCondition) -> None:
         self.counts["conditions"] += 1
         self._health.mark_input()
-        condition = messages.flight_condition_values(msg)
+        condition = conversions.flight_condition_values(msg)
         u = condition.airspeed
         if not (math.isfinite(u) and 0.0 <= u <= self.max_airspeed):
             self.counts["rejected"] += 1
@@ -176,7 +176,7 @@ class AirspeedController(Node):
             return
         c2 = self.command_for(u)
         self._command_pub.publish(
-            messages.damper_command(
+            conversions.damper_command(
                 conversions.ns_to_time(stamp_ns), c2, DamperCommand.SOURCE_AIRSPEED_SCHEDULE
             )
         )

@@ -17,8 +17,9 @@ import sys
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 
-from dva_controller.messages import damper_command
+from aero_dva.bag import channels as ch
 from dva_msgs.msg import DamperCommand
+from dva_ros_common.conversions import damper_command
 from dva_ros_common.node_tools import bounded, run_node
 
 NODE_NAME = "fixed_controller"
@@ -36,7 +37,7 @@ class FixedController(Node):
         self.declare_parameter("rate", 10.0, bounded("publishing rate [Hz]", 0.01, 1000.0))
         self._damping = self._checked_damping(self.get_parameter("damping").value)
         rate = float(self.get_parameter("rate").value)
-        self._publisher = self.create_publisher(DamperCommand, "dva/damper_command", 10)
+        self._publisher = self.create_publisher(DamperCommand, ch.DAMPER_COMMAND.name, 10)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.create_timer(1.0 / rate, self._publish)
         self.get_logger().info(f"commanding c2 = {self._damping:g} N s/m at {rate:g} Hz")

@@ -42,8 +42,8 @@ import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 
+from aero_dva.bag import channels as ch
 from aero_dva.control.spectrum import DEFAULT_FREQUENCIES, WINDOW_FUNCTIONS, SlidingSpectrum
-from dva_controller import messages
 from dva_msgs.msg import AccelerationBlock, DamperState, ScaledSpectrum
 from dva_ros_common import conversions
 from dva_ros_common.node_tools import InputHealth, Status, bounded, refuse_changes, run_node
@@ -66,11 +66,11 @@ def checked_channels(value) -> tuple[str, ...]:
     channels = tuple(value)
     if not channels:
         raise ValueError("parameter 'channels' must name at least one channel")
-    unknown = [c for c in channels if c not in messages.ACCELERATION_CHANNELS]
+    unknown = [c for c in channels if c not in conversions.ACCELERATION_CHANNELS]
     if unknown:
         raise ValueError(
             f"parameter 'channels': unknown channel(s) {unknown}, "
-            f"expected some of {list(messages.ACCELERATION_CHANNELS)}"
+            f"expected some of {list(conversions.ACCELERATION_CHANNELS)}"
         )
     if len(set(channels)) != len(channels):
         raise ValueError(f"parameter 'channels' lists a channel twice: {list(channels)}")
@@ -136,11 +136,12 @@ class SpectrumNode(Node):
         self.counts = dict.fromkeys(
             ("blocks", "rejected", "resets", "spectra", "empty_windows", "damper_states"), 0
         )
-        self._health = InputHealth(self, "window", "wing/acceleration", self.counts, self._status)
+        self._health = InputHealth(self, "window", ch.ACCELERATION.name, self.counts, self._status)
 
-        self._spectrum_pub = self.create_publisher(ScaledSpectrum, "dva/spectrum", 10)
-        self.create_subscription(AccelerationBlock, "wing/acceleration", self._on_block, QOS_DEPTH)
-        self.create_subscription(DamperState, "dva/damper_state", self._on_damper_state, 10)
+        self._spectrum_pub = self.create_publisher(ScaledSpectrum, ch.SPECTRUM.name, 10)
+        self.create_subscription(AccelerationBlock, ch.ACCELERATION.name, self._on_block,
+                                 QOS_DEPTH)
+        self.create_subscription(DamperState, ch.DAMPER_STATE.name, self._on_damper_state, 10)
         refuse_changes(self, _READ_AT_START)
         self.get_logger().info(
             f"spectra of {list(self.channels)} at {self.frequencies.size} frequencies "
@@ -155,7 +156,7 @@ class SpectrumNode(Node):
 
     # ------------------------------------------------------------------ callbacks
     def _on_damper_state(self, msg: DamperState) -> None:
-        value = messages.applied_damping(msg)
+        value = conversions.applied_damping(msg)
         if math.isfinite(value) and value >= 0.0:
             self._damping = value
             self.counts["damper_states"] += 1
@@ -165,7 +166,7 @@ class SpectrumNode(Node):
         self._health.mark_input()
         index = int(msg.first_sample_index)
         try:
-            block = messages.acceleration_samples(msg, self.channels)
+            block = conversions.acceleration_samples(msg, self.channels)
         except ValueError as exc:
             self._reject("malformed", f"block at index {index} rejected: {exc}", index=index)
             return
@@ -239,7 +240,7 @@ class SpectrumNode(Node):
         self._problem = None
         return True
 
-    def _publish(self, block: messages.AccelerationSamples, window) -> None:
+    def _publish(self, block: conversions.AccelerationSamples, window) -> None:
         spectrum = window.spectrum
         if not np.all(np.isfinite(spectrum.magnitudes)):
             empty = [c for c, s in zip(self.channels, spectrum.band_sums) if not s > 0.0]
@@ -257,7 +258,7 @@ class SpectrumNode(Node):
             damping = self._damping
         stamp = conversions.ns_to_time(block.sample_time_ns(window.stop_sample_index - 1))
         self._spectrum_pub.publish(
-            messages.scaled_spectrum_message(
+            conversions.scaled_spectrum_message(
                 stamp, block.frame_id, self.channels, spectrum, self._sliding.hop, damping
             )
         )

@@ -35,6 +35,7 @@ from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.task import Future
 
+from aero_dva.bag.channels import DIAGNOSTICS
 from dva_ros_common.conversions import ERROR, WARN, diagnostic_array, diagnostic_status
 
 #: A node's own status: level, message and extra key/values for ``/diagnostics``.
@@ -95,7 +96,7 @@ class InputHealth:
         self._last_input_ns: int | None = None
         self._first_tick_ns: int | None = None
         self._last_report: dict[str, float] = {}
-        self._pub = node.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self._pub = node.create_publisher(DiagnosticArray, DIAGNOSTICS.name, 10)
         node.create_timer(self._period, self._publish_status)
 
     def mark_input(self) -> int:
