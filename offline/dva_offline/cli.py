@@ -52,22 +52,30 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
-    # A warning (e.g. reading a cut bag with --allow-truncated) is one line, said once.
-    warnings.formatwarning = lambda message, *_, **__: f"dva {args.command}: warning: {message}\n"
-    warnings.simplefilter("once", RuntimeWarning)
-    try:
-        return int(args.func(args) or 0)
-    except (CliError, ValueError, TypeError, FileNotFoundError, FileExistsError) as exc:
-        # Input problems are reported in one line naming the bad input, never as a traceback
-        # (DVA_DEBUG=1 shows the traceback when hunting a bug).
-        if os.environ.get("DVA_DEBUG"):
-            raise
-        print(f"dva {args.command}: error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print(f"dva {args.command}: interrupted", file=sys.stderr)
-        return 130
+    # Runtime warnings (e.g. reading a cut bag with --allow-truncated) are said once each, in
+    # one line, before the command's result or error.
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", RuntimeWarning)
+        try:
+            code = int(args.func(args) or 0)
+        except (CliError, ValueError, TypeError, FileNotFoundError, FileExistsError) as exc:
+            # Input problems are reported in one line naming the bad input, never as a
+            # traceback (DVA_DEBUG=1 shows the traceback when hunting a bug).
+            if os.environ.get("DVA_DEBUG"):
+                raise
+            _say_warnings(args.command, caught)
+            print(f"dva {args.command}: error: {exc}", file=sys.stderr)
+            return 2
+        except KeyboardInterrupt:
+            print(f"dva {args.command}: interrupted", file=sys.stderr)
+            return 130
+    _say_warnings(args.command, caught)
+    return code
 
+
+def _say_warnings(command: str, caught: list) -> None:
+    for text in dict.fromkeys(str(w.message) for w in caught):
+        print(f"dva {command}: warning: {text}", file=sys.stderr)
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -117,10 +117,10 @@ def load_flight_log(bag: str | Path, namespace: str = "", *,
     if len(rates) != 1:
         raise BagReadError(f"{bag}: sample rate must be one value over the flight, got {rates}")
     rate = rates.pop()
-    disp_blocks = blocks[ch.DISPLACEMENT]
-    if not disp_blocks:
+    if not blocks[ch.DISPLACEMENT]:
         raise BagReadError(f"{bag}: no displacement block to read")
-    n = max(i + v[0].size for i, v in disp_blocks)
+    # The flight spans every sample any topic holds (a cut log may end between topics).
+    n = max(i + v[0].size for topic_blocks in blocks.values() for i, v in topic_blocks)
     arrays = {}
     for channel, names in SAMPLE_ROWS.items():
         arrays[channel] = np.full((len(names), n), np.nan)

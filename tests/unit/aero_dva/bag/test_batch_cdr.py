@@ -142,8 +142,9 @@ def test_layout_offsets_follow_the_alignment_rules():
 
 def test_a_field_added_to_a_msg_file_is_laid_out(tmp_path, monkeypatch):
     """The layout follows the parsed definition: no message is described twice."""
-    from aero_dva.bag import batch_cdr, schemas
     from rosbags.typesys import get_types_from_msg
+
+    from aero_dva.bag import batch_cdr, schemas
 
     text = (INTERFACES / "dva_msgs/msg/FlightCondition.msg").read_text()
     extended = get_types_from_msg(text + "\nuint16 quality\nfloat64[] spare\n",
