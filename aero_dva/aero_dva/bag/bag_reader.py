@@ -298,7 +298,7 @@ def _records(file: Path, selected: set[str], log_time_order: bool):
 def _iterate(files: list[Path], selected: set[str], decode: bool, log_time_order: bool):
     for file in files:
         count = 0
-        schemas: dict[int, tuple[str, str]] = {}  # schema id -> (type, text), per file
+        schemas: dict[int, tuple] = {}  # schema id -> (type, text, typestore or None), per file
         records = _records(file, selected, log_time_order)
         while True:
             try:
@@ -309,25 +309,33 @@ def _iterate(files: list[Path], selected: set[str], decode: bool, log_time_order
                 raise BagReadError(
                     f"MCAP file {str(file)!r} is corrupt: reading failed after {count} "
                     f"messages ({type(exc).__name__}: {exc})") from None
-            if channel.message_encoding != "cdr" or schema is None or \
-                    schema.encoding != "ros2msg":
-                raise BagReadError(f"MCAP file {str(file)!r}: topic {channel.topic!r} is not "
-                                   f"ros2msg/cdr (encoding {channel.message_encoding!r})")
-            if schema.id not in schemas:
-                schemas[schema.id] = (_schema_type(schema),
-                                      schema.data.decode("utf-8", "replace"))
-            type_name, text = schemas[schema.id]
+            known = schemas.get(schema.id) if schema is not None else None
+            if known is None:
+                known = schemas[schema.id] = _schema_entry(file, schema, channel, decode)
+            type_name, text, store = known
             data = message.data
-            if decode:
+            if store is not None:
                 try:
-                    data = deserialize(data, type_name, text)
-                except BagReadError as exc:
+                    data = store.deserialize_cdr(data, type_name)
+                except Exception as exc:  # noqa: BLE001 - the CDR reader raises assorted errors
                     raise BagReadError(f"MCAP file {str(file)!r}: message {count} on "
-                                       f"{channel.topic!r}: {exc}") from None
-                except Exception as exc:  # noqa: BLE001 - an unparsable schema text
-                    raise BagReadError(f"MCAP file {str(file)!r}: the schema of "
-                                       f"{channel.topic!r} does not parse "
+                                       f"{channel.topic!r} does not decode as {type_name} "
                                        f"({type(exc).__name__}: {exc})") from None
             count += 1
             yield BagMessage(channel.topic, type_name, message.log_time, message.publish_time,
                              data, text)
+
+
+def _schema_entry(file: Path, schema, channel, decode: bool) -> tuple:
+    """(type name, schema text, typestore to decode with or None) of a file's schema."""
+    if channel.message_encoding != "cdr" or schema is None or schema.encoding != "ros2msg":
+        raise BagReadError(f"MCAP file {str(file)!r}: topic {channel.topic!r} is not "
+                           f"ros2msg/cdr (encoding {channel.message_encoding!r})")
+    type_name, text = _schema_type(schema), schema.data.decode("utf-8", "replace")
+    if not decode:
+        return type_name, text, None
+    try:
+        return type_name, text, schema_typestore(type_name, text)
+    except Exception as exc:  # noqa: BLE001 - an unparsable schema text
+        raise BagReadError(f"MCAP file {str(file)!r}: the schema of {channel.topic!r} does "
+                           f"not parse ({type(exc).__name__}: {exc})") from None
