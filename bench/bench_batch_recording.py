@@ -83,11 +83,17 @@ def _stamp(seconds: float) -> dict:
     return {"sec": ns // 1_000_000_000, "nanosec": ns % 1_000_000_000}
 
 
+def block_bag(path: Path, compression: str) -> BagWriter:
+    """A BagWriter with the simulator's block topics registered."""
+    bag = BagWriter(path, compression=compression)
+    for channel in ch.SIMULATOR_BLOCK:
+        bag.add_topic(channel.name, channel.type_name, qos_profile_yaml())
+    return bag
+
+
 def record_dicts(path: Path, blocks, states, compression: str) -> None:
     """The baseline: message dicts through BagWriter (generic dict -> rosbags -> CDR)."""
-    with BagWriter(path, compression=compression) as bag:
-        for channel in ch.SIMULATOR_BLOCK:
-            bag.add_topic(channel.name, channel.type_name, qos_profile_yaml())
+    with block_bag(path, compression) as bag:
         for block, state in zip(blocks, states, strict=True):
             log = int(round(block.t_end * 1e9))
             head = {"stamp": _stamp(block.t0), "frame_id": "wing"}
@@ -145,9 +151,7 @@ def rosbags_messages(block, state) -> list[tuple]:
 
 def record_rosbags(path: Path, blocks, states, compression: str) -> None:
     """The per-message library path: rosbags messages, serialize_cdr, one write each."""
-    with BagWriter(path, compression=compression) as bag:
-        for channel in ch.SIMULATOR_BLOCK:
-            bag.add_topic(channel.name, channel.type_name, qos_profile_yaml())
+    with block_bag(path, compression) as bag:
         for block, state in zip(blocks, states, strict=True):
             log = int(round(block.t_end * 1e9))
             for channel, msg in rosbags_messages(block, state):

@@ -29,6 +29,11 @@ def published_topics() -> list[str]:
     return [c.name for c in ch.SIMULATOR_BLOCK if not c.name.startswith("/")]
 
 
+def _check_batch_blocks(batch_blocks) -> None:
+    if isinstance(batch_blocks, bool) or not isinstance(batch_blocks, int) or batch_blocks < 1:
+        raise ValueError(f"batch_blocks must be a positive integer, got {batch_blocks!r}")
+
+
 def _samples(runtime) -> int:
     return int(round(runtime.time * runtime.sample_rate))
 
@@ -58,8 +63,7 @@ def record_flight_blocks(bag_dir, blocks: Iterable, damper_states: Iterable | No
     -------
     BagSummary
     """
-    if isinstance(batch_blocks, bool) or not isinstance(batch_blocks, int) or batch_blocks < 1:
-        raise ValueError(f"batch_blocks must be a positive integer, got {batch_blocks!r}")
+    _check_batch_blocks(batch_blocks)
     with BatchRecorder(bag_dir, sample_rate, damper_state=damper_states is not None,
                        **options) as recorder:
         states = iter(damper_states) if damper_states is not None else None
@@ -127,18 +131,14 @@ def record_runtime(bag_dir, runtime, progress: Callable[[int, int], None] | None
         A fresh runtime (stepped here to the end).
     progress : callable, optional
         Called as ``progress(samples_done, samples_total)`` after each batch.
-    batch_blocks : int
-        Blocks encoded together.
-    **options
-        ``namespace``, ``compression``, ``chunk_size``, ``ros_distro``, ``chunk_crc`` of
-        :class:`~aero_dva.bag.batch_recorder.BatchRecorder`.
+    batch_blocks, **options
+        As for :func:`record_flight_blocks`.
 
     Returns
     -------
     RecordedFlight
     """
-    if isinstance(batch_blocks, bool) or not isinstance(batch_blocks, int) or batch_blocks < 1:
-        raise ValueError(f"batch_blocks must be a positive integer, got {batch_blocks!r}")
+    _check_batch_blocks(batch_blocks)
     total = int(runtime.scenario.n_samples)
     started = time.monotonic()
     published = dict.fromkeys(published_topics(), 0)

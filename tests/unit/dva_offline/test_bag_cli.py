@@ -8,18 +8,13 @@ import sys
 import pytest
 
 from aero_dva.bag.bag_reader import bag_topics
-from aero_dva.bag.batch_recorder import BatchRecorder
 from dva_offline import cli
-from tests.unit.aero_dva.bag.test_batch_recording import RATE, make_flight
+from tests.unit.aero_dva.bag.reference_bag import write_batch_bag
 
 
 @pytest.fixture(scope="module")
 def bag(tmp_path_factory):
-    path = tmp_path_factory.mktemp("bags") / "run"
-    blocks, states = make_flight()
-    with BatchRecorder(path, RATE, chunk_size=20_000) as recorder:
-        recorder.write_blocks(blocks, states)
-    return path
+    return write_batch_bag(tmp_path_factory.mktemp("bags") / "run")
 
 
 @pytest.fixture

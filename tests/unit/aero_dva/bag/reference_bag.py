@@ -96,3 +96,15 @@ class ReferenceBag:
 
     def close(self):
         return self.writer.close()
+
+
+def write_batch_bag(path, **options):
+    """A flight (test_batch_recording.make_flight) through the BatchRecorder: uncompressed
+    chunks of 20 kB unless ``options`` say otherwise."""
+    from aero_dva.bag.batch_recorder import BatchRecorder
+    from tests.unit.aero_dva.bag.test_batch_recording import RATE, make_flight
+
+    blocks, states = make_flight()
+    with BatchRecorder(path, RATE, **{"chunk_size": 20_000, **options}) as recorder:
+        recorder.write_blocks(blocks, states)
+    return path

@@ -11,8 +11,7 @@ from mcap.reader import make_reader
 from aero_dva.bag.bag_reader import BagReadError, bag_topics, read_messages
 from aero_dva.bag.bag_recovery import bag_info, recover_bag
 from aero_dva.bag.bag_writer import BagWriter
-from aero_dva.bag.batch_recorder import BatchRecorder
-from tests.unit.aero_dva.bag.test_batch_recording import RATE, make_flight
+from tests.unit.aero_dva.bag.reference_bag import write_batch_bag
 
 ACC = "dva_msgs/msg/AccelerationBlock"
 FLIGHT = "dva_msgs/msg/FlightCondition"
@@ -45,11 +44,7 @@ def zstd_bag(tmp_path_factory):
 @pytest.fixture(scope="module")
 def batch_bag(tmp_path_factory):
     """A batch-recorder bag: uncompressed chunks of 20 kB."""
-    path = tmp_path_factory.mktemp("b") / "run"
-    blocks, states = make_flight()
-    with BatchRecorder(path, RATE, chunk_size=20_000) as recorder:
-        recorder.write_blocks(blocks, states)
-    return path
+    return write_batch_bag(tmp_path_factory.mktemp("b") / "run")
 
 
 def _file_records(mcap: Path) -> list[tuple]:
