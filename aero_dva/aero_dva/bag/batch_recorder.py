@@ -47,7 +47,7 @@ from aero_dva.bag.batch_cdr import (
     structured_dtype,
 )
 from aero_dva.bag.chunk_framing import COMPRESSIONS, MESSAGE_RECORD, ChunkedMcapFile
-from aero_dva.bag.schemas import typestore
+from aero_dva.bag.schemas import typestore_of
 from aero_dva.wing.model import ACCELERATION_NAMES, DISPLACEMENT_NAMES
 
 __all__ = ["DAMPER_COLUMNS", "BatchRecorder", "recorded_topics"]
@@ -503,7 +503,7 @@ class BatchRecorder:
         "stale" and values a mapping rendered as the node renders them
         (:func:`~aero_dva.bag.channels.diagnostic_text`).
         """
-        store = typestore()
+        store = typestore_of(ch.DIAGNOSTICS.type_name)
         types = store.types
         rows = []
         for level, text, values in statuses:

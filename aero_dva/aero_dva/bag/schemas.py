@@ -28,8 +28,10 @@ __all__ = [
     "message_fields",
     "message_text",
     "normalize_type_name",
+    "parsed_types",
     "schema_typestore",
     "typestore",
+    "typestore_of",
 ]
 
 #: The project's interface packages: ``<pkg>/msg/<Type>.msg``.
@@ -217,13 +219,30 @@ def message_definition_matches(store, type_name: str, schema_text: str) -> bool:
     return True
 
 
-def message_fields(type_name: str) -> list[tuple[str, tuple]]:
-    """Parsed fields of a type in the project's typestore, in order: ``(name, (Nodetype,
-    args))`` as ``rosbags`` gives them (``args`` of a primitive: ``(type, bound)``; of a
-    nested type: its name; of an array or sequence: ``((Nodetype, args), length)``)."""
+@lru_cache(maxsize=128)
+def parsed_types(type_name: str) -> dict:
+    """``rosbags``' parse of a type's full schema text (:func:`message_definition`): the type
+    and every dependency, ``{pkg/msg/Type: (constants, fields)}``."""
     full = normalize_type_name(type_name)
-    try:
-        return list(typestore().fielddefs[full][1])
-    except KeyError:
-        raise MessageDefinitionNotFound(
-            f"{full} is neither a ROS 2 Jazzy type nor defined under {INTERFACES}") from None
+    return get_types_from_msg(message_definition(full), full)
+
+
+def message_fields(type_name: str) -> list[tuple[str, tuple]]:
+    """Parsed fields of a type, in order: ``(name, (Nodetype, args))`` as ``rosbags`` gives
+    them (``args`` of a primitive: ``(type, bound)``; of a nested type: its name; of an array
+    or sequence: ``((Nodetype, args), length)``). Parses the .msg text only: no typestore."""
+    full = normalize_type_name(type_name)
+    return list(parsed_types(full)[full][1])
+
+
+@lru_cache(maxsize=16)
+def typestore_of(*type_names: str):
+    """A small typestore of just these types and their dependencies, parsed from their .msg
+    texts: a few milliseconds to make, where :func:`typestore` loads all of Jazzy (about
+    0.1 s), for a process that serializes only a few known types (the batch recorder)."""
+    store = get_typestore(Stores.EMPTY)
+    types: dict = {}
+    for name in type_names:
+        types.update(parsed_types(name))
+    store.register(types)
+    return store
