@@ -280,7 +280,7 @@ def read_messages(
             raise MessageTypeError(
                 f"topic {topic!r} in bag {str(path)!r} carries {actual!r}, "
                 f"expected {normalize_type_name(type_name)!r}")
-    return _iterate(bag_files(path, allow_truncated), selected, decode, log_time_order)
+    return _iterate(bag_files(path, allow_truncated), selected, decode, log_time_order, path)
 
 
 def _records(file: Path, selected: set[str], log_time_order: bool):
@@ -291,11 +291,13 @@ def _records(file: Path, selected: set[str], log_time_order: bool):
                 yield item.schema, item.channel, item.message
         return
     with open(file, "rb") as stream:
-        reader = SeekingReader(stream)
+        # Chunk CRCs are checked: a flipped byte is an error naming the file, not a wrong value.
+        reader = SeekingReader(stream, validate_crcs=True)
         yield from reader.iter_messages(topics=sorted(selected), log_time_order=log_time_order)
 
 
-def _iterate(files: list[Path], selected: set[str], decode: bool, log_time_order: bool):
+def _iterate(files: list[Path], selected: set[str], decode: bool, log_time_order: bool,
+             bag: Path):
     for file in files:
         count = 0
         schemas: dict[int, tuple] = {}  # schema id -> (type, text, typestore or None), per file
@@ -308,7 +310,9 @@ def _iterate(files: list[Path], selected: set[str], decode: bool, log_time_order
             except Exception as exc:  # noqa: BLE001 - corrupt data raises assorted errors
                 raise BagReadError(
                     f"MCAP file {str(file)!r} is corrupt: reading failed after {count} "
-                    f"messages ({type(exc).__name__}: {exc})") from None
+                    f"messages ({type(exc).__name__}: {exc}); "
+                    + RECOVER_HINT.format(bag=bag)
+                ) from None
             known = schemas.get(schema.id) if schema is not None else None
             if known is None:
                 known = schemas[schema.id] = _schema_entry(file, schema, channel, decode)

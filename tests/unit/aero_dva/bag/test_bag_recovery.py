@@ -187,3 +187,15 @@ def test_recover_of_a_whole_bag_copies_it(zstd_bag, tmp_path):
     assert result.damage is None and result.kept == 360
     (mcap,) = zstd_bag.glob("*.mcap")
     assert _file_records(tmp_path / "copy" / "copy_0.mcap") == _file_records(mcap)
+
+
+def test_a_flipped_byte_in_a_closed_bag_is_an_error_naming_recover(batch_bag, tmp_path):
+    copy = tmp_path / "flipped"
+    shutil.copytree(batch_bag, copy)
+    (mcap,) = copy.glob("*.mcap")
+    start, end, _ = _chunks(mcap)[2]
+    data = bytearray(mcap.read_bytes())
+    data[(start + end) // 2] ^= 0x01  # one bit in chunk 2, most of which is float samples
+    mcap.write_bytes(bytes(data))
+    with pytest.raises(BagReadError, match=rf"CRCValidationError.*dva bag recover {copy} --out"):
+        list(read_messages(copy))
