@@ -47,10 +47,10 @@ from aero_dva.bag.batch_cdr import (
     structured_dtype,
 )
 from aero_dva.bag.chunk_framing import COMPRESSIONS, MESSAGE_RECORD, ChunkedMcapFile
-from aero_dva.bag.schemas import typestore_of
+from aero_dva.bag.schemas import message_fields, typestore_of
 from aero_dva.wing.model import ACCELERATION_NAMES, DISPLACEMENT_NAMES
 
-__all__ = ["DAMPER_COLUMNS", "BatchRecorder", "recorded_topics"]
+__all__ = ["DAMPER_COLUMNS", "BatchRecorder", "load_definitions", "recorded_topics"]
 
 #: Per-block damper columns of :meth:`BatchRecorder.write_samples`: the snapshot time [s] and
 #: the ``dva_msgs/DamperState`` fields of the same names.
@@ -69,6 +69,14 @@ def recorded_topics(namespace: str = "", damper_state: bool = True,
     ``dva/damper_state`` and ``wing/displacement``."""
     return {c.absolute(namespace): c.type_name
             for c in _recorded(damper_state, displacement)}
+
+
+def load_definitions() -> None:
+    """Parse the .msg definitions the recorder lays out and serializes (cached per process):
+    called before forking, the processes of a split recording inherit them."""
+    for channel in ch.SIMULATOR_BLOCK:
+        message_fields(channel.type_name)
+    typestore_of(ch.DIAGNOSTICS.type_name)
 
 
 def _recorded(damper_state: bool, displacement: bool) -> list[ch.Channel]:

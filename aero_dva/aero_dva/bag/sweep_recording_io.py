@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from aero_dva.bag.bag_writer import BagSummary, create_bag_directory
-from aero_dva.bag.batch_recorder import DAMPER_COLUMNS, BatchRecorder
+from aero_dva.bag.batch_recorder import DAMPER_COLUMNS, BatchRecorder, load_definitions
 from aero_dva.bag.chunk_framing import close_split_bag
 from aero_dva.bag.runtime_recording import (
     RecordedFlight,
@@ -287,6 +287,7 @@ def _record_split(bag_dir, sweep: _Sweep, spans: list[tuple[int, int]],
     """Fly ``spans[:-1]`` in forked processes and the last span here; returns (bag summary,
     samples flown to, first sample of the diverging block or None)."""
     context = multiprocessing.get_context("fork")
+    load_definitions()  # once, inherited by the forked processes
     directory, _ = create_bag_directory(bag_dir)
     names = [f"{directory.name}_{j}.mcap" for j in range(len(spans))]
     counters = [context.Value("q", 0, lock=False) for _ in spans]
