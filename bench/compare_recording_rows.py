@@ -80,8 +80,8 @@ def main(argv=None) -> int:
         for name, sides in found.items():
             if not (sides["base"] and sides["now"]):
                 continue
-            (wb, cb), (wn, cn) = ((statistics.median(v[i] for v in sides[s]) for i in (0, 1))
-                                  for s in ("base", "now"))
+            (wb, cb), (wn, cn) = [[statistics.median(v[i] for v in sides[s]) for i in (0, 1)]
+                                  for s in ("base", "now")]
             walls = f"{wb:10.3f}{wn:10.3f}{wn / wb:7.3f}" if wb == wb else f"{'':27}"
             print(f"{name:<32}{walls}{cb:10.3f}{cn:10.3f}{cn / cb:7.3f}")
         return 0
