@@ -83,7 +83,8 @@ def main(argv=None) -> int:
             (wb, cb), (wn, cn) = [[statistics.median(v[i] for v in sides[s]) for i in (0, 1)]
                                   for s in ("base", "now")]
             walls = f"{wb:10.3f}{wn:10.3f}{wn / wb:7.3f}" if wb == wb else f"{'':27}"
-            print(f"{name:<32}{walls}{cb:10.3f}{cn:10.3f}{cn / cb:7.3f}")
+            ratio = f"{cn / cb:7.3f}" if cb > 0 else f"{'-':>7}"
+            print(f"{name:<32}{walls}{cb:10.3f}{cn:10.3f}{ratio}")
         return 0
     finally:
         subprocess.run(["git", "worktree", "remove", "--force", str(base_dir)], cwd=REPO,
