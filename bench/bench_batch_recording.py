@@ -303,6 +303,7 @@ def main() -> None:
     print(f"  batch_cdr layouts, 1000 blocks/run : {rate_batch:12.0f} msg/s "
           f"({1e6 / rate_batch:.3f} us/msg, {6 * args.blocks} messages)")
     print(f"  ratio batch / rosbags              : {rate_batch / rate_rosbags:12.1f}")
+    del prebuilt, runs  # about 80 MB the recordings below should not share the caches with
 
     root = Path(tempfile.mkdtemp(prefix="bench_batch_", dir=args.dir))
     rows = []
