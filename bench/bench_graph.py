@@ -29,7 +29,7 @@ from aero_dva.bag.mcap_io import bag_topics
 from aero_dva.control.airspeed_schedule import fit_airspeed_schedule
 from aero_dva.control.dva_design import best_damping_curve
 from aero_dva.control.schedule_io import save_schedule
-from aero_dva.flight.scenario_flight import FlightRuntime, load_runtime_config
+from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
 from aero_dva.wing.model import AeroelasticModel
 from aero_dva.wing.wing_io import load_wing
 from aero_dva_sim.run_flight import main as run_flight

@@ -135,7 +135,7 @@ def _sweep(args) -> int:
 
     from aero_dva import data_files
     from aero_dva.bag.sweep_recording_io import default_jobs, record_sweep
-    from aero_dva.flight.scenario_flight import FlightRuntime, load_runtime_config
+    from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
     from aero_dva.wing.flutter import flutter_speed, growth_rate
     from aero_dva.wing.model import AeroelasticModel
     from dva_offline.training import adapt_sweep
