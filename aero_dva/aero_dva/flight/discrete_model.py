@@ -16,7 +16,7 @@ hundred discretisations, each cached by its exact condition.
 Users: the streaming simulator (:mod:`.streaming_simulator`, the simulator node's), the
 batch simulator of many whole flights (:mod:`.batch_simulator`), the parallel-in-time sweep
 (:mod:`.sweep_simulator`), the hidden plant (:mod:`.hidden_plant`) and the modal simulator of
-a logged flight (:mod:`.modal_simulator`, the discrepancy pipeline's). Pure numerics.
+a logged flight (:mod:`.modal_simulator`, the discrepancy loop's). Pure numerics.
 """
 from __future__ import annotations
 

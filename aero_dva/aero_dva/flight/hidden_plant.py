@@ -19,7 +19,7 @@ recorded topics names:
 - ``sensor_noise`` (plunge [m/s^2], pitch [rad/s^2], leading edge [m/s^2]): white Gaussian
   accelerometer noise with these standard deviations.
 - ``sensor_gain`` (three factors): accelerometer calibration errors (an effect outside the
-  discrepancy pipeline's library, for testing that it does not misattribute).
+  discrepancy loop's library, for testing that it does not misattribute).
 
 :class:`PlantSimulator` has the streaming interface of
 :class:`~aero_dva.flight.streaming_simulator.StreamingSimulator` (``advance(force, airspeed,

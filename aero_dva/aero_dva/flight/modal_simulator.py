@@ -1,6 +1,6 @@
-"""The wing simulated along a logged flight in modal form: the discrepancy pipeline's simulator.
+"""The wing simulated along a logged flight in modal form: the discrepancy loop's simulator.
 
-The flight-log domain of the discrepancy pipeline (:mod:`dva_offline.discrepancy.flight_domain`)
+The flight-log domain of the discrepancy loop (:mod:`dva_offline.discrepancy.flight_domain`)
 drives candidate models with the logged force at the logged conditions, one condition per
 block of samples (the :class:`~aero_dva.flight.discrete_model.DiscreteWing`'s hold), hundreds
 of times per fit. Here the sampled wing of each distinct condition k is the exact ZOH in modal

@@ -333,8 +333,8 @@ def simulate_sweep(config: RuntimeConfig, plan: SweepPlan, *,
     """Yield the flight in chunks of whole segments, in time order.
 
     Chunk by chunk (so a consumer, e.g. a writer thread, gets the first one at once, and one
-    that stops early (divergence) saves the rest): the chunk's force (the scenario seed's
-    stream, drawn in pieces), its segments' end states from rest, the scan that carries the
+    that stops early (divergence) saves the rest): the chunk's force (from the scenario's random
+    seed, drawn in pieces), its segments' end states from rest, the scan that carries the
     state from segment to segment (steps 3-4 of the module docstring), then the outputs.
     ``outputs`` names the channels of :data:`.OUTPUT_NAMES` to compute (each costs the same; a
     channel left out is not computed at all); a channel's values do not depend on which

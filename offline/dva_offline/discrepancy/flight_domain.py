@@ -1,4 +1,4 @@
-"""Domain 2 of the discrepancy pipeline: flight logs (MCAP) against the wing + Maxwell DVA model.
+"""Domain 2 of the discrepancy loop: flight logs (MCAP) against the wing + Maxwell DVA model.
 
 Observations: H1 estimates of the frequency response from the measured aileron force to the
 measured plunge and pitch accelerations, per flight segment (airspeed, density and reported
@@ -18,7 +18,7 @@ Weights: w_j = median(eps) / (|H_j| eps_j), eps_j = sqrt(G_nn / S_xx,j) / |H_j| 
 error the sensor noise alone gives the estimate (G_nn per channel from the output power not
 coherent with the force well above the modes), so the residual w_j (H_model,j - H_j) is the
 relative error scaled to the median point's noise and a correct model leaves residuals of about
-equal size everywhere (the pipeline's noise floor and consistency test assume that).
+equal size everywhere (the loop's noise floor and consistency test assume that).
 
 Baseline: :class:`~aero_dva.wing.model.AeroelasticModel` of the wing file (reference wing
 by default) with its Maxwell DVA and aerodynamics, calibrated by three parameters: pitch
@@ -175,7 +175,7 @@ def arrays_from_log(log) -> FlightArrays:
 
 
 class FlightDomain:
-    """The flight-log domain (module docstring) for :func:`.pipeline.run`.
+    """The flight-log domain (module docstring) for :func:`.engine.run`.
 
     Parameters
     ----------
@@ -188,7 +188,7 @@ class FlightDomain:
     name = "flight"
     # H1 estimates of neighbouring segments share windows and the noise floor from second
     # differences is only approximate here: a clearly significant candidate is not hidden by
-    # a high noise floor estimate (pipeline.DecisionRule.strict_consistency).
+    # a high noise floor estimate (engine.DecisionRule.strict_consistency).
     decision_rule = DecisionRule(strict_consistency=True)
     error_definition = (
         "RMS over held-out points j (not used in any fit) of w_j |H_model_j - H_j|, "

@@ -1,4 +1,4 @@
-"""The modal simulator of the wing along a logged flight (the discrepancy pipeline's)."""
+"""The modal simulator of the wing along a logged flight (the discrepancy loop's)."""
 from __future__ import annotations
 
 import numpy as np
