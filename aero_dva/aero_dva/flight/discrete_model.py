@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -150,8 +151,7 @@ class DiscreteMatrices:
     d: np.ndarray
 
 
-@dataclass(frozen=True)
-class DiscreteCondition:
+class DiscreteCondition(NamedTuple):
     """One held condition as the maps a stepping simulator applies to ``[state; inputs]``.
 
     Attributes
@@ -211,6 +211,7 @@ class DiscreteWing:
         if not isinstance(model, AeroelasticModel):
             raise TypeError(f"model must be an AeroelasticModel, got {type(model).__name__}")
         self.model = model
+        self.n_states = model.n_states
         self.sample_rate = positive(sample_rate, "sample_rate")
         self.dt = 1.0 / self.sample_rate
         if isinstance(hold, bool) or int(hold) != hold or int(hold) < 1:
@@ -233,10 +234,6 @@ class DiscreteWing:
     # -- what it is ------------------------------------------------------------------------
     output_names = OUTPUT_NAMES
     n_outputs = N_OUTPUTS
-
-    @property
-    def n_states(self) -> int:
-        return self.model.n_states
 
     @property
     def n_inputs(self) -> int:
@@ -288,6 +285,18 @@ class DiscreteWing:
             return tuple(raw)
         return next_held(raw, held, (self.quantum,) * len(raw))
 
+    def held_sequence(self, raws, held: tuple) -> list[tuple]:
+        """:meth:`next_held` over successive grid samples ``raws`` (tuples), from ``held``: the
+        held values of each period. (The rule inlined: the streaming simulator's hot path.)"""
+        q = self.quantum
+        if q == 0.0:
+            return [tuple(raw) for raw in raws]
+        out = []
+        for raw in raws:
+            held = tuple(cur if abs(v - cur) <= q * abs(cur) else v for v, cur in zip(raw, held))
+            out.append(held)
+        return out
+
     # -- matrices --------------------------------------------------------------------------
     def continuous(self, params: np.ndarray):
         """``A`` (K, n, n) and ``B`` (K, n[, m]) at checked conditions ``params`` (K, 3) =
@@ -331,8 +340,9 @@ class DiscreteWing:
         """The maps of the held conditions ``keys`` (tuples (U, rho, damping)); those not yet
         cached are discretised together, in one batch."""
         cache = self._conditions
-        missing = list(dict.fromkeys(k for k in keys if k not in cache))
+        missing = [k for k in keys if k not in cache]
         if missing:
+            missing = list(dict.fromkeys(missing))
             if len(cache) + len(missing) > self.max_conditions:
                 cache.clear()
             for key, condition in zip(missing, self._maps(missing)):
@@ -345,14 +355,25 @@ class DiscreteWing:
         return len(self._conditions)
 
     def _maps(self, keys: list) -> list[DiscreteCondition]:
-        m = self.discretise(np.array(keys, dtype=float))
-        h, ns, k, p = self.hold, self.n_states, len(keys), N_OUTPUTS
-        bd = m.bd[..., None] if m.bd.ndim == 2 else m.bd
-        d = m.d[..., None] if m.d.ndim == 2 else m.d
-        ni = bd.shape[-1]
+        # The streaming simulator's hot path (a few new conditions per 50-sample block): the
+        # one-sample map is filled straight from the parts rather than via discretise().
+        model = self.model
+        a, b = self.continuous(np.array(keys, dtype=float))
+        ad, bd = zoh(a, b, self.dt)
+        h, ns, k, p, nd = self.hold, self.n_states, len(keys), N_OUTPUTS, N_DISPLACEMENTS
+        ni = self.n_inputs
         step = np.zeros((k, ns + p, ns + ni))
-        step[:, :ns, :ns], step[:, :ns, ns:] = m.ad, bd
-        step[:, ns:, :ns], step[:, ns:, ns:] = m.c, d
+        step[:, :ns, :ns] = ad
+        step[:, ns:ns + nd, :ns] = model.c_displacement
+        if ni == 1:
+            step[:, :ns, ns] = bd
+            step[:, ns + nd:, :ns], step[:, ns + nd:, ns] = model.acceleration_output(a, b)
+        else:
+            step[:, :ns, ns:] = bd
+            step[:, ns + nd:, :ns], step[:, ns + nd:, ns] = model.acceleration_output(
+                a, b[..., 0])
+            for i in range(1, ni):
+                step[:, ns + nd:, ns + i] = model.acceleration_output(a, b[..., i])[1]
         # The period map is h steps of the one-sample map applied to [state; forces] as a
         # linear function of (start state, the period's h forces): ``x`` holds the state's
         # map and, in its last row, the selector of the force acting at that sample.

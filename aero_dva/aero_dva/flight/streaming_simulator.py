@@ -218,10 +218,10 @@ class StreamingSimulator:
                   for v in (airspeed, density, damping)]
         held = self._held
         segments = [(0, first, held)] if first else []
-        for p, raw in enumerate(zip(*values)):
-            held = dw.next_held(raw, held)
+        for p, key in enumerate(dw.held_sequence(zip(*values), held)):
             a = first + p * h
-            segments.append((a, min(a + h, total), held))
+            segments.append((a, min(a + h, total), key))
+            held = key
         maps = dw.conditions([key for _, _, key in segments])
         out = np.empty((N_OUTPUTS, total))
         for (a, b, _), cond in zip(segments, maps):
