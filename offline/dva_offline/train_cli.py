@@ -47,8 +47,8 @@ def register(subparsers) -> None:
     p.set_defaults(func=lambda args: _help(p))
 
     s = sub.add_parser("sweep", help="fly and record the (U, c2) training sweep (MCAP)",
-                       description="Fly the stepped sweep of seed sec. 7.2.1 with the "
-                                   "simulator's engine and record it through the batch path.")
+                       description="Fly the stepped sweep of Zhang (2006) sec. 7.2.1 with "
+                                   "the flight runtime and record it through the batch path.")
     s.add_argument("--scenario", metavar="FILE",
                    help="sweep scenario YAML (default: the package's scenario_sweep.yaml)")
     s.add_argument("--out", metavar="BAG_DIR",
