@@ -165,7 +165,7 @@ class _DiscreteCache:
             obs[:, j] = rows
             if j < h - 1:
                 rows = rows @ phi
-        markov = (obs @ gam[:, None, :, None])[..., 0]  # (k, h, 7): C phi^j gamma
+        markov = (obs @ gam[:, None, :, None])[..., 0]  # (k, h, p): C phi^j gamma
         toep = period[..., n:]
         for j in range(1, h):
             toep[:, j, :, :j] = markov[:, j - 1::-1].transpose(0, 2, 1)

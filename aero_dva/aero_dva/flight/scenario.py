@@ -8,10 +8,10 @@ turns them into m/s once that airspeed is known.
 Profiles
 --------
 - airspeed ``constant``: U(t) = U0.
-- airspeed ``ramp``: U rises linearly from ``start`` to ``end`` over the flight (seed ch. 6-7:
-  0.8 -> 1.2 Ucr in 30 s).
+- airspeed ``ramp``: U rises linearly from ``start`` to ``end`` over the flight (the study's
+  ch. 6-7: 0.8 -> 1.2 Ucr in 30 s).
 - airspeed ``steps``: a stepped sweep; each airspeed is held for ``len(sweep_damping)`` dwells of
-  ``dwell`` seconds, one per c2 value (seed sec. 7.2.1 training experiment).
+  ``dwell`` seconds, one per c2 value (the study's sec. 7.2.1 training experiment).
 - density: rho(t) = rho0 (1 + mu sin(2 pi f t)) (Zhang (2006) eq. 7.2, with f = 1 Hz there).
 - excitation: zero-mean white Gaussian aileron force with standard deviation ``force_std``
   (1 kN in the seed), drawn per sample from ``numpy.random.default_rng(seed)``; optionally
