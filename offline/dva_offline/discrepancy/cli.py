@@ -48,7 +48,7 @@ def _conditions(args):
 
 
 def _cmd_frf(args) -> int:
-    from dva_offline.discrepancy import engine
+    from dva_offline.discrepancy import loop
     from dva_offline.discrepancy.frf_domain import FrfDomain
     from dva_offline.discrepancy.report import plot_result, result_to_dict
 
@@ -68,10 +68,10 @@ def _cmd_frf(args) -> int:
     domain = FrfDomain(conditions, mass=args.mass, static_stiffness=args.static_stiffness,
                        elements=elements, max_elements=args.max_elements, covariates=columns)
     rng = None if args.holdout_seed is None else np.random.default_rng(args.holdout_seed)
-    split = engine.holdout_split(domain.observations.groups, args.holdout_every, rng)
+    split = loop.holdout_split(domain.observations.groups, args.holdout_every, rng)
     bar, step = _progress()
     try:
-        result = engine.run(domain, split=split, progress=step)
+        result = loop.run(domain, split=split, progress=step)
     finally:
         bar.close()
     sel = domain.order_selection
@@ -163,7 +163,7 @@ def _summary_lines(result, baseline_detail: str = "") -> list[str]:
 def _cmd_flight(args) -> int:
     from aero_dva.bag.flight_log_io import load_flight_log
     from aero_dva.wing.wing_io import load_wing
-    from dva_offline.discrepancy import engine
+    from dva_offline.discrepancy import loop
     from dva_offline.discrepancy.flight_domain import (
         FlightDomain,
         FlightSettings,
@@ -187,10 +187,10 @@ def _cmd_flight(args) -> int:
     wing = load_wing(args.wing)
     domain = FlightDomain(arrays_from_log(log), wing, settings)
     rng = None if args.holdout_seed is None else np.random.default_rng(args.holdout_seed)
-    split = engine.holdout_split(domain.observations.groups, args.holdout_every, rng)
+    split = loop.holdout_split(domain.observations.groups, args.holdout_every, rng)
     bar, step = _progress()
     try:
-        result = engine.run(domain, rule=domain.decision_rule, split=split, progress=step)
+        result = loop.run(domain, rule=domain.decision_rule, split=split, progress=step)
     finally:
         bar.close()
     fs = domain.data.sample_rate

@@ -7,7 +7,7 @@ order comes from the isolator's own order selection
 (:func:`dva_offline.isolator.order_selection.select_model_order`, Voigt -> M-V -> M-M-V -> ...,
 on the training points only), or is fixed by the user (``elements``). The isolator fit imposes
 the natural frequency and damping ratio estimated from the data (eq. 4.12); since those are
-estimates, the engine then refits all parameters of that model by weighted least squares
+estimates, the loop then refits all parameters of that model by weighted least squares
 without the constraint (weights 1/|H_j|, the maximum-likelihood choice for multiplicative
 noise). Mass m and static stiffness k are fixed when given, fitted otherwise.
 
@@ -48,7 +48,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from dva_offline.discrepancy.engine import (
+from dva_offline.discrepancy.fitting import (
     HoldoutSplit,
     ModelFit,
     ModelSpec,
@@ -213,7 +213,7 @@ def modal_term_scan(omega, compliance, weights, f_grid_hz, zetas, background=0):
 
 
 class FrfDomain:
-    """Isolator FRF data for :func:`dva_offline.discrepancy.engine.run`.
+    """Isolator FRF data for :func:`dva_offline.discrepancy.loop.run`.
 
     Parameters
     ----------
@@ -237,7 +237,7 @@ class FrfDomain:
         any of these orders has a white residual (Ljung-Box p >= ``whiteness_alpha``), whose
         residual is white.
     whiteness_alpha : float
-        Ljung-Box level of the order choice (the engine's default whiteness level).
+        Ljung-Box level of the order choice (the loop's default whiteness level).
     """
 
     name = "frf"

@@ -11,7 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from dva_offline.discrepancy.engine import CandidateScore, DiscrepancyResult, ModelFit
+from dva_offline.discrepancy.fitting import ModelFit
+from dva_offline.discrepancy.loop import CandidateScore, DiscrepancyResult
 from dva_offline.discrepancy.residual import ResidualFeatures
 
 

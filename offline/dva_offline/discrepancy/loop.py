@@ -1,0 +1,364 @@
+"""The discrepancy loop: baseline -> residual -> candidate effects -> verdict, step by step.
+
+Loop: fit the baseline on training points -> error on held-out points -> characterise the
+residual (noise floor, whiteness, localisation, phase trend, covariates) -> fit every candidate
+effect of the domain's library -> score on held-out points with a penalty per added parameter
+-> verdict ``consistent`` / ``explained`` (with the effect's name) / ``unexplained``.
+
+Scores and decision (all thresholds in :class:`DecisionRule`):
+
+* Noise floor sigma_hat from the data alone (:func:`.residual.noise_floor`).
+* ``consistent`` when the baseline's held-out error e_0 <= consistency_ratio * sigma_hat and
+  its residual passes the Ljung-Box whiteness test (p >= whiteness_alpha).
+* Each candidate c (p_c added parameters, all parameters refitted on the training points):
+  penalised held-out score dBIC_c = n ln(S_c / S_0) + p_c ln(n), n = 2 N_h real residuals,
+  S = held-out sum of squared weighted residuals; a nested F test on the training points
+  (baseline vs candidate) gives p-value p_c; the explained fraction
+  R_c = (S_0 - S_c) / (S_0 - N_h sigma_hat^2) is the share of the excess (non-noise) held-out
+  residual power that the candidate removes.
+* ``explained`` when the best candidate (lowest dBIC) has p_c < significance,
+  dBIC_c <= -min_bic_gain and R_c >= min_explained, and no other candidate with
+  R >= min_explained comes within ambiguity_margin of its dBIC. Otherwise ``unexplained``.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+from scipy import stats
+
+from dva_offline.discrepancy.fitting import (
+    EFFECT_VOCABULARY,
+    ERROR_DEFINITION,
+    STATUSES,
+    HoldoutSplit,
+    ModelFit,
+    ModelSpec,
+    NotApplicable,
+    Observations,
+    ParamSpec,
+    fit_model,
+    holdout_split,
+)
+from dva_offline.discrepancy.residual import NoiseFloor, ResidualFeatures, characterise
+
+# the model pieces a domain or a caller needs with the loop
+__all__ = [
+    "EFFECT_VOCABULARY", "ERROR_DEFINITION", "STATUSES", "CandidateScore", "DecisionRule",
+    "DiscrepancyResult", "Domain", "HoldoutSplit", "ModelFit", "ModelSpec", "NotApplicable",
+    "Observations", "ParamSpec", "Verdict", "decide", "fit_model", "holdout_split", "run",
+    "score_candidate",
+]
+
+
+class Domain(Protocol):
+    """What a domain supplies to :func:`run`."""
+
+    name: str
+    observations: Observations
+
+    def baseline(self, train: np.ndarray) -> ModelSpec:
+        """The baseline model, initialised from the training points (mask, shape (N,))."""
+
+    def candidates(
+        self, baseline: ModelFit, features: ResidualFeatures
+    ) -> Sequence[ModelSpec | NotApplicable]:
+        """The candidate library, each started from the fitted baseline."""
+
+    def variants(self, spec: ModelSpec) -> Sequence[ModelSpec]:
+        """Optional: other forms of a promising candidate (e.g. on a richer baseline); the
+        loop keeps the form with the best score. Return [] for none."""
+
+
+
+
+@dataclass(frozen=True)
+class DecisionRule:
+    """Thresholds of the verdict (module docstring).
+
+    Attributes
+    ----------
+    consistency_ratio : float
+        Baseline consistent if held-out error <= this x noise floor (and white).
+    whiteness_alpha : float
+        Ljung-Box p-value below which the residual is called correlated.
+    significance : float
+        F-test p-value a candidate must beat.
+    min_bic_gain : float
+        A candidate must lower the held-out BIC by at least this.
+    min_explained : float
+        Share of the excess residual power the best candidate must remove.
+    ambiguity_margin : float
+        Another candidate that also explains the residual within this BIC margin makes the
+        attribution ambiguous (verdict ``unexplained``).
+    strict_consistency : bool
+        If True, ``consistent`` also needs that no candidate is significant (F-test p <
+        significance and dBIC <= -min_bic_gain), and the noise level in the explained
+        fraction R is capped by the best candidate's held-out error (a noise floor estimate
+        that is too high, e.g. from correlated estimation noise, must not hide a clear
+        effect). Off by default (domain 1); the flight domain uses it.
+    """
+
+    consistency_ratio: float = 1.25
+    whiteness_alpha: float = 1e-3
+    significance: float = 1e-3
+    min_bic_gain: float = 10.0
+    min_explained: float = 0.9
+    ambiguity_margin: float = 10.0
+    strict_consistency: bool = False
+
+
+@dataclass(frozen=True)
+class CandidateScore:
+    """A library entry's result.
+
+    Attributes
+    ----------
+    effect, label : str
+    applicable : bool
+    reason : str
+        Why not applicable (empty otherwise).
+    fit : ModelFit or None
+    delta_bic : float
+        Penalised held-out score relative to the baseline (negative is better).
+    p_value : float
+        Nested F test on the training points (baseline vs candidate).
+    explained_fraction : float
+        R (module docstring); NaN when the baseline has no excess over the noise floor.
+    signature : str
+    """
+
+    effect: str
+    label: str
+    applicable: bool
+    reason: str
+    fit: ModelFit | None
+    delta_bic: float
+    p_value: float
+    explained_fraction: float
+    signature: str
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """``status`` in :data:`STATUSES`; ``effect`` named only when explained."""
+
+    status: str
+    effect: str | None
+    label: str
+    evidence: str
+
+
+@dataclass(frozen=True)
+class DiscrepancyResult:
+    """Everything the loop found.
+
+    Attributes
+    ----------
+    domain : str
+    split : HoldoutSplit
+    baseline : ModelFit
+    noise : NoiseFloor
+    residual : ResidualFeatures
+        Of the baseline's residual (all points).
+    candidates : tuple of CandidateScore
+        Sorted best first (applicable ones by delta_bic, then the others).
+    verdict : Verdict
+    augmented : ModelFit or None
+        The named effect's fit, when explained.
+    augmented_residual : ResidualFeatures or None
+    rule : DecisionRule
+    error_definition : str
+    """
+
+    domain: str
+    split: HoldoutSplit
+    baseline: ModelFit
+    noise: NoiseFloor
+    residual: ResidualFeatures
+    candidates: tuple[CandidateScore, ...]
+    verdict: Verdict
+    augmented: ModelFit | None
+    augmented_residual: ResidualFeatures | None
+    rule: DecisionRule
+    error_definition: str = ERROR_DEFINITION
+
+    @property
+    def error_reduction(self) -> float | None:
+        """Augmented over baseline held-out error (None unless explained)."""
+        if self.augmented is None:
+            return None
+        return self.augmented.error / self.baseline.error
+
+
+def score_candidate(base: ModelFit, fit: ModelFit, sigma: float) -> tuple[float, float, float]:
+    """(delta_bic, p_value, explained_fraction) of a candidate fit against the baseline fit."""
+    n = 2 * fit.n_held
+    p_add = fit.n_added
+    delta_bic = n * np.log(fit.rss_held / base.rss_held) + p_add * np.log(n)
+    dof = 2 * fit.n_train - fit.n_params
+    if p_add == 0 or dof <= 0 or fit.rss_train >= base.rss_train:
+        p_value = 1.0
+    else:
+        f = ((base.rss_train - fit.rss_train) / p_add) / (fit.rss_train / dof)
+        p_value = float(stats.f.sf(f, p_add, dof))
+    excess = base.rss_held - fit.n_held * sigma**2
+    frac = (base.rss_held - fit.rss_held) / excess if excess > 0 else np.nan
+    return float(delta_bic), p_value, float(frac)
+
+
+def _features(obs: Observations, fit: ModelFit, sigma=None) -> ResidualFeatures:
+    with np.errstate(all="ignore"):
+        ratio = obs.values / fit.prediction
+    if not np.all(np.isfinite(ratio)) or np.any(ratio == 0):
+        ratio = None
+    return characterise(obs.axis, fit.residual, obs.groups, obs.covariates, ratio, sigma,
+                        log=obs.log_axis)
+
+
+def _describe(c: CandidateScore) -> str:
+    label = f" ({c.label})" if c.label else ""
+    return (f"{c.effect}{label}: held-out error {c.fit.error:.4f}, dBIC {c.delta_bic:.1f}, "
+            f"F-test p = {c.p_value:.2g}, explains {100 * c.explained_fraction:.0f} % of the "
+            "excess")
+
+
+def decide(base: ModelFit, noise: NoiseFloor, features: ResidualFeatures,
+           scores: Sequence[CandidateScore], rule: DecisionRule) -> Verdict:
+    """Apply :class:`DecisionRule` (module docstring) to the scored candidates."""
+    sigma = noise.sigma
+    ratio = base.error / sigma if sigma > 0 else np.inf
+    white = features.whiteness
+    head = (f"baseline held-out error {base.error:.4f} = {ratio:.2f} x the noise floor "
+            f"{sigma:.4f}; residual whiteness (Ljung-Box) p = {white.p_value:.2g}")
+    fitted = [c for c in scores if c.applicable and c.fit is not None]
+    eligible = [c for c in fitted if c.p_value < rule.significance
+                and c.delta_bic <= -rule.min_bic_gain]
+    if (ratio <= rule.consistency_ratio and white.p_value >= rule.whiteness_alpha
+            and not (rule.strict_consistency and eligible)):
+        return Verdict("consistent", None, "",
+                       f"{head}: the baseline fits within the noise; nothing added")
+    if not eligible:
+        best = min(fitted, key=lambda c: c.delta_bic) if fitted else None
+        tail = f"; best was {_describe(best)}" if best is not None else ""
+        return Verdict("unexplained", None, "",
+                       f"{head}; no candidate improves the held-out score significantly{tail}")
+    best = min(eligible, key=lambda c: c.delta_bic)
+    frac = best.explained_fraction
+    if not frac >= rule.min_explained:
+        return Verdict(
+            "unexplained", None, "",
+            f"{head}; the best candidate explains too little (< "
+            f"{100 * rule.min_explained:.0f} %): {_describe(best)}",
+        )
+    rivals = [c for c in eligible if c is not best and c.explained_fraction >= rule.min_explained
+              and c.delta_bic - best.delta_bic < rule.ambiguity_margin]
+    if rivals:
+        return Verdict(
+            "unexplained", None, "",
+            f"{head}; ambiguous: {_describe(best)} and {_describe(rivals[0])} explain the "
+            "residual about equally well",
+        )
+    runner = [c for c in fitted if c is not best]
+    tail = (f"; next best {_describe(min(runner, key=lambda c: c.delta_bic))}"
+            if runner else "")
+    return Verdict("explained", best.effect, best.label,
+                   f"{head}; {_describe(best)}; held-out error {base.error:.4f} -> "
+                   f"{best.fit.error:.4f}{tail}")
+
+
+def _capped_fractions(base: ModelFit, scores: list, sigma: float) -> list:
+    """Explained fractions with the noise level capped by the best candidate's held-out RMS
+    error (see ``DecisionRule.strict_consistency``)."""
+    fits = [c.fit for c in scores if c.applicable and c.fit is not None]
+    if not fits:
+        return scores
+    best_rms = min(np.sqrt(f.rss_held / f.n_held) for f in fits)
+    capped = min(sigma, best_rms)
+    out = []
+    for c in scores:
+        if c.applicable and c.fit is not None:
+            _, _, frac = score_candidate(base, c.fit, capped)
+            c = CandidateScore(c.effect, c.label, True, c.reason, c.fit, c.delta_bic, c.p_value,
+                               frac, c.signature)
+        out.append(c)
+    return out
+
+
+def run(domain: Domain, rule: DecisionRule | None = None, split: HoldoutSplit | None = None,
+        progress: Callable[[str], None] | None = None, n_variants: int = 2) -> DiscrepancyResult:
+    """Run the discrepancy loop on a domain.
+
+    Parameters
+    ----------
+    domain : Domain
+    rule : DecisionRule, optional
+    split : HoldoutSplit, optional
+        Default :func:`holdout_split` with every 4th point held out.
+    progress : callable, optional
+        Called with a short text before each fit (progress bars live in the CLI).
+    n_variants : int
+        How many of the best candidates get the domain's variants tried.
+
+    Returns
+    -------
+    DiscrepancyResult
+    """
+    rule = rule or DecisionRule()
+    obs = domain.observations
+    split = split or holdout_split(obs.groups)
+    if split.train.shape != obs.values.shape or split.held.sum() < 5:
+        raise ValueError("split must have the observations' shape and >= 5 held-out points")
+    if progress:
+        progress("baseline")
+    base = fit_model(domain.baseline(split.train), obs, split)
+    features = _features(obs, base)
+    noise = features.noise
+    scores = []
+    specs = {}
+    for item in domain.candidates(base, features):
+        if isinstance(item, NotApplicable):
+            scores.append(CandidateScore(item.effect, item.label, False, item.reason, None,
+                                         np.nan, np.nan, np.nan, ""))
+            continue
+        if progress:
+            progress(item.effect + (f" ({item.label})" if item.label else ""))
+        specs[(item.effect, item.label)] = item
+        fit = fit_model(item, obs, split)
+        dbic, p, frac = score_candidate(base, fit, noise.sigma)
+        scores.append(CandidateScore(item.effect, item.label, True, "", fit, dbic, p, frac,
+                                     item.signature))
+    # Promising candidates (lowest dBIC, significant) get their variants tried too.
+    variants = getattr(domain, "variants", None)
+    if variants is not None:
+        # (only while they leave residual power above the noise: nothing to gain otherwise)
+        ranked = sorted((c for c in scores if c.applicable and c.delta_bic < 0),
+                        key=lambda c: c.delta_bic)[:n_variants]
+        ranked = [c for c in ranked if c.fit.error > rule.consistency_ratio * noise.sigma]
+        for c in ranked:
+            for spec in variants(specs[(c.effect, c.label)]):
+                if progress:
+                    progress(f"{spec.name}")
+                fit = fit_model(spec, obs, split)
+                dbic, p, frac = score_candidate(base, fit, noise.sigma)
+                if dbic < c.delta_bic:
+                    i = scores.index(c)
+                    c = CandidateScore(c.effect, c.label, True, "", fit, dbic, p, frac,
+                                       c.signature)
+                    scores[i] = c
+    if rule.strict_consistency:
+        scores = _capped_fractions(base, scores, noise.sigma)
+    scores.sort(key=lambda c: (not c.applicable, c.delta_bic if c.applicable else 0.0))
+    verdict = decide(base, noise, features, scores, rule)
+    augmented = aug_features = None
+    if verdict.status == "explained":
+        chosen = next(c for c in scores if c.applicable and c.effect == verdict.effect
+                      and c.label == verdict.label)
+        augmented = chosen.fit
+        aug_features = _features(obs, augmented, noise.sigma)
+    # a domain whose weights are not plain 1/|y| states its own definition
+    definition = getattr(domain, "error_definition", ERROR_DEFINITION)
+    return DiscrepancyResult(domain.name, split, base, noise, features, tuple(scores), verdict,
+                             augmented, aug_features, rule, definition)
