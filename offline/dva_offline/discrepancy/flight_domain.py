@@ -52,7 +52,6 @@ from dva_offline.discrepancy.fitting import (
     Observations,
     ParamSpec,
 )
-from dva_offline.discrepancy.loop import DecisionRule
 from dva_offline.discrepancy.flight_frf import (
     estimate_segments,
     hann,
@@ -60,6 +59,7 @@ from dva_offline.discrepancy.flight_frf import (
 )
 from dva_offline.discrepancy.flight_simulation import BLOCK, ModalBlocks, simulate
 from dva_offline.discrepancy.flight_simulation import delay as delay_outputs
+from dva_offline.discrepancy.loop import DecisionRule
 
 CHANNELS = ("plunge", "pitch")  # accelerometer channels used (leading edge = their combination)
 CALIBRATION = ("pitch_stiffness", "plunge_stiffness", "damping_factor")
