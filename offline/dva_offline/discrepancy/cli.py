@@ -35,16 +35,30 @@ def _progress():
 
 
 def _conditions(args):
+    """Sweeps of the input file in SI units, how they were grouped, and the units used."""
+    from dva_offline.discrepancy import table_io
+
     path = Path(args.file)
     columns = None
     if args.covariates:
         columns = [c.strip() for c in args.covariates.split(",") if c.strip()]
+    quantity = args.quantity
     if path.suffix.lower() in (".uff", ".unv"):
-        data = isolator_io.read_uff58(path, args.quantity)
-        if columns:
-            raise ValueError("--covariates needs a CSV file (UFF 58 carries no covariates)")
-        return [data], columns
-    return isolator_io.read_frf_csv_conditions(path, args.quantity, columns), columns
+        if columns or args.group_by or args.covariate_tolerance is not None:
+            raise ValueError("--covariates/--group-by/--covariate-tolerance need a CSV file "
+                             "(UFF 58 carries no covariates)")
+        data = isolator_io.read_uff58(path, quantity)
+        grouping = table_io.Grouping("a single sweep (UFF 58)", (), 1, ())
+        return [data], columns, grouping, {}
+    table = table_io.read_table(path)
+    conditions, grouping, info = table_io.conditions_from_table(
+        table, quantity, table_io.ColumnMap.parse(args.columns), args.frequency_unit,
+        args.value_unit, args.group_by, args.covariate_tolerance, columns)
+    if columns is None:
+        # every covariate whose condition levels differ, except the set column itself
+        skip = set(grouping.columns) if args.group_by else set()
+        columns = [n for n in conditions[0].covariates if n not in skip]
+    return conditions, columns, grouping, info
 
 
 def _cmd_frf(args) -> int:
@@ -64,7 +78,7 @@ def _cmd_frf(args) -> int:
             raise ValueError(
                 f"--elements must be an integer >= 0 or 'auto', got {args.elements!r}"
             ) from None
-    conditions, columns = _conditions(args)
+    conditions, columns, grouping, info = _conditions(args)
     domain = FrfDomain(conditions, mass=args.mass, static_stiffness=args.static_stiffness,
                        elements=elements, max_elements=args.max_elements, covariates=columns)
     rng = None if args.holdout_seed is None else np.random.default_rng(args.holdout_seed)
@@ -77,9 +91,17 @@ def _cmd_frf(args) -> int:
     sel = domain.order_selection
     extra = {
         "file": str(args.file), "quantity": args.quantity, "n_points": int(domain.omega.size),
+        "grouping": {"method": grouping.method, "columns": list(grouping.columns),
+                     "n_conditions": grouping.n_conditions,
+                     "dropped": [{"condition": d, "n_points": n} for d, n in grouping.dropped],
+                     "covariate_values": grouping.covariate_values},
+        "input": info,
         "conditions": [
             {"n_points": int(c.frequency_hz.size),
-             "covariates": {n: float(c.covariates[n][0]) for n in domain.observations.covariates}}
+             "covariates": {n: float(np.mean(c.covariates[n]))
+                            for n in domain.observations.covariates},
+             "covariate_spread": {n: float(np.ptp(c.covariates[n]))
+                                  for n in domain.observations.covariates}}
             for c in conditions
         ],
         "mass_kg": args.mass, "static_stiffness_n_per_m": args.static_stiffness,
@@ -251,6 +273,24 @@ def _cmd_synth_flight(args) -> int:
     return EXIT_OK
 
 
+def _add_table_arguments(p) -> None:
+    """Flags that read an instrument's export as it is (columns, units, sweeps)."""
+    p.add_argument("--columns", default=None, metavar="ROLE=COL[,...]",
+                   help="file columns: frequency=COL,real=COL,imag=COL, and NAME=COL to rename "
+                        "a covariate (e.g. temperature_c=T); default frequency_hz,real,imag")
+    p.add_argument("--frequency-unit", default=None, choices=("Hz", "kHz", "rad/s"),
+                   help="unit of the frequency column (default: the file's units row, else Hz)")
+    p.add_argument("--value-unit", default=None, metavar="UNIT",
+                   help="unit of the real/imag columns, e.g. MPa, N/mm, mm/N, g/N (default: "
+                        "the file's units row, else SI)")
+    p.add_argument("--group-by", default=None, metavar="COL",
+                   help="split the rows into sweeps by this set column (e.g. the instrument's "
+                        "step number)")
+    p.add_argument("--covariate-tolerance", type=float, default=None, metavar="TOL",
+                   help="split the rows into sweeps by covariate levels closer than TOL (a "
+                        "measured temperature that drifts within a sweep)")
+
+
 def register(subparsers) -> None:
     """Add the ``discrepancy`` subcommand to the ``dva`` parser."""
     from dva_offline.discrepancy import synthetic
@@ -265,8 +305,11 @@ def register(subparsers) -> None:
     p = sub.add_parser("frf", help="isolator / viscoelastic FRF data against the Maxwell model")
     p.add_argument("file", help="CSV frequency_hz,real,imag[,covariates] (sweeps may be "
                                "stacked by covariate) or UFF 58")
-    p.add_argument("--quantity", choices=("receptance", "accelerance", "stiffness"),
-                   default="receptance", help="what the file holds (SI units)")
+    p.add_argument("--quantity", choices=("receptance", "accelerance", "stiffness", "modulus"),
+                   default="receptance",
+                   help="what the file holds (modulus: E' + j E'' or G' + j G'', analysed as "
+                        "a stiffness per unit geometry factor)")
+    _add_table_arguments(p)
     p.add_argument("--mass", type=float, default=None,
                    help="isolated mass [kg] (default: fitted; fixture_mass then not tested)")
     p.add_argument("--static-stiffness", type=float, default=None,
@@ -276,8 +319,8 @@ def register(subparsers) -> None:
                         "selection); a fixed order makes maxwell_element a candidate")
     p.add_argument("--max-elements", type=int, default=3, help="largest order for 'auto'")
     p.add_argument("--covariates", default=None, metavar="COL[,COL...]",
-                   help="condition columns (temperature, excitation level); default: every "
-                        "extra column with few distinct values")
+                   help="covariates to analyse (temperature, excitation level); default: every "
+                        "extra column whose level differs between sweeps")
     p.add_argument("--holdout-every", type=int, default=4,
                    help="hold out every Nth point of each condition (default 4)")
     p.add_argument("--holdout-seed", type=int, default=None,

@@ -300,7 +300,15 @@ class FrfDomain:
 
     # --- data helpers ----------------------------------------------------------------------
     def _varying(self) -> dict:
-        return {n: c for n, c in self.observations.covariates.items() if np.unique(c).size > 1}
+        """Covariates whose condition levels differ (a drift within one sweep is not a
+        level change)."""
+        g = self.observations.groups
+        out = {}
+        for n, c in self.observations.covariates.items():
+            means = np.array([c[g == label].mean() for label in np.unique(g)])
+            if np.ptp(means) > 0:
+                out[n] = c
+        return out
 
     def _reference_condition(self) -> int:
         """The condition at the median level of the first varying covariate (else the first)."""
@@ -308,7 +316,7 @@ class FrfDomain:
         if not varying:
             return 0
         col = next(iter(varying.values()))
-        per = np.array([col[self.observations.groups == g][0]
+        per = np.array([col[self.observations.groups == g].mean()
                         for g in range(len(self.conditions))])
         return int(np.argmin(np.abs(per - np.median(per))))
 
@@ -833,7 +841,8 @@ class FrfDomain:
             out.append(NotApplicable("amplitude_dependence", reason))
             out.append(NotApplicable("covariate_shift", reason))
         for name, col in varying.items():
-            ref = float(col[obs.groups == self.reference][0])
+            # measured covariates may drift within a sweep: the reference level is the mean
+            ref = float(col[obs.groups == self.reference].mean())
             if wanted("amplitude_dependence", name) and np.all(col > 0):
                 log_level = np.log(col / ref)
                 bound = 0.95 / float(np.max(np.abs(log_level)))

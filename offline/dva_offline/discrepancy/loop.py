@@ -214,8 +214,22 @@ def _features(obs: Observations, fit: ModelFit, sigma=None) -> ResidualFeatures:
         ratio = obs.values / fit.prediction
     if not np.all(np.isfinite(ratio)) or np.any(ratio == 0):
         ratio = None
-    return characterise(obs.axis, fit.residual, obs.groups, obs.covariates, ratio, sigma,
-                        log=obs.log_axis)
+    return characterise(obs.axis, fit.residual, obs.groups, condition_levels(obs), ratio,
+                        sigma, log=obs.log_axis)
+
+
+def condition_levels(obs: Observations) -> dict:
+    """Each covariate as its condition's mean at every point (a measured covariate drifts
+    within a sweep; the residual's covariate test compares conditions)."""
+    out = {}
+    for name, col in obs.covariates.items():
+        col = np.asarray(col, float)
+        means = np.zeros(col.size)
+        for g in np.unique(obs.groups):
+            sel = obs.groups == g
+            means[sel] = col[sel].mean()
+        out[name] = means
+    return out
 
 
 def _describe(c: CandidateScore) -> str:
