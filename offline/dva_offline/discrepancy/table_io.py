@@ -317,7 +317,7 @@ def conditions_from_table(table: Table, quantity: str, column_map: ColumnMap | N
         group_key = group_by
     labels, grouping = group_rows(cov, table.n_rows, group_key, tolerance,
                                   None if covariates is None or group_by is not None
-                                  or tolerance is None else list(covariates))
+                                  else list(covariates))
     stored = internal_quantity or ("stiffness" if quantity == "modulus" else quantity)
     conditions, dropped = [], []
     for label in range(grouping.n_conditions):
