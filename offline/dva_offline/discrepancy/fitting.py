@@ -60,6 +60,8 @@ class ParamSpec:
         Fit ln(value) (positive parameters spanning decades).
     scale : float
         Typical magnitude of a linear parameter (the optimiser works on value / scale).
+    at_lower, at_upper : str
+        What a fit ending on that bound means physically (reported with the bound hit).
     """
 
     name: str
@@ -69,6 +71,8 @@ class ParamSpec:
     upper: float = np.inf
     log: bool = False
     scale: float = 1.0
+    at_lower: str = ""
+    at_upper: str = ""
 
     def __post_init__(self) -> None:
         if not self.lower < self.upper:
@@ -243,6 +247,53 @@ class Estimate:
 
 
 @dataclass(frozen=True)
+class BoundHit:
+    """A fitted parameter that ended on (within 0.1 % of the range of) one of its bounds.
+
+    Its standard error is then meaningless (the bounded coordinates have no gradient there):
+    the data ask for a value outside the allowed range.
+    """
+
+    name: str
+    unit: str
+    value: float
+    bound: float
+    side: str  # "lower" or "upper"
+    meaning: str
+    added: bool  # one of the effect's parameters (not the baseline's)
+
+    def describe(self) -> str:
+        return (f"{self.name} = {self.value:.6g} {self.unit} is on its {self.side} bound "
+                f"{self.bound:.6g} {self.unit}: {self.meaning}")
+
+
+BOUND_TOLERANCE = 1e-3  # share of a parameter's range (in fit coordinates) counted as "on it"
+
+
+def _generic_meaning(p: ParamSpec, side: str) -> str:
+    return (f"the data push {p.name} beyond its {side} bound; the estimate and its standard "
+            "error are not meaningful")
+
+
+def bound_hits(params, values, n_added: int) -> tuple[BoundHit, ...]:
+    """The parameters whose fitted value sits on a finite bound (see :class:`BoundHit`)."""
+    out = []
+    first_added = len(params) - n_added
+    for i, (p, v) in enumerate(zip(params, values)):
+        conv = (lambda x: np.log(x)) if p.log else (lambda x: x / p.scale)
+        lo = conv(p.lower) if np.isfinite(p.lower) else -np.inf
+        hi = conv(p.upper) if np.isfinite(p.upper) else np.inf
+        x = conv(v)
+        span = hi - lo if np.isfinite(hi - lo) else max(abs(x), 1.0)
+        for side, bound, edge, note in (("lower", p.lower, lo, p.at_lower),
+                                        ("upper", p.upper, hi, p.at_upper)):
+            if np.isfinite(edge) and abs(x - edge) <= BOUND_TOLERANCE * span:
+                out.append(BoundHit(p.name, p.unit, float(v), float(bound), side,
+                                    note or _generic_meaning(p, side), i >= first_added))
+    return tuple(out)
+
+
+@dataclass(frozen=True)
 class ModelFit:
     """A model fitted on the training points and scored on the held-out points.
 
@@ -269,6 +320,8 @@ class ModelFit:
     success : bool
         Optimiser success of the best start.
     n_starts : int
+    bound_hits : tuple of BoundHit
+        Parameters that ended on a bound.
     """
 
     name: str
@@ -287,6 +340,7 @@ class ModelFit:
     n_held: int
     success: bool
     n_starts: int
+    bound_hits: tuple = ()
 
     @property
     def n_params(self) -> int:
@@ -432,13 +486,9 @@ def fit_model(spec: ModelSpec, obs: Observations, split: HoldoutSplit,
     rss_tr = float(np.sum(np.abs(residual[train]) ** 2))
     rss_h = float(np.sum(np.abs(residual[held]) ** 2))
     n_tr, n_h = int(train.sum()), int(held.sum())
-    std = np.full(n_p, np.nan)
-    dof = 2 * n_tr - n_p
-    if n_p and dof > 0:
-        s2 = rss_tr / dof
-        cov = np.linalg.pinv(jac.T @ jac) * s2
-        std_u = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-        std = np.abs(coords.dvalues_dz(u)) * std_u  # delta method
+    hits = bound_hits(params, values, spec.n_added)
+    std = _standard_errors(params, values, coords, u, jac, rss_tr, 2 * n_tr,
+                           {h.name for h in hits})
     dy = pred[held] - obs.values[held]
     return ModelFit(
         name=spec.name, effect=spec.effect, label=spec.label,
@@ -449,4 +499,38 @@ def fit_model(spec: ModelSpec, obs: Observations, split: HoldoutSplit,
         error_l2=float(np.linalg.norm(dy) / np.linalg.norm(obs.values[held])),
         train_error=float(np.sqrt(rss_tr / n_tr)), rss_train=rss_tr, rss_held=rss_h,
         n_train=n_tr, n_held=n_h, success=success, n_starts=n_starts,
+        bound_hits=hits,
     )
+
+
+def _standard_errors(params, values, coords, u, jac, rss, n_res, at_bound) -> np.ndarray:
+    """Gauss-Newton standard errors of the parameter values (delta method).
+
+    The Jacobian is taken back from the bounded optimiser coordinates z to x = ln(value) or
+    value / scale (dividing each column by dx/dz), so a parameter that saturated the logistic
+    map does not wipe out the others' covariance; parameters on a bound are held fixed
+    (standard error NaN). Columns are normalised before the pseudo-inverse.
+    """
+    n_p = len(params)
+    std = np.full(n_p, np.nan)
+    free = np.array([p.name not in at_bound for p in params], dtype=bool)
+    dof = n_res - int(free.sum())
+    if not n_p or dof <= 0 or not free.any():
+        return std
+    span = np.where(coords.bounded, coords.hi - coords.lo, 1.0)
+    sig = expit(u)
+    dxdz = np.where(coords.bounded, span * sig * (1 - sig), 1.0)
+    with np.errstate(all="ignore"):
+        jx = jac[:, free] / dxdz[free]
+    if not np.all(np.isfinite(jx)):
+        return std
+    norm = np.linalg.norm(jx, axis=0)
+    norm[norm == 0] = 1.0
+    cov = np.linalg.pinv((jx / norm).T @ (jx / norm)) / np.outer(norm, norm) * (rss / dof)
+    std_x = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    v = np.asarray(values, float)[free]
+    log = np.array([p.log for p in params])[free]
+    scale = np.array([p.scale for p in params])[free]
+    std[free] = np.where(log, np.abs(v), scale) * std_x
+    return std
+

@@ -79,6 +79,19 @@ SIGNATURES = {
 }
 
 
+R_GAS = 8.314462618  # J/(mol K)
+
+
+def _absolute_temperature(name: str, col: np.ndarray) -> np.ndarray | None:
+    """The covariate in kelvin if its name says it is a temperature (``*_k`` kelvin, other
+    temperature names Celsius), else None (Arrhenius needs an absolute temperature)."""
+    low = name.lower()
+    if not (low.startswith("temp") or low in ("t", "t_c", "t_k")):
+        return None
+    kelvin = col if low.endswith("_k") else col + 273.15
+    return kelvin if np.all(kelvin > 0) else None
+
+
 def _residual_peaks(f, residual, groups, count: int) -> list[float]:
     """Frequencies [Hz] of the ``count`` largest local maxima of the residual power
     (3-point moving average within each condition)."""
@@ -454,11 +467,13 @@ class FrfDomain:
             params.append(ParamSpec("k", "N/m", model.k, model.k * 1e-3, model.k * 1e3,
                                     log=True))
         params.append(ParamSpec("c", "N s/m", model.c, -100 * c_ref, 100 * c_ref, scale=c_ref))
+        dormant = "a dormant element (the data do not need it in the band)"
         for i, ki in enumerate(model.maxwell_k):
-            params.append(ParamSpec(f"k_{i + 1}", "N/m", ki, k_ref * 1e-3, k_ref * 1e3, log=True))
+            params.append(ParamSpec(f"k_{i + 1}", "N/m", ki, k_ref * 1e-3, k_ref * 1e3, log=True,
+                                    at_lower=dormant, at_upper=dormant))
         for i, ci in enumerate(model.maxwell_c):
             params.append(ParamSpec(f"c_{i + 1}", "N s/m", ci, c_ref * 1e-3, c_ref * 1e3,
-                                    log=True))
+                                    log=True, at_lower=dormant, at_upper=dormant))
         return tuple(params)
 
     def _order_spec(self, model: MaxwellModel, previous: np.ndarray | None,
@@ -878,9 +893,38 @@ class FrfDomain:
                 c2_0 = max(100.0, 2 * c2_min)
                 out.append(spec(
                     "covariate_shift",
-                    (ParamSpec("b", "1/K", 0.02, -1.0, 1.0, scale=0.02),
-                     ParamSpec("C2", "K", c2_0, c2_min, 1e4, log=True)),
+                    (ParamSpec("b", "1/K", 0.02, -1.0, 1.0, scale=0.02,
+                               at_lower="the shift slope is at its limit -1 /K",
+                               at_upper="the shift slope is at its limit 1 /K"),
+                     ParamSpec("C2", "K", c2_0, c2_min, 1e4, log=True,
+                               at_lower=f"the WLF singularity T_inf = T0 - C2 sits just below "
+                                        f"the lowest level ({ref - c2_min + 1:.4g}): the shift "
+                                        "diverges there",
+                               at_upper="C2 -> infinity: the WLF law degenerates to a shift "
+                                        "linear in the covariate (log a_T = -b (T - T0)); the "
+                                        "data do not show WLF curvature (see the Arrhenius "
+                                        "form for a temperature)")),
                     p_shift, label=name, more_bases=ref_bases,
                     starts=[np.array([b, c2]) for b in np.linspace(-0.1, 0.1, 21)
                             for c2 in (c2_0, 3 * c2_0)]))
+            kelvin = _absolute_temperature(name, col)
+            if kelvin is not None and wanted("covariate_shift", f"{name}, Arrhenius"):
+                t_ref = float(kelvin[obs.groups == self.reference].mean())
+                inv = 1.0 / kelvin - 1.0 / t_ref
+                to_ea = R_GAS * np.log(10.0) * t_ref**2  # E_a for a slope b [1/K] at T0
+
+                def p_arrhenius(v, inv=inv):
+                    m, k, c, ks, cs, (ea,) = self._unpack(v, n)
+                    log_at = ea / (R_GAS * np.log(10.0)) * inv
+                    return self._response(self._stiffness(k, c, ks, cs, w * 10.0**log_at), m)
+
+                out.append(spec(
+                    "covariate_shift",
+                    (ParamSpec("E_a", "J/mol", 0.02 * to_ea, 1e3, 5e6, log=True,
+                               at_lower="no measurable thermal activation (E_a -> 0)",
+                               at_upper="an activation energy above 5 MJ/mol: the shift is "
+                                        "steeper than any Arrhenius process (near a glass "
+                                        "transition WLF applies)"),),
+                    p_arrhenius, label=f"{name}, Arrhenius", more_bases=ref_bases,
+                    starts=[np.array([b * to_ea]) for b in np.geomspace(1e-3, 0.3, 15)]))
         return out

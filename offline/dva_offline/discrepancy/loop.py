@@ -143,12 +143,14 @@ class CandidateScore:
 
 @dataclass(frozen=True)
 class Verdict:
-    """``status`` in :data:`STATUSES`; ``effect`` named only when explained."""
+    """``status`` in :data:`STATUSES`; ``effect`` named only when explained; ``caveats``:
+    what the named fit leaves in doubt (its effect's parameters that ended on a bound)."""
 
     status: str
     effect: str | None
     label: str
     evidence: str
+    caveats: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -236,7 +238,8 @@ def _describe(c: CandidateScore) -> str:
     label = f" ({c.label})" if c.label else ""
     return (f"{c.effect}{label}: held-out error {c.fit.error:.4f}, dBIC {c.delta_bic:.1f}, "
             f"F-test p = {c.p_value:.2g}, explains {100 * c.explained_fraction:.0f} % of the "
-            "excess")
+            "excess" + "".join(f" ({h.name} on its {h.side} bound {h.bound:.4g} {h.unit})"
+                               for h in _added_hits(c)))
 
 
 def decide(base: ModelFit, noise: NoiseFloor, features: ResidualFeatures,
@@ -260,6 +263,13 @@ def decide(base: ModelFit, noise: NoiseFloor, features: ResidualFeatures,
         return Verdict("unexplained", None, "",
                        f"{head}; no candidate improves the held-out score significantly{tail}")
     best = min(eligible, key=lambda c: c.delta_bic)
+    if _added_hits(best):
+        # another form of the same effect whose fit stays inside its bounds (Arrhenius for a
+        # WLF whose C2 ran to its bound) is preferred when it scores about as well
+        inside = [c for c in eligible if c.effect == best.effect and not _added_hits(c)
+                  and c.delta_bic - best.delta_bic < rule.ambiguity_margin]
+        if inside:
+            best = min(inside, key=lambda c: c.delta_bic)
     frac = best.explained_fraction
     if not frac >= rule.min_explained:
         return Verdict(
@@ -267,7 +277,9 @@ def decide(base: ModelFit, noise: NoiseFloor, features: ResidualFeatures,
             f"{head}; the best candidate explains too little (< "
             f"{100 * rule.min_explained:.0f} %): {_describe(best)}",
         )
-    rivals = [c for c in eligible if c is not best and c.explained_fraction >= rule.min_explained
+    # (forms of the same effect, e.g. WLF and Arrhenius, are no rivals: the name is the same)
+    rivals = [c for c in eligible if c.effect != best.effect
+              and c.explained_fraction >= rule.min_explained
               and c.delta_bic - best.delta_bic < rule.ambiguity_margin]
     if rivals:
         return Verdict(
@@ -278,9 +290,16 @@ def decide(base: ModelFit, noise: NoiseFloor, features: ResidualFeatures,
     runner = [c for c in fitted if c is not best]
     tail = (f"; next best {_describe(min(runner, key=lambda c: c.delta_bic))}"
             if runner else "")
+    caveats = tuple(h.describe() for h in _added_hits(best))
+    warn = ("; CAVEAT, fit on a bound: " + "; ".join(caveats)) if caveats else ""
     return Verdict("explained", best.effect, best.label,
                    f"{head}; {_describe(best)}; held-out error {base.error:.4f} -> "
-                   f"{best.fit.error:.4f}{tail}")
+                   f"{best.fit.error:.4f}{warn}{tail}", caveats)
+
+
+def _added_hits(c: CandidateScore) -> tuple:
+    """The effect's own parameters of a candidate fit that ended on a bound."""
+    return tuple(h for h in c.fit.bound_hits if h.added) if c.fit is not None else ()
 
 
 def _capped_fractions(base: ModelFit, scores: list, sigma: float) -> list:
