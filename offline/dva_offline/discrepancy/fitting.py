@@ -280,7 +280,9 @@ def bound_hits(params, values, n_added: int) -> tuple[BoundHit, ...]:
     out = []
     first_added = len(params) - n_added
     for i, (p, v) in enumerate(zip(params, values)):
-        conv = (lambda x: np.log(x)) if p.log else (lambda x: x / p.scale)
+        def conv(x, p=p):
+            return np.log(x) if p.log else x / p.scale
+
         lo = conv(p.lower) if np.isfinite(p.lower) else -np.inf
         hi = conv(p.upper) if np.isfinite(p.upper) else np.inf
         x = conv(v)
