@@ -120,6 +120,7 @@ def _cmd_frf(args) -> int:
     if args.json:
         print(json.dumps(payload))
     else:
+        print(f"read {domain.omega.size} points: {grouping.describe()}")
         print("\n".join(_summary_lines(result)))
     return EXIT_OK
 
@@ -171,6 +172,19 @@ def _summary_lines(result, baseline_detail: str = "") -> list[str]:
         lines.append(f"augmented {a.name}: held-out error {a.error:.4f} "
                      f"({100 * (1 - a.error / result.baseline.error):.0f} % lower)")
         lines += [f"  {e.name} = {e.value:.6g} +- {e.std:.2g} {e.unit}" for e in a.added]
+    for i, st in enumerate(result.steps):
+        label = f" ({st.label})" if st.label else ""
+        lines.append(f"step {i + 1}: + {st.effect}{label}: held-out error {st.error_before:.4f} "
+                     f"-> {st.error_after:.4f} (noise floor {st.noise_before:.4f}, dBIC "
+                     f"{st.delta_bic:.1f}, explains {100 * st.explained_fraction:.0f} % of the "
+                     "excess)")
+        lines += [f"    {e.name} = {e.value:.6g} +- {e.std:.2g} {e.unit}" for e in st.fit.added]
+        lines += [f"    caveat: {c}" for c in st.caveats]
+    if result.final is not None:
+        fin = result.final
+        lines.append(f"final: {fin.status}: {fin.model}: held-out error {fin.error:.4f} = "
+                     f"{fin.error / fin.noise:.2f} x the noise floor {fin.noise:.4f}; "
+                     f"{fin.reason}")
     lines.append(f"evidence: {v.evidence}")
     lines.append("candidates (held-out error, dBIC):")
     for c in result.candidates:

@@ -56,7 +56,13 @@ from dva_offline.discrepancy.fitting import (
     ParamSpec,
     fit_model,
 )
-from dva_offline.discrepancy.frf_terms import SIGNATURES, Term, absolute_temperature, compose
+from dva_offline.discrepancy.frf_terms import (
+    SIGNATURES,
+    Term,
+    absolute_temperature,
+    compose,
+    log_shift,
+)
 from dva_offline.discrepancy.maxwell_starts import (
     maxwell_from_stiffness,
     modal_term_scan,
@@ -334,10 +340,28 @@ class FrfDomain:
         for i, ki in enumerate(model.maxwell_k):
             params.append(ParamSpec(f"k_{i + 1}", "N/m", ki, k_ref * 1e-3, k_ref * 1e3, log=True,
                                     at_lower=dormant, at_upper=dormant))
+        below, above = self._reduced_span()
         for i, ci in enumerate(model.maxwell_c):
-            params.append(ParamSpec(f"c_{i + 1}", "N s/m", ci, c_ref * 1e-3, c_ref * 1e3,
-                                    log=True, at_lower=dormant, at_upper=dormant))
+            params.append(ParamSpec(f"c_{i + 1}", "N s/m", ci, c_ref * 1e-3 / 10**above,
+                                    c_ref * 1e3 * 10**below, log=True, at_lower=dormant,
+                                    at_upper=dormant))
         return tuple(params)
+
+    def _reduced_span(self) -> tuple[float, float]:
+        """Decades by which the material's reduced frequency w a_T reaches below the lowest
+        and above the highest measured frequency, under the shifts added so far (the element
+        time constants must be free to cover it; 0, 0 without a shift)."""
+        shifts = [(t, i) for t, i in zip(self._stack, self._stack_offsets()) if t.stage == "shift"]
+        if not shifts or getattr(self, "_base_values", None) is None:
+            return 0.0, 0.0
+        start = len(self._base_values) - self._stack_size()
+        total = np.zeros(self.omega.size)
+        for t, i in shifts:
+            total = total + log_shift(t, self._base_values[start + i: start + i + t.size])
+        return float(max(0.0, -total.min())), float(max(0.0, total.max()))
+
+    def _stack_offsets(self) -> list[int]:
+        return list(np.cumsum([0] + [t.size for t in self._stack])[:-1])
 
     def _order_spec(self, model: MaxwellModel, previous: np.ndarray | None,
                     extra_starts=()) -> ModelSpec:
@@ -623,7 +647,14 @@ class FrfDomain:
         m_b, k_b, *_ = self._unpack(bases[0], n)
         out: list[ModelSpec | NotApplicable] = []
 
+        # an effect already in the model is not offered again (a second shift or delay on
+        # the same covariate would only bend the first); elements and foundations may repeat
+        present = {(t.effect, t.label.partition(", ")[0]) for t in self._stack
+                   if t.effect not in ("maxwell_element", "foundation_mode")}
+
         def wanted(effect, label=""):
+            if (effect, label.partition(", ")[0]) in present:
+                return False
             return only is None or only == (effect, label)
 
         def spec(effect, added, term, starts=(), label="", more_bases=(), priority=()):
@@ -639,14 +670,18 @@ class FrfDomain:
 
             ke0 = 0.3 * k_b
             tau0 = 1.0 / (2 * np.pi * np.sqrt(f_min * f_max))  # corner in mid-band
+            # corners across the material's (reduced) frequency range
+            below, above = self._reduced_span()
+            n_corner = 12 + int(round(2 * (below + above)))
             out.append(spec(
                 "maxwell_element",
                 (ParamSpec("k_e", "N/m", ke0, s["k_ref"] * 1e-3, s["k_ref"] * 1e3, log=True),
-                 ParamSpec("c_e", "N s/m", ke0 * tau0, s["c_ref"] * 1e-3,
-                           s["c_ref"] * 1e3, log=True)),
+                 ParamSpec("c_e", "N s/m", ke0 * tau0, s["c_ref"] * 1e-3 / 10**above,
+                           s["c_ref"] * 1e3 * 10**below, log=True)),
                 Term("maxwell_element", "", "element", 2),
                 starts=[np.array([r * k_b, r * k_b * t]) for t in
-                        1.0 / (2 * np.pi * np.geomspace(f_min, f_max, 12))
+                        1.0 / (2 * np.pi * np.geomspace(f_min / 10**below, f_max * 10**above,
+                                                        n_corner))
                         for r in (0.1, 0.3, 1.0, 3.0)],
             ))
         elif only is None:

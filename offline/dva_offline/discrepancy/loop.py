@@ -48,8 +48,8 @@ from dva_offline.discrepancy.residual import NoiseFloor, ResidualFeatures, chara
 __all__ = [
     "EFFECT_VOCABULARY", "ERROR_DEFINITION", "STATUSES", "CandidateScore", "DecisionRule",
     "DiscrepancyResult", "Domain", "HoldoutSplit", "ModelFit", "ModelSpec", "NotApplicable",
-    "Observations", "ParamSpec", "Verdict", "decide", "fit_model", "holdout_split", "run",
-    "score_candidate",
+    "LoopOutcome", "Observations", "ParamSpec", "Step", "Verdict", "choose_step", "decide",
+    "fit_model", "holdout_split", "run", "score_candidate",
 ]
 
 
@@ -99,6 +99,11 @@ class DecisionRule:
         fraction R is capped by the best candidate's held-out error (a noise floor estimate
         that is too high, e.g. from correlated estimation noise, must not hide a clear
         effect). Off by default (domain 1); the flight domain uses it.
+    min_step_explained : float
+        Share of the excess an effect must remove to be added as a step of the loop when it
+        does not explain min_explained alone (:func:`choose_step`).
+    max_steps : int
+        Most effects the loop adds.
     """
 
     consistency_ratio: float = 1.25
@@ -108,6 +113,8 @@ class DecisionRule:
     min_explained: float = 0.9
     ambiguity_margin: float = 10.0
     strict_consistency: bool = False
+    min_step_explained: float = 0.1
+    max_steps: int = 12
 
 
 @dataclass(frozen=True)
@@ -186,6 +193,8 @@ class DiscrepancyResult:
     augmented_residual: ResidualFeatures | None
     rule: DecisionRule
     error_definition: str = ERROR_DEFINITION
+    steps: tuple = ()
+    final: LoopOutcome | None = None
 
     @property
     def error_reduction(self) -> float | None:
@@ -193,6 +202,38 @@ class DiscrepancyResult:
         if self.augmented is None:
             return None
         return self.augmented.error / self.baseline.error
+
+
+@dataclass(frozen=True)
+class Step:
+    """One effect the loop added: the held-out error before and after, and its scores
+    against the model of the step before."""
+
+    effect: str
+    label: str
+    model: str
+    error_before: float
+    error_after: float
+    noise_before: float
+    delta_bic: float
+    p_value: float
+    explained_fraction: float
+    fit: ModelFit
+    caveats: tuple = ()
+
+
+@dataclass(frozen=True)
+class LoopOutcome:
+    """Where the loop ended: ``consistent`` (residual within the noise) or ``stopped`` (and
+    why), with the final model."""
+
+    status: str
+    reason: str
+    model: str
+    error: float
+    noise: float
+    effects: tuple
+    fit: ModelFit
 
 
 def score_candidate(base: ModelFit, fit: ModelFit, sigma: float) -> tuple[float, float, float]:
@@ -320,37 +361,9 @@ def _capped_fractions(base: ModelFit, scores: list, sigma: float) -> list:
     return out
 
 
-def run(domain: Domain, rule: DecisionRule | None = None, split: HoldoutSplit | None = None,
-        progress: Callable[[str], None] | None = None, n_variants: int = 2) -> DiscrepancyResult:
-    """Run the discrepancy loop on a domain.
-
-    Parameters
-    ----------
-    domain : Domain
-    rule : DecisionRule, optional
-    split : HoldoutSplit, optional
-        Default :func:`holdout_split` with every 4th point held out.
-    progress : callable, optional
-        Called with a short text before each fit (progress bars live in the CLI).
-    n_variants : int
-        How many of the best candidates get the domain's variants tried.
-
-    Returns
-    -------
-    DiscrepancyResult
-    """
-    rule = rule or DecisionRule()
-    obs = domain.observations
-    split = split or holdout_split(obs.groups)
-    if split.train.shape != obs.values.shape or split.held.sum() < 5:
-        raise ValueError("split must have the observations' shape and >= 5 held-out points")
-    if progress:
-        progress("baseline")
-    base = fit_model(domain.baseline(split.train), obs, split)
-    features = _features(obs, base)
-    noise = features.noise
-    scores = []
-    specs = {}
+def _candidates(domain, obs, split, base, features, noise, rule, progress, n_variants):
+    """Fit and score every library entry (and the variants of the best) against ``base``."""
+    scores, specs = [], {}
     for item in domain.candidates(base, features):
         if isinstance(item, NotApplicable):
             scores.append(CandidateScore(item.effect, item.label, False, item.reason, None,
@@ -381,17 +394,156 @@ def run(domain: Domain, rule: DecisionRule | None = None, split: HoldoutSplit | 
                     c = CandidateScore(c.effect, c.label, True, "", fit, dbic, p, frac,
                                        c.signature)
                     scores[i] = c
+                    specs[(c.effect, c.label)] = spec
     if rule.strict_consistency:
         scores = _capped_fractions(base, scores, noise.sigma)
     scores.sort(key=lambda c: (not c.applicable, c.delta_bic if c.applicable else 0.0))
+    return scores, specs
+
+
+def _consistent(base, noise, features, rule) -> bool:
+    return (base.error <= rule.consistency_ratio * noise.sigma
+            and features.whiteness.p_value >= rule.whiteness_alpha)
+
+
+def choose_step(scores, rule) -> tuple[CandidateScore | None, str]:
+    """The effect the loop adds next, or None and why it stops.
+
+    The same held-out and significance rules as the verdict (F-test p < significance, dBIC <=
+    -min_bic_gain, forms of one effect inside their bounds preferred, no rival *effect* that
+    also explains >= min_explained within the ambiguity margin), except that the effect may
+    explain only part of the excess (>= ``min_step_explained``): another effect may be hiding
+    the rest, and the loop's next step tests that.
+    """
+    fitted = [c for c in scores if c.applicable and c.fit is not None]
+    eligible = [c for c in fitted if c.p_value < rule.significance
+                and c.delta_bic <= -rule.min_bic_gain]
+    if not eligible:
+        best = min(fitted, key=lambda c: c.delta_bic) if fitted else None
+        tail = f" (best: {_describe(best)})" if best is not None else ""
+        return None, f"no candidate improves the held-out score significantly{tail}"
+    best = min(eligible, key=lambda c: c.delta_bic)
+    if _added_hits(best):
+        inside = [c for c in eligible if c.effect == best.effect and not _added_hits(c)
+                  and c.delta_bic - best.delta_bic < rule.ambiguity_margin]
+        if inside:
+            best = min(inside, key=lambda c: c.delta_bic)
+    frac = best.explained_fraction
+    if frac >= rule.min_explained:
+        rivals = [c for c in eligible if c.effect != best.effect
+                  and c.explained_fraction >= rule.min_explained
+                  and c.delta_bic - best.delta_bic < rule.ambiguity_margin]
+        if rivals:
+            return None, (f"ambiguous: {_describe(best)} and {_describe(rivals[0])} explain the "
+                          "residual about equally well")
+    if not frac >= rule.min_step_explained:
+        return None, (f"the best candidate explains too little (< "
+                      f"{100 * rule.min_step_explained:.0f} % of the excess): {_describe(best)}")
+    return best, ""
+
+
+def run(domain: Domain, rule: DecisionRule | None = None, split: HoldoutSplit | None = None,
+        progress: Callable[[str], None] | None = None, n_variants: int = 2) -> DiscrepancyResult:
+    """Run the discrepancy loop on a domain.
+
+    Parameters
+    ----------
+    domain : Domain
+    rule : DecisionRule, optional
+    split : HoldoutSplit, optional
+        Default :func:`holdout_split` with every 4th point held out.
+    progress : callable, optional
+        Called with a short text before each fit (progress bars live in the CLI).
+    n_variants : int
+        How many of the best candidates get the domain's variants tried.
+
+    Returns
+    -------
+    DiscrepancyResult
+    """
+    rule = rule or DecisionRule()
+    obs = domain.observations
+    split = split or holdout_split(obs.groups)
+    if split.train.shape != obs.values.shape or split.held.sum() < 5:
+        raise ValueError("split must have the observations' shape and >= 5 held-out points")
+    if progress:
+        progress("baseline")
+    base = fit_model(domain.baseline(split.train), obs, split)
+    features = _features(obs, base)
+    noise = features.noise
+    scores, specs = _candidates(domain, obs, split, base, features, noise, rule, progress,
+                                n_variants)
     verdict = decide(base, noise, features, scores, rule)
+    steps, final = (), None
+    if hasattr(domain, "augment"):
+        steps, final = _iterate(domain, obs, split, base, features, noise, scores, specs, rule,
+                                progress, n_variants)
+        verdict = _loop_verdict(verdict, steps, final)
     augmented = aug_features = None
     if verdict.status == "explained":
-        chosen = next(c for c in scores if c.applicable and c.effect == verdict.effect
-                      and c.label == verdict.label)
-        augmented = chosen.fit
+        chosen = (steps[0].fit if steps else
+                  next(c for c in scores if c.applicable and c.effect == verdict.effect
+                       and c.label == verdict.label).fit)
+        augmented = chosen
         aug_features = _features(obs, augmented, noise.sigma)
     # a domain whose weights are not plain 1/|y| states its own definition
     definition = getattr(domain, "error_definition", ERROR_DEFINITION)
     return DiscrepancyResult(domain.name, split, base, noise, features, tuple(scores), verdict,
-                             augmented, aug_features, rule, definition)
+                             augmented, aug_features, rule, definition, tuple(steps), final)
+
+
+def _iterate(domain, obs, split, base, features, noise, scores, specs, rule, progress,
+             n_variants):
+    """Add effects one at a time (:func:`choose_step`) until the residual is consistent with
+    the noise, nothing in the library explains the rest, or ``rule.max_steps`` is reached."""
+    steps = []
+    while True:
+        if _consistent(base, noise, features, rule):
+            status = "consistent"
+            reason = (f"held-out error {base.error:.4f} <= {rule.consistency_ratio:g} x the noise "
+                      f"floor {noise.sigma:.4f} and a white residual (Ljung-Box p = "
+                      f"{features.whiteness.p_value:.2g})")
+            break
+        choice, reason = choose_step(scores, rule)
+        if choice is None:
+            status = "stopped"
+            break
+        if len(steps) == rule.max_steps:
+            status, reason = "stopped", f"reached the limit of {rule.max_steps} steps"
+            break
+        domain.augment(specs[(choice.effect, choice.label)], choice.fit)
+        steps.append(Step(choice.effect, choice.label, choice.fit.name, base.error,
+                          choice.fit.error, noise.sigma, choice.delta_bic, choice.p_value,
+                          choice.explained_fraction, choice.fit,
+                          tuple(h.describe() for h in _added_hits(choice))))
+        if progress:
+            progress(f"step {len(steps) + 1}")
+        base = choice.fit
+        features = _features(obs, base)
+        noise = features.noise
+        scores, specs = _candidates(domain, obs, split, base, features, noise, rule, progress,
+                                    n_variants)
+    final = LoopOutcome(status, reason, base.name, base.error, noise.sigma,
+                        tuple((s.effect, s.label) for s in steps), base)
+    return steps, final
+
+
+def _loop_verdict(first: Verdict, steps, final) -> Verdict:
+    """The first step's verdict, unless no single effect explained enough but the effects
+    added in turn left a residual consistent with the noise (then explained, naming the
+    first; all are in ``steps``)."""
+    names = ", ".join(s.effect + (f" ({s.label})" if s.label else "") for s in steps)
+    if first.status == "explained" or not steps:
+        tail = (f"; the loop then added {names} and stopped: {final.reason}"
+                if len(steps) > 1 else "")
+        return Verdict(first.status, first.effect, first.label, first.evidence + tail,
+                       first.caveats)
+    if final.status == "consistent":
+        caveats = tuple(c for s in steps for c in s.caveats)
+        return Verdict("explained", steps[0].effect, steps[0].label,
+                       f"{first.evidence}; no single effect explains the residual, but {names} "
+                       f"added in turn leave a residual consistent with the noise: "
+                       f"{final.reason}", caveats)
+    return Verdict(first.status, None, "",
+                   f"{first.evidence}; the loop added {names} and stopped without reaching "
+                   f"the noise: {final.reason}")

@@ -94,6 +94,17 @@ def _candidate(c: CandidateScore) -> dict:
     return item
 
 
+def _step(number: int, st) -> dict:
+    return {"step": number, "effect": st.effect,
+            "covariate": st.label.partition(", ")[0] or None,
+            "form": st.label.partition(", ")[2] or None, "model": st.model,
+            "error_before": st.error_before, "error_after": st.error_after,
+            "noise_floor_before": st.noise_before, "delta_bic": st.delta_bic,
+            "p_value": st.p_value, "explained_fraction": st.explained_fraction,
+            "parameters": _params(st.fit.added), "bound_hits": _hits(st.fit),
+            "caveats": list(st.caveats)}
+
+
 def result_to_dict(result: DiscrepancyResult, extra: dict | None = None) -> dict:
     """The JSON object of the CLI (see module docstring); ``extra`` keys are added first."""
     v = result.verdict
@@ -123,6 +134,19 @@ def result_to_dict(result: DiscrepancyResult, extra: dict | None = None) -> dict
         "augmented": aug,
         "candidates": [_candidate(c) for c in result.candidates],
         "decision_rule": {k: getattr(result.rule, k) for k in result.rule.__dataclass_fields__},
+        "steps": [_step(i + 1, st) for i, st in enumerate(result.steps)],
+        "final": None if result.final is None else {
+            "status": result.final.status, "reason": result.final.reason,
+            "model": result.final.model, "error": result.final.error,
+            "noise_floor": result.final.noise,
+            "error_over_noise": result.final.error / result.final.noise
+            if result.final.noise > 0 else None,
+            "effects": [{"effect": e, "covariate": lab.partition(", ")[0] or None,
+                         "form": lab.partition(", ")[2] or None}
+                        for e, lab in result.final.effects],
+            "parameters": _params(result.final.fit.estimates),
+            "bound_hits": _hits(result.final.fit),
+        },
     })
     return _clean(out)
 
