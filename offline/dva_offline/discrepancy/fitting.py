@@ -397,7 +397,8 @@ class _Coordinates:
         span = np.where(self.bounded, self.hi - self.lo, 1.0)
         x = np.where(self.bounded, self.lo + span * expit(z),
                      np.clip(z, self.lo, self.hi))
-        return np.where(self.log, np.exp(x), x * self.scale)
+        with np.errstate(over="ignore"):  # exp of a linear parameter's x is discarded
+            return np.where(self.log, np.exp(x), x * self.scale)
 
     def dvalues_dz(self, z) -> np.ndarray:
         z = np.asarray(z, dtype=float)
