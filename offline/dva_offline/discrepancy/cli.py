@@ -125,15 +125,96 @@ def _cmd_frf(args) -> int:
     return EXIT_OK
 
 
+def _cmd_modal(args) -> int:
+    from dva_offline.discrepancy import loop, table_io
+    from dva_offline.discrepancy.modal_domain import ModalDomain, to_receptance
+    from dva_offline.discrepancy.report import plot_result, result_to_dict
+    from dva_offline.isolator.frf_data import FrfData
+
+    modes = None
+    if args.modes != "auto":
+        try:
+            modes = int(args.modes)
+        except ValueError:
+            raise ValueError(f"--modes must be an integer >= 1 or 'auto', got {args.modes!r}"
+                             ) from None
+    columns = ([c.strip() for c in args.covariates.split(",") if c.strip()]
+               if args.covariates else None)
+    table = table_io.read_table(args.file)
+    raw, grouping, info = table_io.conditions_from_table(
+        table, args.quantity, table_io.ColumnMap.parse(args.columns), args.frequency_unit,
+        args.value_unit, args.group_by, args.covariate_tolerance, columns,
+        internal_quantity="receptance")
+    conditions = [FrfData(c.frequency_hz, to_receptance(c.frequency_hz, c.values, args.quantity),
+                          "receptance", c.covariates) for c in raw]
+    if columns is None:
+        skip = set(grouping.columns) if args.group_by else set()
+        columns = [n for n in conditions[0].covariates if n not in skip]
+    domain = ModalDomain(conditions, modes=modes, max_modes=args.max_modes, covariates=columns,
+                         quantity=args.quantity)
+    rng = None if args.holdout_seed is None else np.random.default_rng(args.holdout_seed)
+    split = loop.holdout_split(domain.observations.groups, args.holdout_every, rng)
+    bar, step = _progress()
+    try:
+        result = loop.run(domain, split=split, progress=step)
+    finally:
+        bar.close()
+    extra = {
+        "file": str(args.file), "quantity": args.quantity, "model_quantity": "receptance",
+        "n_points": int(domain.omega.size),
+        "grouping": {"method": grouping.method, "columns": list(grouping.columns),
+                     "n_conditions": grouping.n_conditions,
+                     "dropped": [{"condition": d, "n_points": n} for d, n in grouping.dropped],
+                     "covariate_values": grouping.covariate_values},
+        "input": info,
+        "order_selection": {"refined_holdout_errors": {str(k): v for k, v in
+                                                       domain.order_errors.items()},
+                            "modes": domain.baseline_order},
+    }
+    payload = result_to_dict(result, extra)
+    if args.plot_dir:
+        paths = plot_result(result, domain.observations, args.plot_dir, "receptance",
+                            Path(args.file).name)
+        payload["plots"] = [str(p) for p in paths]
+    if args.json:
+        print(json.dumps(payload))
+    else:
+        print(f"read {domain.omega.size} points: {grouping.describe()}")
+        print("\n".join(_summary_lines(result)))
+    return EXIT_OK
+
+
+def _cmd_synth_structure(args) -> int:
+    from dva_offline.discrepancy import structure_synthetic, table_io
+    from dva_offline.discrepancy.report import _clean
+
+    effect = None if args.effect == "none" else args.effect
+    case = structure_synthetic.generate_structure(
+        effect, np.random.default_rng(args.seed), quantity=args.quantity, sigma=args.sigma,
+        jitter=args.jitter)
+    table_io.write_table(args.out, case.frequency_hz, case.values, case.covariates)
+    payload = {"out": str(args.out), "seed": args.seed, "quantity": case.quantity,
+               "hidden_effect": case.effect, "hidden_parameters": case.parameters,
+               "modes_hz": list(case.modes_hz), "noise_sigma": case.sigma,
+               "effect_size": case.effect_size, "covariates": list(case.covariates),
+               "n_points": int(case.frequency_hz.size)}
+    if args.json:
+        print(json.dumps(_clean(payload)))
+    else:
+        print(f"wrote {payload['n_points']} points to {args.out} (modes "
+              f"{', '.join(f'{f:.4g}' for f in case.modes_hz)} Hz; hidden: {case.effect})")
+    return EXIT_OK
+
+
 def _cmd_synth(args) -> int:
-    from dva_offline.discrepancy import synthetic
+    from dva_offline.discrepancy import synthetic, table_io
 
     effect = None if args.effect == "none" else args.effect
     case = synthetic.generate_case(
         effect, np.random.default_rng(args.seed), quantity=args.quantity, sigma=args.sigma,
         n_points=args.points, system=args.system, clean_covariate=args.clean_covariate,
     )
-    isolator_io.write_frf_csv(args.out, case.frequency_hz, case.values, case.covariates)
+    table_io.write_table(args.out, case.frequency_hz, case.values, case.covariates)
     payload = {
         "out": str(args.out), "seed": args.seed, "quantity": case.quantity,
         "hidden_effect": case.effect, "hidden_parameters": case.parameters,
@@ -342,6 +423,40 @@ def register(subparsers) -> None:
     p.add_argument("--plot-dir", default=None, help="write PNG plots into this directory")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(func=_cmd_frf)
+
+    p = sub.add_parser("modal", help="vibration-test FRFs of a structure against N modes")
+    p.add_argument("file", help="CSV frequency_hz,real,imag[,covariates] (sweeps stacked)")
+    p.add_argument("--quantity", choices=("receptance", "mobility", "accelerance"),
+                   default="accelerance", help="what the file holds (SI units)")
+    _add_table_arguments(p)
+    p.add_argument("--modes", default="auto",
+                   help="number of modes of the baseline, or 'auto' (order rule)")
+    p.add_argument("--max-modes", type=int, default=8, help="largest order for 'auto'")
+    p.add_argument("--covariates", default=None, metavar="COL[,COL...]",
+                   help="covariates to analyse (excitation level, temperature); default: every "
+                        "extra column whose level differs between sweeps")
+    p.add_argument("--holdout-every", type=int, default=4,
+                   help="hold out every Nth point of each condition (default 4)")
+    p.add_argument("--holdout-seed", type=int, default=None,
+                   help="hold out a seeded random 1/N of the points instead")
+    p.add_argument("--plot-dir", default=None, help="write PNG plots into this directory")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.set_defaults(func=_cmd_modal)
+
+    from dva_offline.discrepancy import structure_synthetic
+
+    p = sub.add_parser("synth-structure",
+                       help="write a synthetic vibration test (several modes) hiding one effect")
+    p.add_argument("--effect", required=True, choices=("none", *structure_synthetic.EFFECTS))
+    p.add_argument("--seed", type=int, required=True, help="random seed")
+    p.add_argument("--out", required=True, help="output CSV")
+    p.add_argument("--quantity", choices=("receptance", "mobility", "accelerance"),
+                   default="accelerance")
+    p.add_argument("--sigma", type=float, default=None, help="noise RMS (default 0.005-0.02)")
+    p.add_argument("--jitter", action="store_true",
+                   help="record the covariates with measurement jitter and a set column")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.set_defaults(func=_cmd_synth_structure)
 
     p = sub.add_parser("synth", help="write a synthetic FRF CSV that hides one effect")
     p.add_argument("--effect", required=True,

@@ -345,6 +345,8 @@ class ModalDomain:
         values = np.array([e.value for e in baseline.estimates])
         stack_params = list(self._params_of_stack)
         present = {(t.effect, t.label) for t in self._stack}
+        levelled = {(t.label.partition(", ")[0], t.mode) for t in self._stack
+                    if t.kind == "level"}
         out: list[ModelSpec | NotApplicable] = []
         f_max = float(self.observations.axis.max())
         if ("sensor_delay", "") not in present:
@@ -368,7 +370,7 @@ class ModalDomain:
                 bound = 0.5 / float(np.max(np.abs(lev)))
                 for r in range(n):
                     label = f"{name}, mode {r + 1} ({values[3 * r]:.4g} Hz)"
-                    if ("amplitude_dependence", label) in present:
+                    if (name, r) in levelled:
                         continue
                     out.append(self._spec(
                         values, stack_params,

@@ -341,3 +341,19 @@ def conditions_from_table(table: Table, quantity: str, column_map: ColumnMap | N
     info = {"units": units_used, "columns": dict(cmap.roles), "renamed": dict(cmap.renames),
             "units_row": dict(table.units)}
     return conditions, grouping, info
+
+
+def write_table(path, frequency_hz, values, covariates: dict | None = None) -> None:
+    """Write ``frequency_hz,real,imag`` plus covariate columns, atomically (a reader never
+    sees half a file; a failed write leaves no file)."""
+    from aero_dva.atomic_io import atomic_output
+
+    f = np.asarray(frequency_hz, dtype=float)
+    v = np.asarray(values, dtype=complex)
+    extra = covariates or {}
+    cols = [f, v.real, v.imag] + [np.asarray(c, dtype=float) for c in extra.values()]
+    with atomic_output(path, "w") as fh:
+        writer = csv.writer(fh, lineterminator="\n")
+        writer.writerow(["frequency_hz", "real", "imag", *extra])
+        for row in zip(*cols):
+            writer.writerow([repr(float(x)) for x in row])
