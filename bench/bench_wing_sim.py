@@ -1,6 +1,6 @@
 """Speed of the wing simulators, as ratios against baselines timed in the same run.
 
-Run:  PYTHONPATH=offline:ros_ws/src/aero_dva_sim python bench/bench_wing_sim.py [--flights 64]
+Run:  .venv/bin/python bench/bench_wing_sim.py [--flights 64]
       [--repeats 3] [--clock wall|cpu]
 
 ``--clock cpu`` times with the process's CPU time (all its threads) instead of the wall clock:
