@@ -763,7 +763,13 @@ class FrfDomain:
         for name, col in varying.items():
             # measured covariates may drift within a sweep: the reference level is the mean
             ref = float(col[obs.groups == self.reference].mean())
-            if wanted("amplitude_dependence", name) and np.all(col > 0):
+            if absolute_temperature(name, col) is not None:
+                # a level law on a temperature would be a vertical shift of the master curve,
+                # not an amplitude dependence: temperatures get the shift forms only
+                if only is None:
+                    out.append(NotApplicable("amplitude_dependence",
+                                             f"covariate {name!r} is a temperature", name))
+            elif wanted("amplitude_dependence", name) and np.all(col > 0):
                 log_level = np.log(col / ref)
                 bound = 0.95 / float(np.max(np.abs(log_level)))
 
