@@ -85,7 +85,8 @@ def _cmd_frf(args) -> int:
     split = loop.holdout_split(domain.observations.groups, args.holdout_every, rng)
     bar, step = _progress()
     try:
-        result = loop.run(domain, split=split, progress=step)
+        result = loop.run(domain, rule=loop.DecisionRule(max_steps=args.max_steps),
+                          split=split, progress=step)
     finally:
         bar.close()
     sel = domain.order_selection
@@ -156,7 +157,8 @@ def _cmd_modal(args) -> int:
     split = loop.holdout_split(domain.observations.groups, args.holdout_every, rng)
     bar, step = _progress()
     try:
-        result = loop.run(domain, split=split, progress=step)
+        result = loop.run(domain, rule=loop.DecisionRule(max_steps=args.max_steps),
+                          split=split, progress=step)
     finally:
         bar.close()
     extra = {
@@ -420,6 +422,8 @@ def register(subparsers) -> None:
                    help="hold out every Nth point of each condition (default 4)")
     p.add_argument("--holdout-seed", type=int, default=None,
                    help="hold out a seeded random 1/N of the points instead")
+    p.add_argument("--max-steps", type=int, default=12,
+                   help="most effects the loop adds one after another (default 12)")
     p.add_argument("--plot-dir", default=None, help="write PNG plots into this directory")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(func=_cmd_frf)
@@ -439,6 +443,8 @@ def register(subparsers) -> None:
                    help="hold out every Nth point of each condition (default 4)")
     p.add_argument("--holdout-seed", type=int, default=None,
                    help="hold out a seeded random 1/N of the points instead")
+    p.add_argument("--max-steps", type=int, default=12,
+                   help="most effects the loop adds one after another (default 12)")
     p.add_argument("--plot-dir", default=None, help="write PNG plots into this directory")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(func=_cmd_modal)

@@ -116,6 +116,10 @@ class DecisionRule:
     min_step_explained: float = 0.1
     max_steps: int = 12
 
+    def __post_init__(self) -> None:
+        if not isinstance(self.max_steps, (int, np.integer)) or self.max_steps < 1:
+            raise ValueError(f"max_steps must be an integer >= 1, got {self.max_steps!r}")
+
 
 @dataclass(frozen=True)
 class CandidateScore:
