@@ -48,8 +48,7 @@ from aero_dva.flight.discrete_model import DiscreteWing, pitch_moment_input
 from aero_dva.flight.modal_simulator import ModalBlocks, simulate
 from aero_dva.wing.aerodynamics import QuasiSteadyAero, TheodorsenAero, WagnerAero
 from aero_dva.wing.model import AeroelasticModel
-from dva_offline.discrepancy.engine import (
-    DecisionRule,
+from dva_offline.discrepancy.fitting import (
     ModelSpec,
     NotApplicable,
     Observations,
@@ -60,6 +59,7 @@ from dva_offline.discrepancy.flight_frf import (
     hann,
     runs_of_constant_condition,
 )
+from dva_offline.discrepancy.loop import DecisionRule
 
 CHANNELS = ("plunge", "pitch")  # accelerometer channels used (leading edge = their combination)
 OUTPUTS = tuple(f"{channel}_acceleration" for channel in CHANNELS)  # the discrete wing's names
@@ -175,7 +175,7 @@ def arrays_from_log(log) -> FlightArrays:
 
 
 class FlightDomain:
-    """The flight-log domain (module docstring) for :func:`.engine.run`.
+    """The flight-log domain (module docstring) for :func:`.loop.run`.
 
     Parameters
     ----------
@@ -188,7 +188,7 @@ class FlightDomain:
     name = "flight"
     # H1 estimates of neighbouring segments share windows and the noise floor from second
     # differences is only approximate here: a clearly significant candidate is not hidden by
-    # a high noise floor estimate (engine.DecisionRule.strict_consistency).
+    # a high noise floor estimate (loop.DecisionRule.strict_consistency).
     decision_rule = DecisionRule(strict_consistency=True)
     error_definition = (
         "RMS over held-out points j (not used in any fit) of w_j |H_model_j - H_j|, "

@@ -1,4 +1,4 @@
-"""Flight-log domain of the discrepancy engine: hidden plant, FRF estimator, domain, CLI.
+"""Flight-log domain of the discrepancy loop: hidden plant, FRF estimator, domain, CLI.
 
 The randomised acceptance rates are in test_discrepancy_flight_acceptance.py (slow); here
 the pieces and one case per kind of verdict.
@@ -19,7 +19,7 @@ from aero_dva.flight.scenario_io import scenario_from_dict
 from aero_dva.flight.streaming_simulator import StreamingSimulator
 from aero_dva.wing.wing_io import load_wing
 from dva_offline.cli import main
-from dva_offline.discrepancy import engine
+from dva_offline.discrepancy import loop
 from dva_offline.discrepancy.flight_domain import FlightDomain, arrays_from_log
 from dva_offline.discrepancy.flight_synthetic import generate_flight
 
@@ -206,7 +206,7 @@ def test_clean_flight_is_consistent(tmp_path):
     from aero_dva.bag.flight_log_io import load_flight_log
 
     domain = FlightDomain(arrays_from_log(load_flight_log(case.path)), WING)
-    result = engine.run(domain, rule=domain.decision_rule)
+    result = loop.run(domain, rule=domain.decision_rule)
     assert result.verdict.status == "consistent" and result.augmented is None
     assert result.baseline.error < 1.25 * result.noise.sigma
 
