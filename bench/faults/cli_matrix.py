@@ -1,10 +1,12 @@
 """Malformed inputs to every ``dva`` command that reads a file, run as the user runs them.
 
 A case is one command line with one bad (or oddly named) input file. An error case passes when
-the command exits with code 2, prints exactly one line on stderr that names the input file,
-prints no traceback, and leaves none of its output paths behind (a file or a directory that
-exists after a failure would claim a result that was never made). An ``ok`` case (valid content
-at a path with spaces and non-ASCII letters) passes when the command exits 0.
+the command exits with code 2, ends with exactly one error line on stderr (``dva <command>:
+error: ...``) that names the input file (progress lines such as "reading X ..." may come
+before it), prints no traceback or warning, and leaves none of its output paths behind (a
+file or a directory that exists after a failure would claim a result that was never made).
+An ``ok`` case (valid content at a path with spaces and non-ASCII letters) passes when the
+command exits 0.
 
 Input kinds (not every kind applies to every format): empty, binary (random bytes with NULs
 and invalid UTF-8), missing columns or keys, NaN, duplicate or negative frequencies (for time
@@ -35,6 +37,7 @@ ODD_NAME = "mesure n°1 — données"
 SUFFIX = {"frf": ".csv", "series": ".csv", "stepped": ".csv", "static": ".csv", "uff": ".uff",
           "wing": ".yaml", "section": ".yaml", "scenario": ".yaml", "schedule": ".json",
           "network": ".npz", "bag": ".mcap"}
+CSV_FORMATS = ("frf", "series", "stepped", "static")
 
 
 # --------------------------------------------------------------------------------------------
@@ -48,6 +51,15 @@ def _frf_rows(n: int = 200) -> tuple[list[str], np.ndarray]:
     model = MaxwellModel(1.0, 12e3, 40.0, (12e3, 24e3), (80.0, 2000.0))
     f = np.linspace(0.5, 50.0, n)
     h = frf(model, 2 * np.pi * f, "receptance")
+    return ["frequency_hz", "real", "imag"], np.column_stack([f, h.real, h.imag])
+
+
+def _stepped_rows() -> tuple[list[str], np.ndarray]:
+    """Steps through the resonance of a lightly damped Voigt system (17.4 Hz, 2 %)."""
+    from dva_offline.isolator.maxwell_model import MaxwellModel, frf
+
+    f = np.linspace(5.0, 30.0, 126)
+    h = frf(MaxwellModel(1.0, 12e3, 8.8), 2 * np.pi * f, "receptance")
     return ["frequency_hz", "real", "imag"], np.column_stack([f, h.real, h.imag])
 
 
@@ -84,19 +96,21 @@ def _binary(path: Path) -> None:
 def _huge(path: Path, fmt: str) -> None:
     """Ten million lines: rows that would each be valid (increasing abscissa) where a CSV is
     expected, else a line of text repeated."""
-    n = HUGE_LINES
+    header, tail = {"frf": ("frequency_hz,real,imag", ",1e-06,-1e-07"),
+                    "stepped": ("frequency_hz,real,imag", ",1e-06,-1e-07"),
+                    "series": ("time_s,force_n,response_m", ",1.0,0.5"),
+                    "static": ("deflection_m,load_n", ",1.0")}.get(fmt, (None, None))
+    step = 100_000  # lines per write: the writer stays small
     with open(path, "w", encoding="ascii") as out:
-        if fmt in ("frf", "stepped"):
-            out.write("frequency_hz,real,imag\n")
-            out.write(",1e-06,-1e-07\n".join(map(str, range(1, n))) + ",1e-06,-1e-07\n")
-        elif fmt == "series":
-            out.write("time_s,force_n,response_m\n")
-            out.write(",1.0,0.5\n".join(map(str, range(n - 1))) + ",1.0,0.5\n")
-        elif fmt == "static":
-            out.write("deflection_m,load_n\n")
-            out.write(",1.0\n".join(map(str, range(n - 1))) + ",1.0\n")
-        else:
-            out.write("# padding line of a file far larger than any input of its kind\n" * n)
+        if header is None:
+            line = "# padding\n"
+            for _ in range(HUGE_LINES // step):
+                out.write(line * step)
+            return
+        out.write(header + "\n")
+        for first in range(1, HUGE_LINES, step):  # the header is line 1
+            last = min(first + step, HUGE_LINES)
+            out.write((tail + "\n").join(map(str, range(first, last))) + tail + "\n")
 
 
 def _write_uff(path: Path) -> None:
@@ -214,6 +228,21 @@ WRITERS: dict[str, dict[str, Callable[[Path], None]]] = {
         "negative-frequency": lambda p: _frf_variant(p, lambda r: _set(r, (slice(None), 0),
                                                                        r[:, 0] - 10.0)),
     },
+    "stepped": {
+        "valid": lambda p: p.write_text(_csv_text(*_stepped_rows()), encoding="utf-8"),
+        "missing-columns": lambda p: p.write_text(
+            _csv_text(["frequency_hz", "force_amplitude_n"], _stepped_rows()[1][:, :2]),
+            encoding="utf-8"),
+        "nan": lambda p: p.write_text(
+            _csv_text(_stepped_rows()[0], _set(_stepped_rows()[1], (7, 2), np.nan)),
+            encoding="utf-8"),
+        "duplicate-frequency": lambda p: p.write_text(
+            _csv_text(_stepped_rows()[0], _set(_stepped_rows()[1], (7, 0), 5.8)),
+            encoding="utf-8"),
+        "negative-frequency": lambda p: p.write_text(
+            _csv_text(_stepped_rows()[0], _set(_stepped_rows()[1], (0, 0), -5.0)),
+            encoding="utf-8"),
+    },
     "series": {
         "valid": lambda p: p.write_text(_csv_text(*_series_rows()), encoding="utf-8"),
         "missing-columns": lambda p: p.write_text(
@@ -238,23 +267,28 @@ WRITERS: dict[str, dict[str, Callable[[Path], None]]] = {
     },
     "wing": {
         "valid": lambda p: _yaml(p, _wing_dict()),
+        "syntax-error": lambda p: p.write_text("wing: {mass: [1000.0\n", encoding="utf-8"),
         "missing-keys": lambda p: _yaml(p, _with(_wing_dict(), "wing", "mass", ...)),
         "nan": lambda p: _yaml(p, _with(_wing_dict(), "wing", "mass", float("nan"))),
         "negative": lambda p: _yaml(p, _with(_wing_dict(), "wing", "mass", -1000.0)),
     },
     "section": {
         "valid": lambda p: _yaml(p, SECTION),
+        "syntax-error": lambda p: p.write_text("semichord: 1.0\n  - mass_ratio\n",
+                                               encoding="utf-8"),
         "missing-keys": lambda p: _yaml(p, _with(SECTION, "mass_ratio", ...)),
         "nan": lambda p: _yaml(p, _with(SECTION, "mass_ratio", float("nan"))),
         "negative-frequency": lambda p: _yaml(p, _with(SECTION, "pitch_frequency", -1.0)),
     },
     "scenario": {
+        "syntax-error": lambda p: p.write_text("airspeed: {kind: ramp\n", encoding="utf-8"),
         "missing-keys": lambda p: _yaml(p, _with(_scenario_dict(), "airspeed", ...)),
         "nan": lambda p: _yaml(p, _with(_scenario_dict(), "duration", float("nan"))),
         "negative-frequency": lambda p: _yaml(p, _with(_scenario_dict(), "sample_rate",
                                                        -1000.0)),
     },
     "schedule": {
+        "syntax-error": lambda p: p.write_text('{"a0": 1.0,', encoding="utf-8"),
         "missing-keys": lambda p: p.write_text(json.dumps(_with(_schedule_dict(), "a1", ...)),
                                                encoding="utf-8"),
         "nan": lambda p: _json_nan(p, _schedule_dict(), "a0"),
@@ -302,9 +336,8 @@ COMMANDS: tuple[Command, ...] = (
     Command("wing modal", "--wing", "wing", lambda f, o: [
         "wing", "modal", "--wing", f, "--points", "5", "--plot", str(o / "modal.png")],
         ("modal.png",), odd_path_ok=True),
-    Command("wing modal", "--section", "section", lambda f, o: [
-        "wing", "modal", "--section", f, "--points", "5", "--plot", str(o / "modal.png")],
-        ("modal.png",), odd_path_ok=True),
+    Command("wing flutter", "--section", "section", lambda f, o: [
+        "wing", "flutter", "--section", f, "--aero", "theodorsen"], odd_path_ok=True),
     Command("wing flutter", "--wing", "wing", lambda f, o: ["wing", "flutter", "--wing", f],
             odd_path_ok=True),
     Command("wing design", "--wing", "wing", lambda f, o: [
@@ -322,8 +355,9 @@ COMMANDS: tuple[Command, ...] = (
         "isolator", "identify", f, "--mass", "1", "--static-stiffness", "12000", "--elements",
         "2", "--plot", str(o / "fit.png")], ("fit.png",), odd_path_ok=True),
     Command("isolator identify", "FILE (UFF 58)", "uff", lambda f, o: [
-        "isolator", "identify", f, "--mass", "1", "--plot", str(o / "fit.png")], ("fit.png",)),
-    Command("isolator stepped-sine", "FILE", "frf", lambda f, o: [
+        "isolator", "identify", f, "--mass", "1", "--static-stiffness", "12000", "--plot",
+        str(o / "fit.png")], ("fit.png",)),
+    Command("isolator stepped-sine", "FILE", "stepped", lambda f, o: [
         "isolator", "stepped-sine", f, "--out", str(o / "frf.csv"), "--plot",
         str(o / "steps.png")], ("frf.csv", "steps.png"), odd_path_ok=True),
     Command("isolator estimate", "FILE", "series", lambda f, o: [
@@ -392,12 +426,13 @@ class CaseFiles:
     _huge_files: dict[str, Path] = field(default_factory=dict)
 
     def huge(self, fmt: str) -> Path:
-        if fmt not in self._huge_files:
-            path = self.root / "_huge" / f"lines{SUFFIX[fmt]}"
+        content = fmt if fmt in CSV_FORMATS else "text"  # one text file serves the others
+        if content not in self._huge_files:
+            path = self.root / "_huge" / f"{content}.lines"
             path.parent.mkdir(parents=True, exist_ok=True)
-            _huge(path, fmt)
-            self._huge_files[fmt] = path
-        return self._huge_files[fmt]
+            _huge(path, content)
+            self._huge_files[content] = path
+        return self._huge_files[content]
 
     def write(self, fmt: str, kind: str, path: Path) -> None:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -462,7 +497,10 @@ class CliOutcome:
 
     @property
     def error_lines(self) -> list[str]:
-        return [line for line in self.stderr.splitlines() if line.strip()]
+        """Lines of stderr that report a problem (progress lines such as "reading X ..."
+        are not counted)."""
+        words = ("error", "Error", "Traceback", "Warning", "warning", "Exception")
+        return [line for line in self.stderr.splitlines() if any(w in line for w in words)]
 
     def problems(self) -> list[str]:
         """Why the case fails its contract; empty when it passes."""
@@ -474,8 +512,11 @@ class CliOutcome:
         if "Traceback" in self.stderr:
             found.append("traceback")
         lines = self.error_lines
+        last = self.stderr.strip().splitlines()[-1:] or [""]
         if len(lines) != 1:
-            found.append(f"{len(lines)} stderr lines")
+            found.append(f"{len(lines)} error lines")
+        elif lines != last or not lines[0].startswith("dva "):
+            found.append("the error is not the last line, as 'dva <command>: error: ...'")
         elif self.case.input_path.name not in lines[0]:
             found.append("error does not name the file")
         if self.left_behind:
@@ -505,8 +546,10 @@ def run_case(case: CliCase, timeout: float = 300.0, env: dict | None = None) -> 
         process = subprocess.Popen(argv, stdout=out, stderr=err, env=env,
                                    cwd=case.out_dir.parent)
         killed = False
-        while True:  # wait4, not wait: the rusage of this child alone
-            pid, status, usage = os.wait4(process.pid, os.WNOHANG)
+        peak_kb = 0.0
+        while True:
+            peak_kb = max(peak_kb, _high_water_kb(process.pid))
+            pid, status, _ = os.wait4(process.pid, os.WNOHANG)
             if pid:
                 break
             if not killed and time.monotonic() - started > timeout:
@@ -518,7 +561,20 @@ def run_case(case: CliCase, timeout: float = 300.0, env: dict | None = None) -> 
         err.seek(0)
         stderr = err.read().decode("utf-8", errors="replace")
     return CliOutcome(case, None if killed else process.returncode, stderr, seconds,
-                      usage.ru_maxrss / 1024.0, _left_behind(case))
+                      peak_kb / 1024.0, _left_behind(case))
+
+
+def _high_water_kb(pid: int) -> float:
+    """[kB] peak resident memory of a running process (VmHWM). Not ru_maxrss: Linux carries
+    that over from the parent through fork and exec, so it would report the bench's size."""
+    try:
+        with open(f"/proc/{pid}/status", encoding="ascii") as status:
+            for line in status:
+                if line.startswith("VmHWM:"):
+                    return float(line.split()[1])
+    except (OSError, ValueError):
+        pass  # gone already, or not Linux
+    return 0.0
 
 
 def clean(root: Path) -> None:
