@@ -34,6 +34,8 @@ command_wait_timeout : float
 
 Publishes wing/acceleration, wing/displacement, wing/excitation, flight/condition,
 dva/damper_state, /clock and /diagnostics; subscribes dva/damper_command.
+Rejected commands are reported on /diagnostics at most once a second per reason, each report
+with the number rejected since the last one (all are counted in the end-of-flight summary).
 """
 from __future__ import annotations
 
@@ -63,6 +65,9 @@ from dva_ros_common.conversions import time_to_seconds
 from dva_ros_common.node_tools import run_node
 
 POLL_PERIOD = 0.005  # [s] wall time between checks before the start and while held
+# [s] wall time between two reports of rejected commands of one kind: a controller gone wrong
+# can send thousands a second, and one report (with the count) per second says as much.
+REJECTION_REPORT_PERIOD = 1.0
 DATA_TOPICS = ("wing/acceleration", "wing/displacement", "wing/excitation", "flight/condition",
                "dva/damper_state")
 
@@ -100,6 +105,8 @@ class Simulator(Node):
         self._lag_since: float | None = None
         self._controller_silent = False
         self.lag_timeouts = 0
+        self.rejected: dict[str, int] = {}  # rejection reason -> commands rejected
+        self._rejections_reported: dict[str, tuple[float, int]] = {}  # reason -> (wall, count)
         self.create_subscription(DamperCommand, "dva/damper_command", self._on_command, 10)
 
         self._wall = Clock(clock_type=ClockType.STEADY_TIME)
@@ -154,9 +161,22 @@ class Simulator(Node):
             if not self._stepping and self._started_wall is not None:
                 self._step()
         if result is not None and not result.accepted:
-            self._diagnose("warn", f"rejected damper command {msg.damping!r} N s/m from "
-                           f"'{msg.source}': {result.rejection.value}",
-                           {"command": msg.damping, "source": msg.source})
+            self._report_rejection(msg, result.rejection.value)
+
+    def _report_rejection(self, msg: DamperCommand, reason: str) -> None:
+        """Count every rejected command; report each reason at most once a period."""
+        count = self.rejected[reason] = self.rejected.get(reason, 0) + 1
+        wall = time.monotonic()
+        last_wall, last_count = self._rejections_reported.get(reason, (-math.inf, 0))
+        if wall - last_wall < REJECTION_REPORT_PERIOD:
+            return
+        self._rejections_reported[reason] = (wall, count)
+        since = count - last_count
+        self._diagnose("warn", f"rejected damper command {msg.damping!r} N s/m from "
+                       f"'{msg.source}': {reason}"
+                       + (f" ({since} such commands since the last report)" if since > 1 else ""),
+                       {"command": msg.damping, "source": msg.source, "reason": reason,
+                        "rejected_since_last_report": since, "rejected_total": count})
 
     def _ready(self) -> bool:
         counts = {t: self._pub[t].get_subscription_count() for t in DATA_TOPICS}
@@ -274,6 +294,7 @@ class Simulator(Node):
                   "real_time_factor": sim / wall if wall > 0 else math.inf,
                   "critical_airspeed_no_dva": self.runtime.critical_airspeed}
         values.update({f"published:{t}": n for t, n in self.published.items()})
+        values.update({f"rejected:{reason}": n for reason, n in self.rejected.items()})
         if self._latencies:
             latency = np.array(self._latencies)
             values.update(command_latency_median_s=float(np.median(latency)),
