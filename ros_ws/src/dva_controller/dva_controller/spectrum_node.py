@@ -10,22 +10,9 @@ block with NaN/inf samples, or a change of ``sample_rate`` drops the window coll
 and starts a new one; each reset is reported on ``/diagnostics`` (WARN) with its reason and the
 sample indices. A window whose band holds no signal (scaling by a zero sum) is not published.
 
-Parameters
-----------
-channels : string array, default ["plunge", "pitch"]
-    Acceleration channels to analyse, in order; each one of "plunge", "pitch", "leading_edge".
-window_duration : float, default 2.0
-    [s] window length; times the blocks' sample rate it must be a whole number of samples.
-hop : float, default 0.1
-    [s] time between window starts; a whole number of samples.
-frequencies : double array, default 5..20 in 1 Hz steps
-    [Hz] frequencies to evaluate; distinct, > 0 and below the blocks' Nyquist frequency.
-window : str, default "rectangular"
-    Window function, "rectangular" (the seed) or "hann".
-stale_timeout : float, default 1.0
-    [s] ROS time without acceleration blocks after which the periodic status turns WARN.
-diagnostic_period : float, default 1.0
-    [s] ROS time between periodic status reports on ``/diagnostics``.
+Its parameters (units, defaults, ranges) are the table ``SPEC`` below, which the node declares
+them from and ``spectrum --help`` prints; the spectra's shape rows are shared with the RBF
+controller (:mod:`dva_controller.shared_params`).
 
 Subscribes ``wing/acceleration`` (dva_msgs/AccelerationBlock) and ``dva/damper_state``
 (dva_msgs/DamperState, for the c2 applied during the window: the spectrum's ``damping`` is the
@@ -39,96 +26,49 @@ import math
 import sys
 
 import numpy as np
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 
-from aero_dva.control.spectrum import DEFAULT_FREQUENCIES, WINDOW_FUNCTIONS, SlidingSpectrum
+from aero_dva.control.spectrum import SlidingSpectrum
 from dva_controller import messages
+from dva_controller.shared_params import SPECTRUM_SHAPE, checked_channels, checked_frequencies
 from dva_msgs.msg import AccelerationBlock, DamperState, ScaledSpectrum
 from dva_ros_common import conversions
-from dva_ros_common.node_tools import InputHealth, Status, bounded, refuse_changes, run_node
+from dva_ros_common.node_params import NodeSpec, Param, declare_parameters
+from dva_ros_common.node_tools import INPUT_HEALTH_PARAMS, InputHealth, Status, run_node
 
-NODE_NAME = "spectrum"
 QOS_DEPTH = 100  # blocks of 10-50 ms: a few seconds of slack at 20x real time before a gap
-_READ_AT_START = (
-    "channels",
-    "window_duration",
-    "hop",
-    "frequencies",
-    "window",
-    "stale_timeout",
-    "diagnostic_period",
+
+SPEC = NodeSpec(
+    name="spectrum",
+    package="dva_controller",
+    summary="Sliding-window scaled magnitude spectra of the wing's accelerations (eq. 7.3 of "
+            "Zhang (2006)): every hop, the last window of each channel at the chosen "
+            "frequencies, each channel divided by its sum over the band.",
+    params=(
+        *SPECTRUM_SHAPE,
+        Param("hop", 0.1, "time between window starts; a whole number of samples", "s",
+              1.0e-3, 3600.0),
+        *INPUT_HEALTH_PARAMS,
+    ),
+    topics="""
+subscribes wing/acceleration (dva_msgs/AccelerationBlock)
+subscribes dva/damper_state (dva_msgs/DamperState: c2 applied during the window)
+publishes dva/spectrum (dva_msgs/ScaledSpectrum), /diagnostics
+""",
 )
-
-
-def checked_channels(value) -> tuple[str, ...]:
-    """Validate the ``channels`` parameter."""
-    channels = tuple(value)
-    if not channels:
-        raise ValueError("parameter 'channels' must name at least one channel")
-    unknown = [c for c in channels if c not in messages.ACCELERATION_CHANNELS]
-    if unknown:
-        raise ValueError(
-            f"parameter 'channels': unknown channel(s) {unknown}, "
-            f"expected some of {list(messages.ACCELERATION_CHANNELS)}"
-        )
-    if len(set(channels)) != len(channels):
-        raise ValueError(f"parameter 'channels' lists a channel twice: {list(channels)}")
-    return channels
-
-
-def checked_frequencies(value) -> np.ndarray:
-    """Validate the ``frequencies`` parameter (numbers, finite, > 0, distinct)."""
-    try:
-        freqs = np.array([float(f) for f in value])
-    except (TypeError, ValueError):
-        raise ValueError(f"parameter 'frequencies' must be numbers, got {value!r}") from None
-    if freqs.size == 0 or not np.all(np.isfinite(freqs)) or np.any(freqs <= 0.0):
-        raise ValueError(
-            f"parameter 'frequencies' must be finite values > 0 Hz, got {freqs.tolist()}"
-        )
-    if np.unique(freqs).size != freqs.size:
-        raise ValueError(f"parameter 'frequencies' has repeated values: {freqs.tolist()}")
-    return freqs
 
 
 class SpectrumNode(Node):
     """Turn acceleration blocks into eq. 7.3 spectra over sliding windows."""
 
     def __init__(self, **kwargs) -> None:
-        super().__init__(NODE_NAME, **kwargs)
-        self.declare_parameter(
-            "channels",
-            ["plunge", "pitch"],
-            ParameterDescriptor(description="acceleration channels to analyse, in order"),
-        )
-        self.declare_parameter(
-            "window_duration", 2.0, bounded("window length [s]", 1.0e-3, 3600.0)
-        )
-        self.declare_parameter(
-            "hop", 0.1, bounded("time between window starts [s]", 1.0e-3, 3600.0)
-        )
-        self.declare_parameter(
-            "frequencies",
-            DEFAULT_FREQUENCIES.tolist(),
-            ParameterDescriptor(
-                description="frequencies to evaluate [Hz]", dynamic_typing=True
-            ),
-        )
-        self.declare_parameter(
-            "window",
-            "rectangular",
-            ParameterDescriptor(description=f"window function, one of {WINDOW_FUNCTIONS}"),
-        )
-        self.channels = checked_channels(self.get_parameter("channels").value)
-        self.frequencies = checked_frequencies(self.get_parameter("frequencies").value)
-        self.window = str(self.get_parameter("window").value)
-        if self.window not in WINDOW_FUNCTIONS:
-            raise ValueError(
-                f"parameter 'window' must be one of {list(WINDOW_FUNCTIONS)}, got {self.window!r}"
-            )
-        self.window_duration = float(self.get_parameter("window_duration").value)
-        self.hop = float(self.get_parameter("hop").value)
+        super().__init__(SPEC.name, **kwargs)
+        values = declare_parameters(self, SPEC)
+        self.channels = checked_channels(values["channels"])
+        self.frequencies = checked_frequencies(values["frequencies"])
+        self.window = str(values["window"])
+        self.window_duration = float(values["window_duration"])
+        self.hop = float(values["hop"])
 
         self._sliding: SlidingSpectrum | None = None
         self._problem: str | None = None  # a persistent input problem for the status
@@ -141,7 +81,6 @@ class SpectrumNode(Node):
         self._spectrum_pub = self.create_publisher(ScaledSpectrum, "dva/spectrum", 10)
         self.create_subscription(AccelerationBlock, "wing/acceleration", self._on_block, QOS_DEPTH)
         self.create_subscription(DamperState, "dva/damper_state", self._on_damper_state, 10)
-        refuse_changes(self, _READ_AT_START)
         self.get_logger().info(
             f"spectra of {list(self.channels)} at {self.frequencies.size} frequencies "
             f"({self.frequencies.min():g}..{self.frequencies.max():g} Hz), "
@@ -279,7 +218,7 @@ class SpectrumNode(Node):
 
 
 def main(args=None) -> int:
-    return run_node(SpectrumNode, NODE_NAME, args)
+    return run_node(SpectrumNode, SPEC, args)
 
 
 if __name__ == "__main__":
