@@ -41,7 +41,7 @@ def _run(package: str, executable: str, *args: str) -> subprocess.CompletedProce
 
 def test_the_packages_declare_the_nodes_of_the_issue():
     names = {name for _, name, _ in ENTRY_POINTS}
-    assert {"simulator", "mcap_recorder", "spectrum", "fixed_controller",
+    assert {"simulator", "mcap_recorder", "bag_player", "spectrum", "fixed_controller",
             "airspeed_controller", "rbf_controller"} <= names
 
 

@@ -10,7 +10,6 @@ them from and ``mcap_recorder --help`` prints. Log times are the node's clock: s
 """
 from __future__ import annotations
 
-import importlib
 import sys
 import time
 from pathlib import Path
@@ -21,6 +20,7 @@ from rclpy.node import Node
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile, QoSReliabilityPolicy
 
 from aero_dva.bag.mcap_io import BagWriter, MessageDefinitionNotFound, qos_profile_yaml
+from dva_ros_common.conversions import message_class
 from dva_ros_common.node_params import NodeSpec, Param, declare_parameters
 from dva_ros_common.node_tools import run_node
 
@@ -64,12 +64,6 @@ def offered_qos_yaml(profiles) -> str:
             history=name(q.history, ("keep_last", "keep_all")),
             depth=max(int(q.depth), 0)))
     return yaml.safe_dump(rows, sort_keys=False).strip() if rows else qos_profile_yaml()
-
-
-def message_class(type_name: str):
-    """The Python class of ``pkg/msg/Type`` (rosidl_runtime_py is not available everywhere)."""
-    package, _, name = type_name.split("/")
-    return getattr(importlib.import_module(f"{package}.msg"), name)
 
 
 class McapRecorder(Node):
