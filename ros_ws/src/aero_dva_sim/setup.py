@@ -28,6 +28,7 @@ setup(
             "mcap_recorder = aero_dva_sim.mcap_recorder_node:main",
             "simulator = aero_dva_sim.simulator_node:main",
             "run_flight = aero_dva_sim.run_flight:main",
+            "replay_flight = aero_dva_sim.replay_flight:main",
         ],
     },
 )

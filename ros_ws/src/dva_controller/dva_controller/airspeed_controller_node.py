@@ -24,6 +24,7 @@ import sys
 from rclpy.node import Node
 
 from aero_dva.control.airspeed_schedule import AirspeedSchedule
+from aero_dva.control.command_laws import ScheduleLaw
 from aero_dva.control.schedule_io import load_schedule
 from dva_controller import messages
 from dva_controller.shared_params import DAMPER_RANGE, damping_range
@@ -91,11 +92,11 @@ class AirspeedController(Node):
             )
             origin = "parameters a0, a1"
         self.damping_range = (low, high)
-        self._min_period_ns = round(float(values["min_period"]) * 1e9)
+        self.law = ScheduleLaw(self.schedule, self.damping_range, self.extrapolate,
+                               self.max_airspeed, round(float(values["min_period"]) * 1e9))
 
         self.counts = dict.fromkeys(("conditions", "rejected", "commands", "rate_limited"), 0)
         self.last_command = math.nan
-        self._last_command_ns: int | None = None
         self._health = InputHealth(
             self, "airspeed schedule", "flight/condition", self.counts, self._status
         )
@@ -109,38 +110,26 @@ class AirspeedController(Node):
 
     def command_for(self, airspeed: float) -> float:
         """[N s/m] the clamped eq. 7.1 command at a valid airspeed [m/s]."""
-        c2 = self.schedule.evaluate(airspeed, extrapolate=self.extrapolate)
-        return min(max(c2, self.damping_range[0]), self.damping_range[1])
+        return self.law.command_for(airspeed)
 
     def _on_condition(self, msg: FlightCondition) -> None:
         self.counts["conditions"] += 1
         self._health.mark_input()
         condition = messages.flight_condition_values(msg)
-        u = condition.airspeed
-        if not (math.isfinite(u) and 0.0 <= u <= self.max_airspeed):
+        result = self.law.step(condition.stamp_ns, condition.airspeed)
+        if result.kind == "rejected":
             self.counts["rejected"] += 1
-            self._health.report(
-                conversions.WARN,
-                "rejected_airspeed",
-                f"flight condition ignored: airspeed {u} m/s is not in [0, "
-                f"{self.max_airspeed:g}] m/s",
-                airspeed=u,
-                stamp_ns=condition.stamp_ns,
-            )
+            self._health.report(conversions.WARN, "rejected_airspeed",
+                                f"flight condition ignored: {result.reason}",
+                                airspeed=condition.airspeed, stamp_ns=condition.stamp_ns)
             return
-        stamp_ns = condition.stamp_ns
-        last = self._last_command_ns
-        if last is not None and 0 <= stamp_ns - last < self._min_period_ns:
+        if result.kind == "rate_limited":
             self.counts["rate_limited"] += 1
             return
-        c2 = self.command_for(u)
         self._command_pub.publish(
-            messages.damper_command(
-                conversions.ns_to_time(stamp_ns), c2, DamperCommand.SOURCE_AIRSPEED_SCHEDULE
-            )
-        )
-        self._last_command_ns = stamp_ns
-        self.last_command = c2
+            messages.damper_command(conversions.ns_to_time(condition.stamp_ns), result.damping,
+                                    DamperCommand.SOURCE_AIRSPEED_SCHEDULE))
+        self.last_command = result.damping
         self.counts["commands"] += 1
 
     def _status(self) -> Status:

@@ -32,8 +32,9 @@ import sys
 import numpy as np
 from rclpy.node import Node
 
+from aero_dva.control.command_laws import RBFLaw
 from aero_dva.control.rbf_io import load_rbf_network
-from aero_dva.control.rbf_network import RBFNetwork, spectrum_input_names, spectrum_input_vector
+from aero_dva.control.rbf_network import RBFNetwork, spectrum_input_names
 from dva_controller import messages
 from dva_controller.shared_params import (
     DAMPER_RANGE,
@@ -111,6 +112,7 @@ class RBFController(Node):
         dim = len(self.channels) * self.frequencies.size + 1
         self.network = load_rbf_network(path, expected_input_dim=dim)  # RBFFileError names it
         check_network_inputs(self.network, path, self.channels, self.frequencies)
+        self.law = RBFLaw(self.network, self.damping_range)
 
         self.counts = dict.fromkeys(("spectra", "rejected", "commands", "far_inputs"), 0)
         self.last_command = math.nan
@@ -155,10 +157,7 @@ class RBFController(Node):
 
     def command_for(self, spectrum: messages.SpectrumInput) -> tuple[float, float]:
         """Clamped network output [N s/m] and the largest hidden activation for a spectrum."""
-        x = spectrum_input_vector(spectrum.magnitudes, spectrum.damping)
-        activation = float(self.network.hidden(x).max()) if self.network.n_neurons else 1.0
-        c2 = self.network.predict(x)
-        return min(max(c2, self.damping_range[0]), self.damping_range[1]), activation
+        return self.law.command(spectrum.magnitudes, spectrum.damping)
 
     def _on_spectrum(self, msg: ScaledSpectrum) -> None:
         self.counts["spectra"] += 1
