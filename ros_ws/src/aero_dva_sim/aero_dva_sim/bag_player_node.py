@@ -78,6 +78,9 @@ SPEC = NodeSpec(
               "subscriptions to played topics matched"),
         Param("wait_timeout", 30.0, "wall time after which playing starts anyway (with a "
               "warning)", "s", 0.0, 1.0e6),
+        Param("delay", 0.5, "wall time from the end of the wait to the first message: DDS "
+              "matches the two ends of a topic separately, and a subscriber that has not yet "
+              "matched the player drops what it is sent", "s", 0.0, 3600.0),
         Param("qos_depth", 100, "keep-last depth of a topic whose recorded depth is unknown",
               "", 1, 100000),
         Param("exit_on_end", True, "stop the node when the bag has been played"),
@@ -122,6 +125,7 @@ class BagPlayer(Node):
         self._wait_for = int(values["wait_for_subscribers"])
         self._wait_nodes = [n for n in values["wait_for_nodes"] if n]
         self._wait_timeout = float(values["wait_timeout"])
+        self._delay = float(values["delay"])
         self.played = self._select(values["topics"])
 
         self._pub = {}
@@ -138,6 +142,7 @@ class BagPlayer(Node):
         self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
 
         self.counts = dict.fromkeys(self.played, 0)
+        self.clock_published = 0
         self.lateness: list[float] = []  # [s] wall time a message went out after it was due
         self.finished = Future()
         self.done = self.finished if bool(values["exit_on_end"]) else None
@@ -167,6 +172,7 @@ class BagPlayer(Node):
         outcome = "stopped"
         try:
             if self._wait_for_graph():
+                self._sleep_until(time.monotonic() + self._delay)
                 started = time.monotonic()
                 rounds = 0
                 while not self._stop.is_set():
@@ -237,6 +243,7 @@ class BagPlayer(Node):
                 self.lateness.append(time.monotonic() - due)
             if self._clock_pub is not None and log_ns != last_clock:
                 self._clock_pub.publish(Clock(clock=conversions.ns_to_time(log_ns)))
+                self.clock_published += 1
                 last_clock = log_ns
             pub = self._pub[topic]
             pub.publish(data)
@@ -276,6 +283,8 @@ class BagPlayer(Node):
                           lateness_p99_s=float(np.percentile(late, 99)),
                           lateness_max_s=float(late.max()))
         values.update({f"published:{t}": n for t, n in self.counts.items()})
+        if self._clock_pub is not None:
+            values["published:/clock"] = self.clock_published
         damaged = self.source.damage
         if damaged:
             values["damage"] = damaged

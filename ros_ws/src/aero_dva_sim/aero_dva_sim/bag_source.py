@@ -106,8 +106,10 @@ class BagSource:
         except BagReadError as exc:
             if not self.path.exists():
                 raise
-            found = bag_topics(self.path, allow_truncated=True)  # raises if nothing is usable
-            self.damage = str(exc)
+            with warnings.catch_warnings(record=True) as caught:  # where the damage starts
+                warnings.simplefilter("always", RuntimeWarning)
+                found = bag_topics(self.path, allow_truncated=True)  # raises if nothing usable
+            self.damage = "; ".join([str(exc), *(str(w.message) for w in caught)])
         metadata = self._metadata()
         qos = {}
         for entry in metadata.get("topics_with_message_count") or []:
@@ -121,7 +123,7 @@ class BagSource:
         }
         start = (metadata.get("starting_time") or {}).get("nanoseconds_since_epoch")
         self.start_ns = int(start) if isinstance(start, int) and not self.damage else None
-        self.read_problems: list[str] = []
+        self.read_problems: list[str] = []  # damage met while reading (also in damage)
 
     def _metadata(self) -> dict:
         meta = self.path / "metadata.yaml"
