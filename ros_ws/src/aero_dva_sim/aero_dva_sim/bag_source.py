@@ -141,8 +141,10 @@ class BagSource:
         Damage found while reading ends the iteration; its text is appended to
         :attr:`read_problems` (and :attr:`damage` set) instead of raising.
         """
-        records = read_messages(self.path, list(topics), decode=False,
-                                allow_truncated=self.damage is not None)
+        with warnings.catch_warnings():  # the damage was noted when the bag was opened
+            warnings.simplefilter("ignore", RuntimeWarning)
+            records = read_messages(self.path, list(topics), decode=False,
+                                    allow_truncated=self.damage is not None)
         while True:
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always", RuntimeWarning)
