@@ -1,7 +1,7 @@
 """``simulator``: flies a scenario with the wing and the tunable Maxwell DVA, and is the clock.
 
-Each step simulates one block of samples (exact ZOH, :class:`~aero_dva.flight.block_simulator.
-BlockSimulator`), publishes it, and advances ``/clock``; the rest of the graph runs on that sim
+Each step simulates one block of samples (exact ZOH, :class:`~aero_dva.flight.streaming_simulator.
+StreamingSimulator`), publishes it, and advances ``/clock``; the rest of the graph runs on that sim
 time (``use_sim_time:=true``). The damper applies the latest accepted ``dva/damper_command``
 through :class:`~aero_dva.flight.damper.DamperModel` (range, lag, stale fallback, rejection of
 absurd commands). A stepped-sweep scenario applies its own c2 values and ignores commands.
@@ -26,7 +26,7 @@ from rclpy.task import Future
 from rosgraph_msgs.msg import Clock as ClockMsg
 
 from aero_dva.flight.damper import DamperStatus
-from aero_dva.flight.scenario_flight import FlightRuntime, load_runtime_config
+from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
 from aero_dva_sim import messages
 from dva_msgs.msg import (
     AccelerationBlock,
