@@ -11,7 +11,7 @@ from aero_dva.control.command_laws import RBFLaw
 from aero_dva.control.rbf_io import save_rbf_network
 from aero_dva.control.rbf_network import spectrum_input_names, train_rbf_ols
 from aero_dva.control.spectrum import scaled_spectrum
-from aero_dva.flight.scenario_flight import FlightRuntime, load_runtime_config
+from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
 from dva_offline import cli
 from dva_offline.replay import CommandRecord, compare, rbf_commands, spectra_from_inputs
 from dva_offline.replay_io import read_outputs, read_recording
