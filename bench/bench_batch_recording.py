@@ -49,7 +49,7 @@ from aero_dva.bag.batch_cdr import cdr_layout, sample_fields, split_stamps, stam
 from aero_dva.bag.batch_recorder import BatchRecorder
 from aero_dva.bag.schemas import typestore
 from aero_dva.flight.damper import DamperSnapshot, DamperStatus
-from aero_dva.flight.scenario_flight import FlightBlock
+from aero_dva.flight.flight_runtime import FlightBlock
 
 RATE = 1000.0
 N = 50
@@ -354,7 +354,7 @@ def main() -> None:
 
     if args.simulation:
         from aero_dva import data_files
-        from aero_dva.flight.scenario_flight import FlightRuntime, load_runtime_config
+        from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
 
         runtime = FlightRuntime(load_runtime_config(
             {"scenario": data_files.data_file("scenario_sweep.yaml")}))

@@ -23,6 +23,7 @@ SUBCOMMAND_MODULES = {
     "train": "dva_offline.train_cli",
     "evaluate": "dva_offline.evaluation_cli",
     "report": "dva_offline.run_report_cli",
+    "replay": "dva_offline.replay_cli",
     "bag": "dva_offline.bag_cli",
 }
 
@@ -76,6 +77,7 @@ def main(argv: list[str] | None = None) -> int:
 def _say_warnings(command: str, caught: list) -> None:
     for text in dict.fromkeys(str(w.message) for w in caught):
         print(f"dva {command}: warning: {text}", file=sys.stderr)
+
 
 if __name__ == "__main__":
     sys.exit(main())

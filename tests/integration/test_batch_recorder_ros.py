@@ -22,7 +22,7 @@ from aero_dva.bag.batch_cdr import cdr_layout, sample_fields
 from aero_dva.bag.batch_recorder import BatchRecorder
 from aero_dva.bag.schemas import typestore
 from aero_dva.flight.damper import DamperSnapshot, DamperStatus
-from aero_dva.flight.scenario_flight import FlightBlock
+from aero_dva.flight.flight_runtime import FlightBlock
 from dva_msgs.msg import AccelerationBlock
 from dva_ros_common import conversions
 

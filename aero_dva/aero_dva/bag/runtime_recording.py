@@ -1,6 +1,6 @@
 """Record a flight flown by the ROS-free simulators, as the node graph would record it.
 
-:func:`record_runtime` steps a :class:`~aero_dva.flight.scenario_flight.FlightRuntime` block by
+:func:`record_runtime` steps a :class:`~aero_dva.flight.flight_runtime.FlightRuntime` block by
 block and writes what the simulator node publishes (the blocks, the stale-damper warning, the
 final "simulator: flight" status with the node's key-values) through the
 :class:`~aero_dva.bag.batch_recorder.BatchRecorder`; :func:`record_flight_blocks` writes given
@@ -114,7 +114,7 @@ class RecordedFlight:
 
 def record_runtime(bag_dir, runtime, progress: Callable[[int, int], None] | None = None, *,
                    batch_blocks: int = 1000, **options) -> RecordedFlight:
-    """Fly a :class:`~aero_dva.flight.scenario_flight.FlightRuntime` to its end and record it.
+    """Fly a :class:`~aero_dva.flight.flight_runtime.FlightRuntime` to its end and record it.
 
     What the simulator node publishes, in its order: per block ``/clock``, the sample blocks,
     the flight condition and the damper state; a ``/diagnostics`` warning when the damper falls

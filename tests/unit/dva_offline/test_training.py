@@ -15,8 +15,8 @@ from aero_dva.bag.bag_reader import BagReadError, MessageTypeError, TopicNotFoun
 from aero_dva.bag.bag_writer import BagWriter
 from aero_dva.bag.flight_log_io import load_flight_log
 from aero_dva.control.rbf_io import load_rbf_network
+from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
 from aero_dva.flight.scenario import AirspeedProfile, Scenario
-from aero_dva.flight.scenario_flight import FlightRuntime, load_runtime_config
 from dva_offline import cli
 from dva_offline.training import (
     TrainingDataError,

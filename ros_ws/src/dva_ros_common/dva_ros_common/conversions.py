@@ -42,9 +42,12 @@ _NS = 1_000_000_000
 
 
 def message_class(type_name: str):
-    """The Python class of ``pkg/msg/Type`` (rosidl_runtime_py is not available everywhere)."""
-    package, _, name = type_name.split("/")
-    return getattr(importlib.import_module(f"{package}.msg"), name)
+    """The Python class of ``pkg/msg/Type`` (rosidl_runtime_py is not available everywhere).
+
+    Raises ImportError or AttributeError if the type is not installed, ValueError if the name
+    is not of that form."""
+    package, kind, name = type_name.split("/")
+    return getattr(importlib.import_module(f"{package}.{kind}"), name)
 
 
 # --------------------------------------------------------------------------------------------

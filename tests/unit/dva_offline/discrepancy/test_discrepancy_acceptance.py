@@ -1,6 +1,6 @@
-"""Acceptance of the discrepancy engine on generated data with one undeclared effect.
+"""Acceptance of the discrepancy loop on generated data with one undeclared effect.
 
-Randomised cases (seeds 100, 101, ...; the engine gets only the data, mass and static
+Randomised cases (seeds 100, 101, ...; the loop gets only the data, mass and static
 stiffness, plus ``elements=1`` for the missing-element case):
 
 * each library effect, N_EFFECT cases: named in >= 90 % AND held-out error at most halved
@@ -19,7 +19,7 @@ small sample by default.
 import numpy as np
 import pytest
 
-from dva_offline.discrepancy import engine, synthetic
+from dva_offline.discrepancy import loop, synthetic
 from dva_offline.discrepancy.frf_domain import FrfDomain
 from dva_offline.isolator.frf_data import split_conditions
 
@@ -37,7 +37,7 @@ def run(effect, seed, clean_covariate=None):
     fixed = case.n_elements if effect == "maxwell_element" else None
     domain = FrfDomain(conditions, mass=case.mass, static_stiffness=case.static_stiffness,
                        elements=fixed)
-    return engine.run(domain)
+    return loop.run(domain)
 
 
 @pytest.mark.slow

@@ -1,8 +1,8 @@
-"""The generic engine on a toy domain (no isolator): split, fits, scores, verdicts."""
+"""The generic loop on a toy domain (no isolator): split, fits, scores, verdicts."""
 import numpy as np
 import pytest
 
-from dva_offline.discrepancy import engine as eg
+from dva_offline.discrepancy import loop as eg
 
 X = np.linspace(0.5, 20.0, 240)  # axis, e.g. rad/s
 
