@@ -37,6 +37,7 @@ BENCHMARKS = {
     "bench_discrepancy_flight": ["1", "100"],
     "bench_graph": [],
     "bench_isolator_fit": ["--repeats", "2"],
+    "bench_isolator_identify": ["--cases", "2"],
     "bench_optimal_damping": ["--repeats", "1", "--airspeeds", "50", "--c2", "40",
                               "--duration", "2"],
     "bench_sweep_recording": ["--airspeeds", "12", "--stepped-airspeeds", "1"],
