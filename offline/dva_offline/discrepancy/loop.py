@@ -529,8 +529,13 @@ def _iterate(domain, obs, split, base, features, noise, scores, specs, rule, pro
         if progress:
             progress(f"step {len(steps) + 1}")
         base = choice.fit
-        features = _features(obs, base)
-        noise = features.noise
+        # The noise floor is a property of the data; its second-difference estimate can only
+        # be inflated by model error that is not smooth at the sampling (sparse sweeps), so
+        # each step keeps the lowest estimate so far.
+        fresh = _features(obs, base).noise
+        if fresh.sigma < noise.sigma:
+            noise = fresh
+        features = _features(obs, base, noise.sigma)
         scores, specs = _candidates(domain, obs, split, base, features, noise, rule, progress,
                                     n_variants)
     final = LoopOutcome(status, reason, base.name, base.error, noise.sigma,
