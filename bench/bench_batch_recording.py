@@ -35,7 +35,7 @@ import numpy as np
 from aero_dva.bag.batch_recording_io import BatchRecorder
 from aero_dva.bag.mcap_io import BagWriter, qos_profile_yaml
 from aero_dva.flight.damper import DamperSnapshot, DamperStatus
-from aero_dva.flight.scenario_flight import FlightBlock
+from aero_dva.flight.flight_runtime import FlightBlock
 
 RATE = 1000.0
 N = 50
@@ -200,7 +200,7 @@ def main() -> None:
 
     if args.simulation:
         from aero_dva import data_files
-        from aero_dva.flight.scenario_flight import FlightRuntime, load_runtime_config
+        from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
 
         runtime = FlightRuntime(load_runtime_config(
             {"scenario": data_files.data_file("scenario_sweep.yaml")}))

@@ -22,6 +22,7 @@ SUBCOMMAND_MODULES = {
     "train": "dva_offline.train_cli",
     "evaluate": "dva_offline.evaluation_cli",
     "report": "dva_offline.run_report_cli",
+    "replay": "dva_offline.replay_cli",
 }
 
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import shutil
 from pathlib import Path
 
 __all__ = ["register"]
@@ -34,7 +35,13 @@ def _report(args) -> int:
         raise FileNotFoundError(f"RUN: no bag directory or .mcap file {run}")
     base = run if run.is_dir() else run.with_suffix("")
     out = Path(args.out) if args.out else base.with_name(base.name + "_report")
-    files = write_report(run, out, rrd=not args.no_rrd)
+    created = not out.exists()
+    try:
+        files = write_report(run, out, rrd=not args.no_rrd)
+    except BaseException:
+        if created:  # a failed report leaves no directory that looks like one
+            shutil.rmtree(out, ignore_errors=True)
+        raise
     if args.json:
         print(json.dumps(json.loads(files.json.read_text())))
         return 0

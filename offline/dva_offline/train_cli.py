@@ -47,8 +47,8 @@ def register(subparsers) -> None:
     p.set_defaults(func=lambda args: _help(p))
 
     s = sub.add_parser("sweep", help="fly and record the (U, c2) training sweep (MCAP)",
-                       description="Fly the stepped sweep of seed sec. 7.2.1 with the "
-                                   "simulator's engine and record it through the batch path.")
+                       description="Fly the stepped sweep of Zhang (2006) sec. 7.2.1 with "
+                                   "the flight runtime and record it through the batch path.")
     s.add_argument("--scenario", metavar="FILE",
                    help="sweep scenario YAML (default: the package's scenario_sweep.yaml)")
     s.add_argument("--out", metavar="BAG_DIR",
@@ -135,7 +135,7 @@ def _sweep(args) -> int:
 
     from aero_dva import data_files
     from aero_dva.bag.sweep_recording_io import default_jobs, record_sweep
-    from aero_dva.flight.scenario_flight import FlightRuntime, load_runtime_config
+    from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
     from aero_dva.wing.flutter import flutter_speed, growth_rate
     from aero_dva.wing.model import AeroelasticModel
     from dva_offline.training import adapt_sweep

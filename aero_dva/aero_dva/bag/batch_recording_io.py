@@ -4,7 +4,7 @@ The simulator node (:mod:`aero_dva_sim.simulator_node`) publishes, per block of 
 ``/clock`` then ``wing/acceleration``, ``wing/displacement``, ``wing/excitation``,
 ``flight/condition`` and ``dva/damper_state``, and ``/diagnostics`` when the flight ends; the
 ``mcap_recorder`` node writes them to a bag. This module writes the same bag directly from
-:class:`~aero_dva.flight.scenario_flight.FlightBlock`s: same topics (absolute names, under an
+:class:`~aero_dva.flight.flight_runtime.FlightBlock`s: same topics (absolute names, under an
 optional namespace like the graph's), same types and ``ros2msg`` schemas, same QoS metadata as
 the recorder writes (:func:`~aero_dva.bag.mcap_io.qos_profile_yaml` defaults), same field values
 and header stamps as :mod:`aero_dva_sim.messages` sets (CDR from
@@ -1229,7 +1229,7 @@ class RecordedFlight:
 
 def record_runtime(bag_dir, runtime, progress: Callable[[int, int], None] | None = None, *,
                    batch_blocks: int = 1000, **options) -> RecordedFlight:
-    """Fly a :class:`~aero_dva.flight.scenario_flight.FlightRuntime` to its end and record it.
+    """Fly a :class:`~aero_dva.flight.flight_runtime.FlightRuntime` to its end and record it.
 
     What the simulator node publishes, in its order: per block ``/clock``, the sample blocks,
     the flight condition and the damper state; a ``/diagnostics`` warning when the damper falls

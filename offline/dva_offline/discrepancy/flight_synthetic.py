@@ -102,8 +102,8 @@ def generate_flight(effect: str | None, seed: int, out_dir, dwell: float = 4.0) 
         [s] seconds per (airspeed, c2) pair; the flight lasts 12 dwells.
     """
     from aero_dva.bag.batch_recording_io import record_runtime
+    from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
     from aero_dva.flight.scenario import AirspeedProfile, Scenario
-    from aero_dva.flight.scenario_flight import FlightRuntime, load_runtime_config
 
     rng = np.random.default_rng([int(seed), 77])
     three = rng.permutation(np.sort(rng.uniform(0.55, 0.85, 3)))

@@ -33,7 +33,7 @@ SERIES = {"/wing/plunge", "/wing/pitch", "/wing/leading_edge", "/damper/c2",
 def bag(tmp_path_factory):
     """A diverging flight recorded through the batch path (the simulator node's topics)."""
     from aero_dva.bag.batch_recording_io import record_runtime
-    from aero_dva.flight.scenario_flight import FlightRuntime, load_runtime_config
+    from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
 
     root = tmp_path_factory.mktemp("report")
     scenario = root / "short_ramp.yaml"

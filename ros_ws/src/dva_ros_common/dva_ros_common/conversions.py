@@ -1,6 +1,7 @@
 """ROS time and ``diagnostic_msgs`` values, built one way for every node."""
 from __future__ import annotations
 
+import importlib
 import math
 from collections.abc import Iterable, Mapping
 
@@ -12,6 +13,15 @@ OK, WARN, ERROR, STALE = 0, 1, 2, 3
 LEVELS = {"ok": OK, "warn": WARN, "error": ERROR, "stale": STALE}
 
 _NS = 1_000_000_000
+
+
+def message_class(type_name: str):
+    """The Python class of ``pkg/msg/Type`` (rosidl_runtime_py is not available everywhere).
+
+    Raises ImportError or AttributeError if the type is not installed, ValueError if the name
+    is not of that form."""
+    package, kind, name = type_name.split("/")
+    return getattr(importlib.import_module(f"{package}.{kind}"), name)
 
 
 def time_to_ns(stamp: Time) -> int:

@@ -1,5 +1,6 @@
-"""ROS glue shared by every node: the executor and how it spins, the body of ``main``,
-bounded parameters and input health on ``/diagnostics``.
+"""ROS glue shared by every node: the executor and how it spins, the body of ``main`` (with
+``--help`` from the node's parameter table, :mod:`dva_ros_common.node_params`) and input health
+on ``/diagnostics``.
 
 Executor: rclpy's default executor rebuilds its wait set in Python for every callback, which
 held the node graph far below the events executor's rate (``bench/bench_graph.py`` measures both;
@@ -10,13 +11,11 @@ neither returns from an unbounded spin when the context is shut down (SIGINT/SIG
 ``spin_until_future_complete`` without a timeout, so :func:`spin` always spins in bounded
 slices and checks between them.
 
-:class:`InputHealth` declares the parameters
-
-stale_timeout : float, default 1.0
-    [s] ROS time without input after which the periodic status turns WARN.
-diagnostic_period : float, default 1.0
-    [s] ROS time between periodic status reports on ``/diagnostics``; also the least wall time
-    between two reports of the same kind of event.
+:class:`InputHealth` reads the parameters of :data:`INPUT_HEALTH_PARAMS` (a node lists them
+in its parameter table, :mod:`dva_ros_common.node_params`): ``stale_timeout`` [s] ROS time
+without input after which the periodic status turns WARN, and ``diagnostic_period`` [s] ROS time
+between periodic status reports on ``/diagnostics`` (also the least wall time between two
+reports of the same kind of event).
 """
 from __future__ import annotations
 
@@ -28,7 +27,7 @@ from collections.abc import Callable, Collection, Mapping
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.exceptions import ParameterException
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
@@ -36,17 +35,18 @@ from rclpy.node import Node
 from rclpy.task import Future
 
 from dva_ros_common.conversions import ERROR, WARN, diagnostic_array, diagnostic_status
+from dva_ros_common.node_params import NodeSpec, Param, command_line, declare_parameters
+
+#: The rows of :class:`InputHealth` for a node's parameter table.
+INPUT_HEALTH_PARAMS = (
+    Param("stale_timeout", 1.0, "ROS time without input after which the status turns WARN", "s",
+          1.0e-3, 3600.0),
+    Param("diagnostic_period", 1.0, "ROS time between status reports on /diagnostics", "s",
+          1.0e-2, 3600.0),
+)
 
 #: A node's own status: level, message and extra key/values for ``/diagnostics``.
 Status = tuple[int, str, Mapping[str, object]]
-
-
-def bounded(description: str, low: float, high: float) -> ParameterDescriptor:
-    """Descriptor of a float parameter limited to ``[low, high]``."""
-    return ParameterDescriptor(
-        description=description,
-        floating_point_range=[FloatingPointRange(from_value=low, to_value=high)],
-    )
 
 
 def refuse_changes(node: Node, names: Collection[str]) -> None:
@@ -79,18 +79,17 @@ class InputHealth:
         counts: Mapping[str, int],
         status: Callable[[], Status],
     ) -> None:
-        stale = node.declare_parameter(
-            "stale_timeout", 1.0, bounded("input age reported as stale [s]", 1.0e-3, 3600.0)
-        )
-        period = node.declare_parameter(
-            "diagnostic_period", 1.0, bounded("status period [s]", 1.0e-2, 3600.0)
-        )
+        values = {}
+        for row in INPUT_HEALTH_PARAMS:  # declared from the node's table, or here
+            if not node.has_parameter(row.name):
+                declare_parameters(node, NodeSpec(node.get_name(), "", "", (row,)))
+            values[row.name] = float(node.get_parameter(row.name).value)
         self._node = node
         self._input_topic = input_topic
         self._counts = counts
         self._status = status
-        self._stale_ns = round(float(stale.value) * 1e9)
-        self._period = float(period.value)
+        self._stale_ns = round(values["stale_timeout"] * 1e9)
+        self._period = values["diagnostic_period"]
         self.name = f"{node.get_fully_qualified_name().lstrip('/')}: {subject}"
         self._last_input_ns: int | None = None
         self._first_tick_ns: int | None = None
@@ -160,15 +159,21 @@ def spin(executor: Executor, until: Future | None = None) -> None:
         executor.spin_until_future_complete(until, timeout_sec=SLICE)
 
 
-def run_node(node_class: Callable[[], Node], node_name: str, args=None) -> int:
-    """Body of a node's ``main``: the exit code (2 with a one-line error for bad parameters or
-    files).
+def run_node(node_class: Callable[[], Node], spec: NodeSpec, args=None) -> int:
+    """Body of a node's ``main``: the exit code.
 
-    The node spins until its ``done`` future completes, if it has one that is not None, else
-    until shutdown. A node with a ``close()`` method has it called once at the end, with
-    SIGINT and SIGTERM ignored so that a second Ctrl-C cannot cut it short (the recorder closes
-    its bag there). Errors while spinning are left to raise, so they keep their traceback.
+    ``-h``/``--help`` prints the node's parameter table (``spec``) and returns 0 without
+    starting ROS; unknown arguments outside ``--ros-args`` return 2, as do bad parameters or
+    files (a one-line error). The node spins until its ``done`` future completes, if it has
+    one that is not None, else until shutdown. A node with a ``close()`` method has it called
+    once at the end, with SIGINT and SIGTERM ignored so that a second Ctrl-C cannot cut it
+    short (the recorder closes its bag there). Errors while spinning are left to raise, so they
+    keep their traceback. ``args`` is the whole command line (default ``sys.argv``).
     """
+    code = command_line(spec, sys.argv if args is None else args)
+    if code is not None:
+        return code
+    node_name = spec.name
     rclpy.init(args=args)
     node = None
     try:

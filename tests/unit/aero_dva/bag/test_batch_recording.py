@@ -17,7 +17,7 @@ from aero_dva.bag import sweep_recording_io as sr
 from aero_dva.bag.flight_log_io import load_flight_log
 from aero_dva.bag.mcap_io import bag_topics, message_definition, qos_profile_yaml, read_messages
 from aero_dva.flight.damper import DamperSnapshot, DamperStatus
-from aero_dva.flight.scenario_flight import FlightBlock
+from aero_dva.flight.flight_runtime import FlightBlock
 
 RATE = 1000.0
 TOPICS = {
@@ -333,7 +333,7 @@ excitation: {force_std: 1000.0, seed: 2}
 
 
 def _runtime(scenario: str, **params):
-    from aero_dva.flight.scenario_flight import FlightRuntime, load_runtime_config
+    from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
 
     return FlightRuntime(load_runtime_config({"scenario": scenario, **params}))
 
@@ -450,7 +450,7 @@ def test_record_runtime_warns_once_when_the_damper_goes_stale(tmp_path, flight):
 
 
 # --------------------------------------------------------------------------------------------
-# record_sweep: the sweep simulated parallel in time (aero_dva.flight.sweep)
+# record_sweep: the sweep simulated parallel in time (aero_dva.flight.sweep_simulator)
 # --------------------------------------------------------------------------------------------
 
 # 3 airspeeds x 3 c2 x 0.6 s = 5.4 s. The airspeed steps (0.05 U_cr) are above the runtime's
@@ -483,12 +483,12 @@ def _raw_messages(bag: Path):
 
 
 def test_parallel_sweep_equals_the_stepped_runtime_sample_by_sample(tmp_path):
-    from aero_dva.flight import sweep as sweep_batch
+    from aero_dva.flight import sweep_simulator
 
     runtime = _runtime(_scenario(tmp_path, SWEEP))
-    plan = sweep_batch.plan_sweep(runtime.config, runtime.scenario)
+    plan = sweep_simulator.plan_sweep(runtime.config, runtime.scenario)
     assert plan.lengths.tolist() == [600] * 9  # one segment per dwell
-    chunks = list(sweep_batch.simulate_sweep(runtime.config, plan, chunk_samples=1300))
+    chunks = list(sweep_simulator.simulate_sweep(runtime.config, plan, chunk_samples=1300))
     assert [c.first_index for c in chunks] == [0, 1200, 2400, 3600, 4800]
     blocks, _ = _stepped(_runtime(_scenario(tmp_path, SWEEP)))
     force = np.concatenate([b.force for b in blocks])
@@ -581,18 +581,18 @@ def test_record_sweep_stops_at_divergence_like_the_runtime(tmp_path):
 
 
 def test_record_sweep_steps_what_it_does_not_model(tmp_path):
-    from aero_dva.flight import sweep as sweep_batch
+    from aero_dva.flight import sweep_simulator
 
     varying = SWEEP.replace("density: {base: 1.2}",
                             "density: {base: 1.2, variation: 0.05, frequency: 1.0}")
     runtime = _runtime(_scenario(tmp_path, varying))
-    assert "density varies" in sweep_batch.unsupported_reason(runtime.config, runtime.scenario)
+    assert "density varies" in sweep_simulator.unsupported_reason(runtime.config, runtime.scenario)
     with pytest.raises(ValueError, match="density varies"):
-        sweep_batch.plan_sweep(runtime.config, runtime.scenario)
+        sweep_simulator.plan_sweep(runtime.config, runtime.scenario)
     result = sr.record_sweep(tmp_path / "bag", runtime)
     assert result.method == "stepped" and result.samples == 5400
     ramp = _runtime(_scenario(tmp_path, RAMP))
-    assert "not a stepped sweep" in sweep_batch.unsupported_reason(ramp.config, ramp.scenario)
+    assert "not a stepped sweep" in sweep_simulator.unsupported_reason(ramp.config, ramp.scenario)
 
 
 def test_sweep_damper_states_equal_the_damper_model(tmp_path):

@@ -11,8 +11,8 @@ from mcap.reader import make_reader
 from aero_dva.bag import batch_recording_io as br
 from aero_dva.bag import sweep_recording_io as sr
 from aero_dva.bag.mcap_io import bag_topics, read_messages
-from aero_dva.flight import sweep as sweep_batch
-from aero_dva.flight.scenario_flight import FlightRuntime, load_runtime_config
+from aero_dva.flight import sweep_simulator
+from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
 from tests.unit.aero_dva.bag.test_batch_recording import SWEEP
 
 # The mini sweep of test_batch_recording (3 airspeeds x 3 c2 x 0.6 s = 5.4 s at 1 kHz);
@@ -51,9 +51,9 @@ def _writer_threads() -> list[str]:
 
 def test_simulate_sweep_computes_only_the_channels_asked_for(scenario):
     runtime = _runtime(scenario)
-    plan = sweep_batch.plan_sweep(runtime.config, runtime.scenario)
-    full = list(sweep_batch.simulate_sweep(runtime.config, plan, chunk_samples=1300))
-    some = list(sweep_batch.simulate_sweep(
+    plan = sweep_simulator.plan_sweep(runtime.config, runtime.scenario)
+    full = list(sweep_simulator.simulate_sweep(runtime.config, plan, chunk_samples=1300))
+    some = list(sweep_simulator.simulate_sweep(
         runtime.config, plan, chunk_samples=1300,
         outputs=("leading_edge_acceleration", "leading_edge")))
     assert [c.outputs.shape[0] for c in some] == [2] * len(full)
@@ -65,7 +65,7 @@ def test_simulate_sweep_computes_only_the_channels_asked_for(scenario):
     with pytest.raises(ValueError, match="this chunk has"):
         some[0].displacements  # noqa: B018 - the property raises
     with pytest.raises(ValueError, match="outputs must be distinct names"):
-        next(sweep_batch.simulate_sweep(runtime.config, plan, outputs=("stroke",)))
+        next(sweep_simulator.simulate_sweep(runtime.config, plan, outputs=("stroke",)))
 
 
 def test_measured_only_sweep_is_the_full_bag_without_the_displacement(tmp_path, scenario):
@@ -164,7 +164,7 @@ def test_a_writer_error_is_raised_and_leaves_no_completed_flight(tmp_path, scena
 
 
 def test_a_simulation_error_stops_the_writer(tmp_path, scenario, monkeypatch):
-    simulate = sweep_batch.simulate_sweep
+    simulate = sweep_simulator.simulate_sweep
 
     def breaks_after_two(*args, **kwargs):
         chunks = simulate(*args, **kwargs)
@@ -172,7 +172,7 @@ def test_a_simulation_error_stops_the_writer(tmp_path, scenario, monkeypatch):
         yield next(chunks)
         raise FloatingPointError("simulation failed")
 
-    monkeypatch.setattr(sweep_batch, "simulate_sweep", breaks_after_two)
+    monkeypatch.setattr(sweep_simulator, "simulate_sweep", breaks_after_two)
     with pytest.raises(FloatingPointError, match="simulation failed"):
         sr.record_sweep(tmp_path / "bag", _runtime(scenario), chunk_samples=1300)
     assert _writer_threads() == []

@@ -1,4 +1,4 @@
-"""Flight-log domain of the discrepancy engine: hidden plant, FRF estimator, domain, CLI.
+"""Flight-log domain of the discrepancy loop: hidden plant, FRF estimator, domain, CLI.
 
 The randomised acceptance rates are in test_discrepancy_flight_acceptance.py (slow); here
 the pieces and one case per kind of verdict.
@@ -12,11 +12,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from aero_dva.flight.block_simulator import BlockSimulator
+from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
 from aero_dva.flight.hidden_plant import PlantOptions, PlantSimulator
 from aero_dva.flight.scenario import AirspeedProfile, Scenario, ScenarioError
-from aero_dva.flight.scenario_flight import FlightRuntime, load_runtime_config
 from aero_dva.flight.scenario_io import scenario_from_dict
+from aero_dva.flight.streaming_simulator import StreamingSimulator
 from aero_dva.wing.wing_io import load_wing
 from dva_offline.cli import main
 from dva_offline.discrepancy import loop
@@ -111,7 +111,7 @@ def test_actuator_lag_delays_the_c2_the_wing_feels():
     rng = np.random.default_rng(0)
     f = 1000 * rng.standard_normal(4000)
     c = np.r_[np.full(2000, 150.0), np.full(2000, 1200.0)]
-    nominal = BlockSimulator(WING.wing, ABSORBER, 1000.0, WING.aero).advance(f, 60.0, 1.2, c)
+    nominal = StreamingSimulator(WING.wing, ABSORBER, 1000.0, WING.aero).advance(f, 60.0, 1.2, c)
     lagged = PlantSimulator(WING.wing, ABSORBER, 1000.0, WING.aero,
                             PlantOptions(actuator_lag=0.5))
     out = np.concatenate([lagged.advance(f[i:i + 50], 60.0, 1.2, c[i:i + 50]).displacements

@@ -1,13 +1,13 @@
-"""The flight domain's simulator of a linear model along a logged flight (output error)."""
+"""The modal simulator of the wing along a logged flight (the discrepancy loop's)."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 from scipy.linalg import expm
 
+from aero_dva.flight.modal_simulator import ModalBlocks, simulate
 from aero_dva.wing.model import AeroelasticModel
 from aero_dva.wing.wing_io import load_wing
-from dva_offline.discrepancy.flight_simulation import ModalBlocks, delay, simulate
 
 WING = load_wing(None)
 MODEL = AeroelasticModel(WING.wing, WING.maxwell_design, WING.aero)
@@ -55,8 +55,8 @@ def test_second_input_shares_the_modes():
     modes = ModalBlocks(a, b, c[:, :2], d[:, :2], DT)
     condition = np.array([0, 1, 1, 0, 1])
     moment = rng.standard_normal(250)
-    got = simulate(modes.with_input(other, d2[:, :2]), condition, moment)
-    want = simulate(ModalBlocks(a, other, c[:, :2], d2[:, :2], DT), condition, moment)
+    got = simulate(modes.with_input(other, d2[:, :2]), condition, moment, 50)
+    want = simulate(ModalBlocks(a, other, c[:, :2], d2[:, :2], DT), condition, moment, 50)
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-12 * np.abs(want).max())
 
 
@@ -64,15 +64,5 @@ def test_condition_per_block_is_checked():
     a, b = MODEL.matrices(np.array([50.0]), np.array([1.2]), np.array([300.0]))
     c, d = MODEL.acceleration_output(a, b)
     with pytest.raises(ValueError, match="one entry per block"):
-        simulate(ModalBlocks(a, b, c, d, DT), np.zeros(2, dtype=int), np.zeros(500))
+        simulate(ModalBlocks(a, b, c, d, DT), np.zeros(2, dtype=int), np.zeros(500), 50)
 
-
-def test_delay_shifts_whole_samples_exactly_and_interpolates_between():
-    rng = np.random.default_rng(2)
-    t = np.arange(4000)
-    y = np.stack([np.sin(2 * np.pi * 0.01 * t), rng.standard_normal(4000)])
-    shifted = delay(y, 3)
-    np.testing.assert_allclose(shifted[:, 3:], y[:, :-3], atol=1e-12)
-    np.testing.assert_allclose(shifted[:, :3], 0.0, atol=1e-12)
-    half = delay(y[:1], 2.5)[0, 100:-100]  # a slow sine: band-limited interpolation is exact
-    np.testing.assert_allclose(half, np.sin(2 * np.pi * 0.01 * (t[100:-100] - 2.5)), atol=1e-3)

@@ -1,4 +1,4 @@
-"""The ROS-free flight engine behind the simulator node."""
+"""The flight runtime: the ROS-free stepping of a scenario behind the simulator node."""
 from __future__ import annotations
 
 import dataclasses
@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from aero_dva.flight.damper import DamperStatus
+from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
 from aero_dva.flight.scenario import AirspeedProfile, Scenario
-from aero_dva.flight.scenario_flight import FlightRuntime, load_runtime_config
 
 
 def _runtime(scenario: Scenario, **params) -> FlightRuntime:

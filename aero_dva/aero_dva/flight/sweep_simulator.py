@@ -1,14 +1,14 @@
-"""The stepped (U, c2) sweep simulated parallel in time: FlightRuntime's flight, all at once.
+"""The stepped (U, c2) sweep simulated parallel in time: the flight runtime's flight, at once.
 
-:class:`~aero_dva.flight.scenario_flight.FlightRuntime` steps a flight in 50-sample blocks, one
+:class:`~aero_dva.flight.flight_runtime.FlightRuntime` steps a flight in 50-sample blocks, one
 hold period (10 samples) after the other. A sweep is piecewise constant: its held airspeed,
-density and c2 (the same hold grid and 0.1 % hysteresis as
-:class:`~aero_dva.flight.block_simulator.BlockSimulator`) change only at dwell boundaries, so each
-dwell is one linear time-invariant system and the whole flight can be computed exactly with
-large array operations:
+density and c2 (the parameter hold of :class:`~aero_dva.flight.discrete_model.DiscreteWing`,
+with the runtime's 0.1 % hysteresis) change only at dwell boundaries, so each dwell is one
+linear time-invariant system and the whole flight can be computed exactly with large array
+operations:
 
-1. every distinct held condition is discretised in one batched call (exact ZOH,
-   :func:`~aero_dva.flight.discretize.zoh`);
+1. every distinct held condition is discretised in one batched call
+   (:meth:`~aero_dva.flight.discrete_model.DiscreteWing.discretise`, exact ZOH);
 
 then, chunk by chunk of dwells (about 65 dwells each, so a consumer gets the first chunk at
 once and the flight streams out):
@@ -38,21 +38,25 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aero_dva.flight.block_simulator import DEFAULT_HOLD
-from aero_dva.flight.discretize import check_sampling, zoh
+from aero_dva.flight.discrete_model import (
+    DEFAULT_HOLD,
+    FLIGHT_QUANTUM,
+    N_DISPLACEMENTS,
+    N_OUTPUTS,
+    OUTPUT_NAMES,
+    DiscreteWing,
+    next_held,
+)
+from aero_dva.flight.flight_runtime import RuntimeConfig
 from aero_dva.flight.scenario import Scenario, airspeed_at, density_at, sweep_damping_at
-from aero_dva.flight.scenario_flight import QUANTUM, RuntimeConfig
 from aero_dva.wing.model import AeroelasticModel
 
-__all__ = ["OUTPUTS", "SweepChunk", "SweepMaps", "SweepPlan", "plan_sweep", "simulate_sweep",
+__all__ = ["SweepChunk", "SweepMaps", "SweepPlan", "plan_sweep", "simulate_sweep",
            "split_sweep", "sweep_maps", "unsupported_reason"]
 
-SUBBLOCK = 10  # [samples] L: outputs cost 7 (n + L) multiply-adds per sample
+SUBBLOCK = 10  # [samples] L: outputs cost p (n + L) multiply-adds per sample and channel
 CHUNK_SAMPLES = 1 << 18  # samples per output chunk (about 15 MB of outputs): cache-friendly
 _KNOWN_CONFIG = {"scenario", "wing", "aero", "absorber", "damper"}
-#: The output channels, in FlightBlock order: 4 displacements, then 3 accelerations.
-OUTPUTS = ("plunge", "pitch", "leading_edge", "absorber_stroke", "plunge_acceleration",
-           "pitch_acceleration", "leading_edge_acceleration")
 
 
 @dataclass(frozen=True)
@@ -98,22 +102,22 @@ class SweepChunk:
     outputs : (m, T)
         The computed output channels, in the order of ``channels``.
     channels : tuple of int
-        Indices into :data:`OUTPUTS` of the rows of ``outputs``.
+        Indices into :data:`.OUTPUT_NAMES` of the rows of ``outputs``.
     """
 
     first_index: int
     force: np.ndarray
     outputs: np.ndarray
-    channels: tuple[int, ...] = tuple(range(len(OUTPUTS)))
+    channels: tuple[int, ...] = tuple(range(N_OUTPUTS))
 
     def rows(self, names) -> np.ndarray:
-        """(len(names), T) the named channels of :data:`OUTPUTS` (a view when they lie in
+        """(len(names), T) the named channels of :data:`.OUTPUT_NAMES` (a view when they lie in
         order); ValueError naming a channel that was not computed."""
         try:
-            rows = [self.channels.index(OUTPUTS.index(name)) for name in names]
+            rows = [self.channels.index(OUTPUT_NAMES.index(name)) for name in names]
         except ValueError:
             raise ValueError(f"channels {list(names)} asked for; this chunk has "
-                             f"{[OUTPUTS[c] for c in self.channels]}") from None
+                             f"{[OUTPUT_NAMES[c] for c in self.channels]}") from None
         if rows and rows == list(range(rows[0], rows[0] + len(rows))):
             return self.outputs[rows[0]:rows[0] + len(rows)]
         return self.outputs[rows]
@@ -121,12 +125,12 @@ class SweepChunk:
     @property
     def displacements(self) -> np.ndarray:
         """(4, T) plunge [m], pitch [rad], leading edge [m], DVA stroke [m]."""
-        return self.rows(OUTPUTS[:4])
+        return self.rows(OUTPUT_NAMES[:N_DISPLACEMENTS])
 
     @property
     def accelerations(self) -> np.ndarray:
         """(3, T) plunge [m/s^2], pitch [rad/s^2], leading edge [m/s^2]."""
-        return self.rows(OUTPUTS[4:])
+        return self.rows(OUTPUT_NAMES[N_DISPLACEMENTS:])
 
 
 def unsupported_reason(config: RuntimeConfig, scenario: Scenario) -> str | None:
@@ -167,9 +171,9 @@ def _held_runs(raw: tuple[np.ndarray, ...], quantum: float) -> tuple[np.ndarray,
     """Held parameters of the hold periods, as runs: (first period of each run, values).
 
     ``raw`` = (airspeed, density, c2), each (P,), the inputs at the periods' first samples.
-    The rule is BlockSimulator's: a held value is replaced only when its input differs from it
-    by more than ``quantum`` relative (NaN before the first period). Inputs that are constant
-    over a run of periods give one decision per run, so the loop runs over the input's changes.
+    The rule is the discrete wing's (:func:`~aero_dva.flight.discrete_model.next_held`, NaN
+    before the first period). Inputs that are constant over a run of periods give one decision
+    per run, so the loop runs over the input's changes.
     """
     change = np.zeros(len(raw[0]), dtype=bool)
     change[0] = True
@@ -178,8 +182,9 @@ def _held_runs(raw: tuple[np.ndarray, ...], quantum: float) -> tuple[np.ndarray,
     first = np.flatnonzero(change)
     held = []
     cur = (math.nan, math.nan, math.nan)
+    quanta = (quantum,) * 3
     for row in np.column_stack([column[first] for column in raw]).tolist():
-        cur = tuple(c if abs(v - c) <= quantum * abs(c) else v for v, c in zip(row, cur))
+        cur = next_held(row, cur, quanta)
         held.append(cur)
     held = np.array(held, dtype=float).reshape(-1, 3)
     keep = np.ones(len(first), dtype=bool)  # runs whose held values did not change merge
@@ -188,7 +193,7 @@ def _held_runs(raw: tuple[np.ndarray, ...], quantum: float) -> tuple[np.ndarray,
 
 
 def plan_sweep(config: RuntimeConfig, scenario: Scenario, *, hold: int = DEFAULT_HOLD,
-               quantum: float = QUANTUM, subblock: int = SUBBLOCK) -> SweepPlan:
+               quantum: float = FLIGHT_QUANTUM, subblock: int = SUBBLOCK) -> SweepPlan:
     """Cut the runtime's flight into segments of constant held parameters.
 
     Parameters
@@ -196,7 +201,7 @@ def plan_sweep(config: RuntimeConfig, scenario: Scenario, *, hold: int = DEFAULT
     config : RuntimeConfig
     scenario : Scenario
         The runtime's resolved scenario (``FlightRuntime.scenario``).
-    hold, quantum : as the runtime's BlockSimulator (defaults: the runtime's values).
+    hold, quantum : the parameter hold (defaults: the flight runtime's values).
     subblock : int
         Largest sub-block length L; the one used divides every segment length.
 
@@ -204,7 +209,7 @@ def plan_sweep(config: RuntimeConfig, scenario: Scenario, *, hold: int = DEFAULT
     ------
     ValueError
         The flight is not supported (:func:`unsupported_reason`), or the sample rate is below
-        the Nyquist rate of a mode at the first condition (as BlockSimulator).
+        the Nyquist rate of a mode at the first condition (as the streaming simulator).
     """
     reason = unsupported_reason(config, scenario)
     if reason is not None:
@@ -220,8 +225,8 @@ def plan_sweep(config: RuntimeConfig, scenario: Scenario, *, hold: int = DEFAULT
     lengths = np.diff(np.append(starts, n))
     params, condition = np.unique(held, axis=0, return_inverse=True)
     model = AeroelasticModel(config.wing, config.absorber, config.aero)
-    a, _ = model.matrices(raw[0][0], raw[1][0], c2[0] if config.absorber is not None else None)
-    check_sampling(a, 1.0 / rate)
+    DiscreteWing(model, rate, hold=hold, quantum=quantum).check_sampling(
+        raw[0][0], raw[1][0], c2[0])
     g = int(np.gcd.reduce(lengths))
     sub = max(d for d in range(1, min(subblock, g) + 1) if g % d == 0)
     return SweepPlan(scenario=scenario, n_samples=n, sample_rate=rate, starts=starts,
@@ -236,24 +241,20 @@ class SweepMaps:
     share a flight build them once, before they fork.
     """
 
-    def __init__(self, model: AeroelasticModel, params: np.ndarray, dt: float, sub: int):
-        self.n = n = model.n_states
-        damping = params[:, 2] if model.absorber is not None else None
-        a, b = model.matrices(params[:, 0], params[:, 1], damping)
-        phi, gam = zoh(a, b, dt)
-        cacc, dacc = model.acceleration_output(a, b)
-        k = len(params)
-        c = np.concatenate([np.broadcast_to(model.c_displacement, (k, 4, n)), cacc], axis=1)
-        d = np.concatenate([np.zeros((k, 4)), dacc], axis=1)
+    def __init__(self, wing: DiscreteWing, params: np.ndarray, sub: int):
+        self.n = n = wing.n_states
+        sampled = wing.discretise(params)
+        phi, gam, c, d = sampled.ad, sampled.bd, sampled.c, sampled.d
+        k, p = len(params), wing.n_outputs
         # powers[j] = Phi^j, j = 0..L; obs[j] = C Phi^j; markov[j] = C Phi^j Gamma.
         powers = np.empty((sub + 1, k, n, n))
         powers[0] = np.eye(n)
         for j in range(sub):
             powers[j + 1] = phi @ powers[j]
-        obs = c[None] @ powers[:sub]  # (L, K, 7, n)
-        markov = (obs @ gam[None, :, :, None])[..., 0]  # (L, K, 7)
+        obs = c[None] @ powers[:sub]  # (L, K, p, n)
+        markov = (obs @ gam[None, :, :, None])[..., 0]  # (L, K, p)
         # Sub-block map per output o, transposed: [x; u_0..u_{L-1}] (n + L) -> y_o (L).
-        qt = np.zeros((k, 7, n + sub, sub))
+        qt = np.zeros((k, p, n + sub, sub))
         qt[:, :, :n] = obs.transpose(1, 2, 3, 0)
         for j in range(sub):
             qt[:, :, n + j, j] = d
@@ -290,7 +291,7 @@ class SweepMaps:
 def sweep_maps(config: RuntimeConfig, plan: SweepPlan) -> SweepMaps:
     """The discrete maps of every condition and segment length of ``plan``."""
     model = AeroelasticModel(config.wing, config.absorber, config.aero)
-    maps = SweepMaps(model, plan.params, 1.0 / plan.sample_rate, plan.subblock)
+    maps = SweepMaps(DiscreteWing(model, plan.sample_rate), plan.params, plan.subblock)
     for m in np.unique(plan.lengths).tolist():
         maps.segment(m)
     return maps
@@ -327,15 +328,15 @@ def _matvec(m: np.ndarray, x: np.ndarray) -> np.ndarray:
 
 def simulate_sweep(config: RuntimeConfig, plan: SweepPlan, *,
                    chunk_samples: int = CHUNK_SAMPLES,
-                   outputs=OUTPUTS, span: tuple[int, int] | None = None,
+                   outputs=OUTPUT_NAMES, span: tuple[int, int] | None = None,
                    maps: SweepMaps | None = None) -> Iterator[SweepChunk]:
     """Yield the flight in chunks of whole segments, in time order.
 
     Chunk by chunk (so a consumer, e.g. a writer thread, gets the first one at once, and one
-    that stops early (divergence) saves the rest): the chunk's force (the scenario seed's
-    stream, drawn in pieces), its segments' end states from rest, the scan that carries the
+    that stops early (divergence) saves the rest): the chunk's force (from the scenario's random
+    seed, drawn in pieces), its segments' end states from rest, the scan that carries the
     state from segment to segment (steps 3-4 of the module docstring), then the outputs.
-    ``outputs`` names the channels of :data:`OUTPUTS` to compute (each costs the same; a
+    ``outputs`` names the channels of :data:`.OUTPUT_NAMES` to compute (each costs the same; a
     channel left out is not computed at all); a channel's values do not depend on which
     others are computed.
 
@@ -448,10 +449,10 @@ def _channels(outputs) -> tuple[int, ...]:
     if isinstance(outputs, str):
         outputs = (outputs,)
     outputs = tuple(outputs)
-    unknown = [o for o in outputs if o not in OUTPUTS]
+    unknown = [o for o in outputs if o not in OUTPUT_NAMES]
     if unknown or not outputs or len(set(outputs)) != len(outputs):
-        raise ValueError(f"outputs must be distinct names among {OUTPUTS}, got {outputs}")
-    return tuple(OUTPUTS.index(o) for o in outputs)
+        raise ValueError(f"outputs must be distinct names among {OUTPUT_NAMES}, got {outputs}")
+    return tuple(OUTPUT_NAMES.index(o) for o in outputs)
 
 
 def _outputs(maps: SweepMaps, layout: tuple[int, int], cond: np.ndarray, x0: np.ndarray,

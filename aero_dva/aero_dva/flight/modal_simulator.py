@@ -1,23 +1,23 @@
-"""Simulate a linear model along a logged flight, driven by the logged force (output error).
+"""The wing simulated along a logged flight in modal form: the discrepancy loop's simulator.
 
-The flight domain compares the measured H1 estimates with the *same estimator applied to the
-model's simulated response to the measured force*. Both then contain the same leakage and
-transients (the same force realisation passes through the same windows), so a correct model
-leaves only the sensor noise in the residual: on the test flights the clean-data error falls from
-0.030 (estimator's expectation) to 0.010 (this route), and the effects of the library stand 3-10
-times above it instead of 1-4 times.
-
-The flight is cut into blocks of ``block`` samples; within a block the model is time-invariant
-(the block's condition). Per distinct condition k the continuous model x' = A x + B f,
-y = C x + D f is diagonalised (A = V diag(s) V^-1, lambda = e^{s dt}, exact ZOH of the force),
-so a block is a few scalar recursions z[i+1] = lambda z[i] + g f[i] (one per real mode and per
-conjugate pair). Pure numerics.
+The flight-log domain of the discrepancy loop (:mod:`dva_offline.discrepancy.flight_domain`)
+drives candidate models with the logged force at the logged conditions, one condition per
+block of samples (the :class:`~aero_dva.flight.discrete_model.DiscreteWing`'s hold), hundreds
+of times per fit. Here the sampled wing of each distinct condition k is the exact ZOH in modal
+coordinates: the continuous model x' = A x + B f, y = C x + D f is diagonalised
+(A = V diag(s) V^-1, lambda = e^{s dt}), so a block is a few scalar recursions
+z[i+1] = lambda z[i] + g f[i] (one per real mode and per conjugate pair), vectorised over all
+blocks. ``A`` and ``B`` are passed in (a candidate may alter them, e.g. a drifting stiffness);
+``C``, ``D``, the sample interval and the output names come from the discrete wing
+(:meth:`ModalBlocks.of`). Pure numerics.
 """
 from __future__ import annotations
 
 import numpy as np
 
-BLOCK = 50  # [samples] conditions are held per block (the hidden plant's drift/lag resolution)
+from aero_dva.flight.discrete_model import DiscreteWing
+
+__all__ = ["ModalBlocks", "simulate"]
 
 
 class ModalBlocks:
@@ -33,9 +33,11 @@ class ModalBlocks:
     b : (K, n) force input vectors
     c_out : (K, p, n), d_out : (K, p) output matrices
     dt : float [s]
+    hold : int, optional
+        [samples] per block, the default of :func:`simulate`.
     """
 
-    def __init__(self, a, b, c_out, d_out, dt: float):
+    def __init__(self, a, b, c_out, d_out, dt: float, hold: int | None = None):
         s, v = np.linalg.eig(a)
         vinv = np.linalg.inv(v)
         # kept: imag > 0 (weight 2) and real (weight 1), first; the imag < 0 twins dropped
@@ -56,6 +58,17 @@ class ModalBlocks:
         self.lam = np.where(weight > 0, np.exp(sdt), 0.0)  # z[i+1] = lam z[i] + g f[i]
         self.cm = c_out @ self.v_out  # (K, p, m): y[i] = Re(cm z[i]) + d f[i]
         self.d = np.asarray(d_out, dtype=float)
+        self.hold = hold  # [samples] per block, the default of simulate()
+
+    @classmethod
+    def of(cls, wing: DiscreteWing, a, b, outputs) -> ModalBlocks:
+        """The modal form of ``wing`` at K conditions given by their ``A`` (K, n, n) and
+        ``B`` (K, n), with the named ``outputs`` (of
+        :data:`~aero_dva.flight.discrete_model.OUTPUT_NAMES`) and the wing's sample
+        interval and hold (the samples per block)."""
+        c, d = wing.output_matrices(a, b)
+        rows = wing.output_index(outputs)
+        return cls(a, b, c[:, rows], d[:, rows], wing.dt, wing.hold)
 
     def with_input(self, b, d_out) -> ModalBlocks:
         """The same modes driven by another input (columns ``b`` (K, n), feedthrough
@@ -68,7 +81,7 @@ class ModalBlocks:
 
 
 def simulate(modes: ModalBlocks, condition: np.ndarray, force: np.ndarray,
-             block: int = BLOCK) -> np.ndarray:
+             block: int | None = None) -> np.ndarray:
     """Outputs (p, n_samples) of the model from rest, block ``i`` held at ``condition[i]``.
 
     The modal states are stepped sample by sample within the blocks, vectorised over all
@@ -82,9 +95,12 @@ def simulate(modes: ModalBlocks, condition: np.ndarray, force: np.ndarray,
     condition : (B,) int
         Index into the K conditions of ``modes`` per block; B = ceil(n_samples / block).
     force : (n_samples,) [N]
-    block : int
-        [samples] block length.
+    block : int, optional
+        [samples] block length (default: the hold of ``modes``).
     """
+    block = modes.hold if block is None else block
+    if block is None:
+        raise ValueError("block must be given for modes without a hold")
     n = force.size
     nb = -(-n // block)
     if condition.shape != (nb,):
@@ -120,14 +136,3 @@ def simulate(modes: ModalBlocks, condition: np.ndarray, force: np.ndarray,
         y += modes.d[condition][..., None] * u[:, None, :]
     return y.transpose(1, 0, 2).reshape(-1, nb * block)[:, :n]
 
-
-def delay(outputs: np.ndarray, samples: float) -> np.ndarray:
-    """``outputs`` (p, n) delayed by ``samples`` (fractional: a linear phase over the whole
-    record, zero-padded so nothing wraps round from the end; samples before 0 are zero)."""
-    if samples == 0:
-        return outputs
-    n = outputs.shape[-1]
-    m = 1 << int(np.ceil(np.log2(n + int(np.ceil(abs(samples))) + 2)))
-    spec = np.fft.rfft(outputs, m, axis=-1)
-    spec *= np.exp(-2j * np.pi * np.fft.rfftfreq(m) * samples)
-    return np.fft.irfft(spec, m, axis=-1)[..., :n]

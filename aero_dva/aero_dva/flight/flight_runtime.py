@@ -1,4 +1,4 @@
-"""One flight, stepped block by block: the simulator node's engine, free of ROS.
+"""The flight runtime: one scenario flown block by block, what the simulator node steps (no ROS).
 
 :class:`FlightRuntime` ties a scenario, the wing with its tunable Maxwell DVA, the damper model
 and the seeded excitation together. The simulator node calls :meth:`FlightRuntime.step` and
@@ -15,8 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from aero_dva import data_files
-from aero_dva.flight.block_simulator import BlockSimulator
 from aero_dva.flight.damper import CommandResult, DamperConfig, DamperModel, DamperSnapshot
+from aero_dva.flight.discrete_model import FLIGHT_QUANTUM
 from aero_dva.flight.hidden_plant import PlantSimulator
 from aero_dva.flight.scenario import (
     Scenario,
@@ -28,6 +28,7 @@ from aero_dva.flight.scenario import (
     sweep_damping_at,
 )
 from aero_dva.flight.scenario_io import load_scenario
+from aero_dva.flight.streaming_simulator import StreamingSimulator
 from aero_dva.wing.absorbers import MaxwellAbsorber
 from aero_dva.wing.flutter import flutter_speed
 from aero_dva.wing.model import AeroelasticModel, WingParameters
@@ -35,7 +36,6 @@ from aero_dva.wing.wing_io import load_wing
 
 ABSORBER_CHOICES = ("maxwell", "none")
 SWEEP_SOURCE = "sweep"  # dva_msgs/DamperCommand.SOURCE_SWEEP
-QUANTUM = 1e-3  # relative rounding of held flight parameters (see FlightRuntime)
 
 
 @dataclass(frozen=True)
@@ -71,7 +71,8 @@ class FlightBlock:
     t0, t_end : float
         [s] time of the first sample, and of the sample after the last one.
     force : (n,) [N]; airspeed, density, damping : (n,) [m/s], [kg/m^3], [N s/m]
-    displacements : (4, n); accelerations : (3, n) (see :mod:`aero_dva.flight.block_simulator`)
+    displacements : (4, n); accelerations : (3, n) (see
+        :mod:`aero_dva.flight.streaming_simulator`)
     diverged : bool
     """
 
@@ -138,24 +139,25 @@ class FlightRuntime:
     def __init__(self, config: RuntimeConfig):
         self.config = config
         bare = AeroelasticModel(config.wing, None, config.aero)
-        # Relative airspeeds (U/U_cr, as the seed states them) refer to the wing without DVA.
+        # Relative airspeeds (U/U_cr, as the study states them) refer to the wing without DVA.
         self.critical_airspeed = flutter_speed(
             bare, density=config.scenario.density).critical_airspeed
         self.scenario = resolve_airspeeds(config.scenario, self.critical_airspeed)
         self.sample_rate = self.scenario.sample_rate
         self.block_size = self.scenario.block_size
         self.block_duration = self.block_size / self.sample_rate
-        # Held airspeed/density/c2 are rounded to a 0.1 % relative grid so a ramp reuses cached
-        # discretisations (eigenvalue shifts ~1e-3 relative, far below the model's accuracy).
+        # Held airspeed/density/c2 change only by more than FLIGHT_QUANTUM (0.1 %) so a ramp
+        # reuses cached discretisations (eigenvalue shifts ~1e-3 relative, far below the
+        # model's accuracy).
         plant = self.scenario.plant
         if plant is not None and plant.active:
             # Hidden plant: the wing flown differs from the model the log implies.
             self._sim = PlantSimulator(config.wing, config.absorber, self.sample_rate,
                                        config.aero, plant, seed=self.scenario.seed)
         else:
-            self._sim = BlockSimulator(config.wing, config.absorber,
-                                       sample_rate=self.sample_rate, aero=config.aero,
-                                       quantum=QUANTUM)
+            self._sim = StreamingSimulator(config.wing, config.absorber,
+                                           sample_rate=self.sample_rate, aero=config.aero,
+                                           quantum=FLIGHT_QUANTUM)
         self._damper = DamperModel(config.damper, start_time=0.0)
         self._rng = np.random.default_rng(self.scenario.seed)
         self._index = 0
