@@ -120,7 +120,7 @@ class DecisionRule:
     strict_consistency: bool = False
     min_step_explained: float = 0.1
     max_steps: int = 12
-    joint_ratio: float = 2.0
+    joint_ratio: float = 1.5
 
     def __post_init__(self) -> None:
         if not isinstance(self.max_steps, (int, np.integer)) or self.max_steps < 1:
