@@ -10,6 +10,7 @@ is compared with it by the blocks' ``first_sample_index``.
 """
 from __future__ import annotations
 
+import re
 import signal
 import time
 from dataclasses import asdict, dataclass
@@ -59,6 +60,10 @@ class RecorderTrial:
     lost_window : float
         [s] wall time from the earliest lost block's arrival at the probe to the signal:
         the stretch of recording lost (to compare with the recorder's flush period).
+    lost_at_start, lost_at_end : int
+        Lost blocks before the first / after the last block read back.
+    recorder_messages : int or None
+        Messages the recorder said it wrote when it closed the bag (all topics).
     """
 
     signal: str
@@ -74,6 +79,9 @@ class RecorderTrial:
     missing_from_complete_chunks: int | None
     method: str
     lost_window: float
+    lost_at_start: int
+    lost_at_end: int
+    recorder_messages: int | None
 
     @property
     def lost_seconds(self) -> float:
@@ -118,6 +126,7 @@ def run_recorder_trial(signal_name: str, kill_after: float, work: Path, *,
             recorder.proc.kill()
             recorder.proc.wait()
         simulator.stop()
+        log = recorder.output()
     before = {b.first_sample_index for b in heard if b.wall < sent}
     closed = (bag / "metadata.yaml").is_file()
     in_chunks = missing = None
@@ -131,10 +140,15 @@ def run_recorder_trial(signal_name: str, kill_after: float, work: Path, *,
             chunked = set(complete_chunk_indexes(mcap_files[0]))
             in_chunks, missing = len(chunked), len(chunked - set(indexes))
     got = set(indexes)
+    lost_set = before - got
     lost_walls = [b.wall for b in heard if b.wall < sent and b.first_sample_index not in got]
+    said = re.search(r"closed .* with (\d+) messages", log)
     return RecorderTrial(
         signal=signal_name, kill_after=kill_after, exit_code=code, closed=closed,
         published_before=len(before), recorded=len(got), lost=len(before - got),
         gaps=_gaps(indexes), after_signal=len(got - before), in_complete_chunks=in_chunks,
         missing_from_complete_chunks=missing, method=method,
-        lost_window=sent - min(lost_walls) if lost_walls else 0.0)
+        lost_window=sent - min(lost_walls) if lost_walls else 0.0,
+        lost_at_start=sum(i < min(got) for i in lost_set) if got else len(lost_set),
+        lost_at_end=sum(i > max(got) for i in lost_set) if got else 0,
+        recorder_messages=int(said.group(1)) if said else None)
