@@ -1,11 +1,11 @@
-"""Benchmark: the whole node graph flying the 30 s ramp, against the bare flight engine.
+"""Benchmark: the whole node graph flying the 30 s ramp, against the bare flight runtime.
 
 Run (after ./test.sh or ./run.sh has set everything up)::
 
     source scripts/env.sh && python bench/bench_graph.py
 
 Measures, in one run:
-- baseline: the flight engine alone (FlightRuntime stepping blocks, no ROS, no publishing);
+- baseline: the flight runtime alone (FlightRuntime stepping blocks, no ROS, no publishing);
 - the graph: simulator, airspeed_controller and mcap_recorder as separate processes over DDS
   (run_flight with --real-time-factor 0, i.e. as fast as the graph goes), once with the nodes on
   rclpy's default executor and once on the events executor they use (dva_ros_common.node_tools);
@@ -28,18 +28,18 @@ from pathlib import Path
 
 import numpy as np
 
-from aero_dva.bag.mcap_io import bag_topics
+from aero_dva.bag.bag_reader import bag_topics
 from aero_dva.control.airspeed_schedule import fit_airspeed_schedule
 from aero_dva.control.dva_design import best_damping_curve
 from aero_dva.control.schedule_io import save_schedule
-from aero_dva.flight.scenario_flight import FlightRuntime, load_runtime_config
+from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
 from aero_dva.wing.model import AeroelasticModel
 from aero_dva.wing.wing_io import load_wing
 from aero_dva_sim.run_flight import main as run_flight
 from dva_ros_common.node_tools import ENV_VAR
 
 
-def baseline_engine() -> tuple[float, float]:
+def baseline_runtime() -> tuple[float, float]:
     """(sim seconds, wall seconds) of the ramp flight through FlightRuntime alone."""
     runtime = FlightRuntime(load_runtime_config({}))
     start = time.perf_counter()
@@ -111,8 +111,8 @@ def main() -> int:
     parser.add_argument("--network", help="RBF network (.npz) of the spectrum-based graph "
                         "(default: trained here on a mini plan)")
     args = parser.parse_args()
-    sim_s, wall_s = baseline_engine()
-    print(f"baseline engine alone : {sim_s:.2f} s sim in {wall_s:.3f} s wall = "
+    sim_s, wall_s = baseline_runtime()
+    print(f"baseline runtime alone: {sim_s:.2f} s sim in {wall_s:.3f} s wall = "
           f"{sim_s / wall_s:.1f}x real time")
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(args.keep or tmp)
@@ -127,7 +127,7 @@ def main() -> int:
         for kind, run in runs.items():
             print(f"graph, {kind + ' executor':<24}: {run['sim']:.2f} s sim in "
                   f"{run['wall']:.3f} s wall = {run['sim'] / run['wall']:.1f}x real time, "
-                  f"ratio to the engine alone {(run['sim'] / run['wall']) / (sim_s / wall_s):.3f}"
+                  f"ratio to the runtime alone {(run['sim'] / run['wall']) / (sim_s / wall_s):.3f}"
                   f"; CPU of all nodes incl. start-up {run['cpu']:.1f} s "
                   f"(run_flight total {run['total']:.1f} s wall)")
         old, new = runs["single_threaded"], runs["events"]

@@ -6,7 +6,7 @@ analytic gradients; all initial guesses, and only the first one) with a plain
 damping-ratio constraints. Prints wall times (median of repeats), their ratio, and FRF errors
 against the noise-free system.
 
-Run: PYTHONPATH=offline python bench/bench_isolator_fit.py [--repeats 5]
+Run: .venv/bin/python bench/bench_isolator_fit.py [--repeats 5]
 """
 from __future__ import annotations
 

@@ -12,7 +12,7 @@ Columns: FRF error against the data / noise (median, 95th percentile), |w_n erro
 |zeta error| relative to the truth [%] (median, 95th percentile), the share of cases meeting
 all of FRF error <= 2 x noise, |w_n error| <= 0.5 %, |zeta error| <= 2 %, and refusals.
 
-Run: PYTHONPATH=offline python bench/bench_isolator_identify.py --cases 50 --seed 0
+Run: .venv/bin/python bench/bench_isolator_identify.py --cases 50 --seed 0
 """
 from __future__ import annotations
 

@@ -7,7 +7,7 @@ the stable airspeeds of the c2 list 200..770 N s/m, 4 s dwells: 122 x 20 x 4 s =
 1. ``stepped``: :meth:`FlightRuntime.step` (50-sample blocks, what the simulator node runs),
    nothing written, over the first ``--stepped-airspeeds`` airspeeds (the baseline; its rate
    is per sample, so it extrapolates);
-2. ``parallel sim``: :mod:`aero_dva.flight.sweep` (the whole sweep parallel in time),
+2. ``parallel sim``: :mod:`aero_dva.flight.sweep_simulator` (the whole sweep parallel in time),
    nothing written: the simulation alone, all 7 output channels, and the 4 a measured-only
    recording needs (3 accelerations + the leading edge for the divergence test);
 3. ``record``: :func:`~aero_dva.bag.sweep_recording_io.record_sweep` into a rosbag2 MCAP bag
@@ -48,9 +48,10 @@ import numpy as np
 
 from aero_dva import data_files
 from aero_dva.bag.sweep_recording_io import default_jobs, record_sweep
-from aero_dva.flight import sweep as sweep_batch
+from aero_dva.flight import sweep_simulator
+from aero_dva.flight.discrete_model import ACCELERATION_OUTPUTS, OUTPUT_NAMES
+from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
 from aero_dva.flight.scenario import AirspeedProfile, sweep_duration
-from aero_dva.flight.scenario_flight import FlightRuntime, load_runtime_config
 from aero_dva.wing.flutter import growth_rate
 from aero_dva.wing.model import AeroelasticModel
 from dva_offline.training import adapt_sweep
@@ -111,10 +112,10 @@ def stepped(runtime) -> float:
     return runtime.time
 
 
-def parallel_simulation(runtime, outputs=sweep_batch.OUTPUTS) -> float:
-    plan = sweep_batch.plan_sweep(runtime.config, runtime.scenario)
+def parallel_simulation(runtime, outputs=OUTPUT_NAMES) -> float:
+    plan = sweep_simulator.plan_sweep(runtime.config, runtime.scenario)
     done = 0
-    for chunk in sweep_batch.simulate_sweep(runtime.config, plan, outputs=outputs):
+    for chunk in sweep_simulator.simulate_sweep(runtime.config, plan, outputs=outputs):
         done += chunk.force.size
     return done / plan.sample_rate
 
@@ -165,6 +166,13 @@ def main() -> None:
           f"{s.dwell:g} s = {s.duration:g} s of flight at {s.sample_rate:g} Hz "
           f"(blocks of {s.block_size}); bag in {directory}")
 
+    # Start-up: what the first recording of a process costs more than the next (imports done
+    # late, message definitions parsed, layouts built), on a one-airspeed flight.
+    small = sweep_config(args.as_is, 1)
+    first, again = (record(small, directory)[2] for _ in range(2))
+    print(f"start-up cost: {first - again:.3f} s CPU (first recording in the process "
+          f"{first:.3f} s, the same again {again:.3f} s)")
+
     rows = []
 
     def row(name, run):  # run() -> (sim seconds, wall, cpu, bytes or None)
@@ -178,7 +186,7 @@ def main() -> None:
     runtime = FlightRuntime(config)
     row("parallel sim, 7 channels", lambda: (*timed(lambda: parallel_simulation(runtime)),
                                              None))
-    measured = ("leading_edge",) + sweep_batch.OUTPUTS[4:]
+    measured = ("leading_edge",) + ACCELERATION_OUTPUTS
     row("parallel sim, 4 channels", lambda: (
         *timed(lambda: parallel_simulation(runtime, measured)), None))
     results = {}

@@ -1,6 +1,6 @@
 """Speed of the flutter solver, as a ratio against a baseline timed in the same run.
 
-Run:  PYTHONPATH=offline:ros_ws/src/aero_dva_sim python bench/bench_wing_flutter.py
+Run:  .venv/bin/python bench/bench_wing_flutter.py
 
 The default (chapter-6) wing with its Maxwell DVA (target: well under 10 ms per critical
 airspeed). The baseline assembles the state space anew at every airspeed and bisects the

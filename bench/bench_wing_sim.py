@@ -1,6 +1,6 @@
 """Speed of the wing simulators, as ratios against baselines timed in the same run.
 
-Run:  PYTHONPATH=offline:ros_ws/src/aero_dva_sim python bench/bench_wing_sim.py [--flights 64]
+Run:  .venv/bin/python bench/bench_wing_sim.py [--flights 64]
       [--repeats 3] [--clock wall|cpu]
 
 ``--clock cpu`` times with the process's CPU time (all its threads) instead of the wall clock:
@@ -12,7 +12,7 @@ Prints (best of ``--repeats``):
 - a batch of flights vs a loop of single flights: flights per second and their ratio
   (target >= 10x);
 - a constant-airspeed flight vs scipy.signal.dlsim on the same discretised system;
-- the streaming BlockSimulator in 20-sample blocks (the simulator node's use).
+- the StreamingSimulator in 20-sample blocks (the simulator node's use).
 """
 from __future__ import annotations
 
@@ -22,7 +22,9 @@ import time
 import numpy as np
 from scipy.signal import cont2discrete, dlsim
 
-from aero_dva.flight.block_simulator import BlockSimulator, ramp_airspeed, simulate_flights
+from aero_dva.flight.batch_simulator import simulate_flights
+from aero_dva.flight.divergence import ramp_airspeed
+from aero_dva.flight.streaming_simulator import StreamingSimulator
 from aero_dva.wing.flutter import flutter_speed
 from aero_dva.wing.model import AeroelasticModel
 from aero_dva.wing.wing_io import load_wing
@@ -94,7 +96,7 @@ def main() -> None:
           f"  -> {t_dlsim / t_ours:.1f}x faster than dlsim")
 
     def stream():
-        sim = BlockSimulator(wing, dva, quantum=2e-3)
+        sim = StreamingSimulator(wing, dva, quantum=2e-3)
         for i in range(0, u.size, 20):
             sim.advance(force[0, i:i + 20], u[i:i + 20], rho, c2[i:i + 20])
 

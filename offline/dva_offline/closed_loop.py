@@ -1,6 +1,6 @@
 """Closed-loop flights in one process: the simulator node's engine with a controller in the loop.
 
-:class:`~aero_dva.flight.scenario_flight.FlightRuntime` (the simulator node's engine) flies the
+:class:`~aero_dva.flight.flight_runtime.FlightRuntime` (the simulator node's engine) flies the
 scenario block by block (50 samples); after every block the controller sees what the graph's
 controller would receive for that block and may command a c2, which the damper applies from
 the next block on: the graph with its command lag bound at one block (``run_flight
@@ -30,8 +30,8 @@ from scipy.interpolate import RegularGridInterpolator
 from aero_dva.control.optimal_damping import optimal_damping
 from aero_dva.control.spectrum import SlidingSpectrum
 from aero_dva.control.stationary_rms import stationary_rms
+from aero_dva.flight.flight_runtime import FlightRuntime
 from aero_dva.flight.scenario import airspeed_at, density_at
-from aero_dva.flight.scenario_flight import FlightRuntime
 
 __all__ = ["FixedControl", "FlightOutcome", "OptimalDampingTable", "OracleControl",
            "ScheduleControl", "SpectrumRBFControl", "fly"]
@@ -201,7 +201,7 @@ class FlightOutcome:
 
 
 def fly(config, controller=None) -> FlightOutcome:
-    """Fly ``config`` (a :class:`~aero_dva.flight.scenario_flight.RuntimeConfig`) with
+    """Fly ``config`` (a :class:`~aero_dva.flight.flight_runtime.RuntimeConfig`) with
     ``controller`` (None: nothing commands c2; the damper holds its initial value)."""
     runtime = FlightRuntime(config)
     n = runtime.scenario.n_samples

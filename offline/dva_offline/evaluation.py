@@ -129,7 +129,7 @@ def evaluation_scenario(base: Mapping, mu: float, seed: int) -> dict:
 def divergence_airspeed_sliding(airspeed, response, sample_rate: float, window: float = 1.0,
                                 hop: float = 0.05, factor: float = 10.0,
                                 baseline_fraction: float = 0.1) -> float:
-    """:func:`aero_dva.flight.block_simulator.divergence_airspeed` with windows sliding by ``hop``.
+    """:func:`aero_dva.flight.divergence.divergence_airspeed` with windows sliding by ``hop``.
 
     Same definition (RMS of the response over ``window`` seconds above ``factor`` times the
     median RMS of the non-overlapping windows of the first ``baseline_fraction`` of the flight,

@@ -21,6 +21,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -118,7 +119,7 @@ def _batch(args) -> int:
     from aero_dva import data_files
     from aero_dva.control.rbf_io import load_rbf_network
     from aero_dva.control.schedule_io import load_schedule
-    from aero_dva.flight.scenario_flight import FlightRuntime, load_runtime_config
+    from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
     from aero_dva.wing.model import AeroelasticModel
     from dva_offline.evaluation_batch import (
         CASE_NAMES,
@@ -134,7 +135,7 @@ def _batch(args) -> int:
         oracle_table,
         stability_boundaries,
     )
-    from dva_offline.evaluation_inputs import inputs
+    from dva_offline.evaluation_inputs import check_given_inputs, inputs
 
     seeds_n = DEFAULT_SEEDS if args.seeds is None else args.seeds
     if seeds_n < 1 or args.first_seed < 0:
@@ -151,15 +152,22 @@ def _batch(args) -> int:
     if config.scenario.airspeed.kind != "ramp":
         raise ValueError(f"--scenario {scenario_path}: the evaluation flies a ramp, got "
                          f"airspeed kind {config.scenario.airspeed.kind!r}")
+    check_given_inputs(args, controllers)
     stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
     out = Path(args.out or f"runs/evaluation_{stamp}").resolve()
+    created = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
     started = time.monotonic()
 
     def log(text):
         tqdm.write(f"dva evaluate: {text}", file=sys.stderr)
 
-    made = inputs(args, controllers, out / "inputs", log)
+    try:
+        made = inputs(args, controllers, out / "inputs", log)
+    except BaseException:
+        if created:  # nothing was flown: leave no directory that looks like an evaluation
+            shutil.rmtree(out, ignore_errors=True)
+        raise
     model = AeroelasticModel(config.wing, config.absorber, config.aero)
     u_cr = FlightRuntime(config).critical_airspeed
     fixed = made["fixed_c2"]

@@ -17,7 +17,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-__all__ = ["best_fixed_damping_of", "inputs"]
+__all__ = ["best_fixed_damping_of", "check_given_inputs", "inputs"]
 
 
 def _run(argv: list[str], what: str, timeout: float = 3600.0) -> str:
@@ -85,6 +85,22 @@ def _save(path, payload):
     from dva_offline.evaluation_io import save_json
 
     return save_json(path, payload)
+
+
+def check_given_inputs(args, controllers) -> None:
+    """Read the input files the user gave, before anything is made or flown: a bad one ends
+    the run here with the file named, instead of failing (or, for a controller that cannot
+    start, flying on the damper's fallback) in every flight."""
+    from aero_dva.bag.bag_reader import bag_topics
+    from aero_dva.control.rbf_io import load_rbf_network
+    from aero_dva.control.schedule_io import load_schedule
+
+    if "schedule" in controllers and args.schedule:
+        load_schedule(args.schedule)
+    if "rbf" in controllers and args.network:
+        load_rbf_network(args.network)
+    elif "rbf" in controllers and args.sweep_bag:
+        bag_topics(args.sweep_bag)
 
 
 def best_fixed_damping_of(wing) -> dict:

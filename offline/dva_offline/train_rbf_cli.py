@@ -17,14 +17,16 @@ from pathlib import Path
 
 import numpy as np
 
+from aero_dva.bag import channels as ch
+
 __all__ = ["register"]
 
 TOPICS = {
-    "/wing/acceleration": "the spectra's accelerations",
-    "/wing/displacement": "the measured leading-edge RMS; `dva train sweep --no-displacement` "
-                          "leaves it out",
-    "/flight/condition": "the airspeed and density",
-    "/dva/damper_state": "the applied c2",
+    ch.ACCELERATION.absolute(): "the spectra's accelerations",
+    ch.DISPLACEMENT.absolute(): "the measured leading-edge RMS; `dva train sweep "
+                                "--no-displacement` leaves it out",
+    ch.FLIGHT_CONDITION.absolute(): "the airspeed and density",
+    ch.DAMPER_STATE.absolute(): "the applied c2",
 }
 
 
@@ -69,7 +71,7 @@ def register(sub) -> None:
 
 
 def _check_topics(bag) -> None:
-    from aero_dva.bag.mcap_io import TopicNotFoundError, bag_topics
+    from aero_dva.bag.bag_reader import TopicNotFoundError, bag_topics
 
     present = bag_topics(bag)
     for topic, what in TOPICS.items():

@@ -26,7 +26,7 @@ def scenario_sweep(args, out: Path, range3) -> int:
     from tqdm import tqdm
 
     from aero_dva.bag.sweep_recording_io import default_jobs, record_sweep
-    from aero_dva.flight.scenario_flight import FlightRuntime, load_runtime_config
+    from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
     from aero_dva.wing.flutter import flutter_speed, growth_rate
     from aero_dva.wing.model import AeroelasticModel
     from dva_offline.training import adapt_sweep

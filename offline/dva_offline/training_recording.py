@@ -6,7 +6,7 @@ stationary state covariance of that condition, ``P = Phi P Phi^T + sigma^2 Gamma
 simulated), and the held white aileron force of ``force_std`` drives it; so every window is a
 sample of the stationary response whose RMS the labels minimise, with no transient from the
 dwell before. The dwells are flown in batches by
-:func:`aero_dva.flight.block_simulator.simulate_flights` (exact zero-order hold, no rounding of
+:func:`aero_dva.flight.batch_simulator.simulate_flights` (exact zero-order hold, no rounding of
 the held conditions).
 
 Randomness: dwell ``k`` draws its initial state and then its force from
@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from aero_dva.control.stationary_rms import stationary_covariance
-from aero_dva.flight.block_simulator import simulate_flights
+from aero_dva.flight.batch_simulator import simulate_flights
 from aero_dva.wing.model import AeroelasticModel
 
 __all__ = ["BATCH", "DwellBatch", "simulate_dwells", "stationary_draw"]

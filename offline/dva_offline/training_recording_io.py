@@ -2,7 +2,7 @@
 
 The dwells of :func:`dva_offline.training_recording.simulate_dwells` follow one another on
 one sim-time line (dwell ``k`` holds samples ``k N .. (k + 1) N - 1``) and are written through
-:class:`aero_dva.bag.batch_recording_io.BatchRecorder`: the node's topics, blocks of
+:class:`aero_dva.bag.batch_recorder.BatchRecorder`: the node's topics, blocks of
 ``block_size`` samples, ``flight/condition`` with each dwell's airspeed and density,
 ``dva/damper_state`` with its c2 (source "sweep", as the simulator reports a sweep's c2), and
 the final "simulator: flight" status with the bare wing's critical airspeed and the wing file.
@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from aero_dva.bag.batch_recording_io import BatchRecorder
+from aero_dva.bag.batch_recorder import BatchRecorder
 from aero_dva.flight.damper import DamperStatus
 from dva_offline.training_plan_io import PLAN_FILE, save_plan
 from dva_offline.training_recording import BATCH, simulate_dwells

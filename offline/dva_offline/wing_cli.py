@@ -333,11 +333,8 @@ def _rows(results, seed: dict) -> list[dict]:
 
 def _simulate(args) -> int:
     from aero_dva.control.dva_design import best_damping_curve
-    from aero_dva.flight.block_simulator import (
-        divergence_airspeed,
-        ramp_airspeed,
-        simulate_flights,
-    )
+    from aero_dva.flight.batch_simulator import simulate_flights
+    from aero_dva.flight.divergence import divergence_airspeed, ramp_airspeed
     from aero_dva.wing.absorbers import PassiveAbsorber
     from aero_dva.wing.flutter import flutter_speed
     from aero_dva.wing.model import AeroelasticModel

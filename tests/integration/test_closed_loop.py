@@ -20,8 +20,8 @@ from aero_dva.control.dva_design import best_damping_curve
 from aero_dva.control.rbf_io import save_rbf_network
 from aero_dva.control.rbf_network import select_spread, spectrum_input_names, train_rbf_ols
 from aero_dva.control.spectrum import scaled_spectrum
+from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
 from aero_dva.flight.scenario import AirspeedProfile, Scenario
-from aero_dva.flight.scenario_flight import FlightRuntime, load_runtime_config
 from aero_dva.wing.flutter import flutter_speed, growth_rate
 from aero_dva.wing.model import AeroelasticModel
 from aero_dva.wing.wing_io import load_wing

@@ -7,7 +7,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from aero_dva.bag.flight_log_io import FlightLog
-from aero_dva.flight.block_simulator import divergence_airspeed
+from aero_dva.flight.divergence import divergence_airspeed
 
 LEADING_EDGE = 2  # row of the leading-edge displacement in FlightLog.displacements
 
@@ -25,7 +25,7 @@ class FlightSummary:
     critical_airspeed : float
         [m/s] U_cr of the wing without DVA (NaN if the log does not say).
     divergence_airspeed : float
-        [m/s] per :func:`~aero_dva.flight.block_simulator.divergence_airspeed`; NaN if none.
+        [m/s] per :func:`~aero_dva.flight.divergence.divergence_airspeed`; NaN if none.
     divergence_ratio : float
         divergence_airspeed / critical_airspeed.
     leading_edge_rms : float

@@ -1,17 +1,18 @@
 """Record a stepped sweep through the batch path, simulated parallel in time.
 
-:func:`record_sweep` writes the bag :func:`~aero_dva.bag.batch_recording_io.record_runtime`
+:func:`record_sweep` writes the bag :func:`~aero_dva.bag.runtime_recording.record_runtime`
 writes for the same flight (same topics, schemas, messages and diagnostics; the samples equal
-to round-off), from whole arrays computed by :mod:`aero_dva.flight.sweep` instead of
+to round-off), from whole arrays computed by :mod:`aero_dva.flight.sweep_simulator` instead of
 50-sample steps. Per process, the main thread simulates chunk after chunk while a second
 thread encodes, hashes and writes them.
 
-With ``jobs > 1`` the flight is cut into consecutive spans (:func:`~aero_dva.flight.sweep.
-split_sweep`) and each span is simulated and written by its own process into its own file of
-a split bag, as rosbag2 splits bags (``<name>_0.mcap``, ``<name>_1.mcap``, ...; every file a
-complete MCAP file, the messages in time order across them, ``metadata.yaml`` listing them).
-The messages are the same bits as with one process. The last span is flown by the calling
-process, which writes the final status and ``metadata.yaml`` once every file is closed.
+With ``jobs > 1`` the flight is cut into consecutive spans
+(:func:`~aero_dva.flight.sweep_simulator.split_sweep`) and each span is simulated and written
+by its own process into its own file of a split bag, as rosbag2 splits bags (``<name>_0.mcap``,
+``<name>_1.mcap``, ...; every file a complete MCAP file, the messages in time order across
+them, ``metadata.yaml`` listing them). The messages are the same bits as with one process. The
+last span is flown by the calling process, which writes the final status and ``metadata.yaml``
+once every file is closed.
 """
 from __future__ import annotations
 
@@ -27,20 +28,20 @@ from pathlib import Path
 
 import numpy as np
 
-from aero_dva.bag.batch_recording_io import (
-    _BLOCK_TOPICS,
-    _DAMPER_COLUMNS,
-    BatchRecorder,
+from aero_dva.bag.bag_writer import BagSummary, create_bag_directory
+from aero_dva.bag.batch_recorder import DAMPER_COLUMNS, BatchRecorder, load_definitions
+from aero_dva.bag.chunk_framing import close_split_bag
+from aero_dva.bag.runtime_recording import (
     RecordedFlight,
-    _summary_values,
-    close_split_bag,
+    flight_status_values,
+    published_topics,
     record_runtime,
 )
-from aero_dva.bag.mcap_io import BagSummary, create_bag_directory
-from aero_dva.flight import sweep as sweep_batch
+from aero_dva.flight import sweep_simulator
 from aero_dva.flight.damper import DamperModel, DamperStatus
+from aero_dva.flight.discrete_model import ACCELERATION_OUTPUTS, OUTPUT_NAMES
+from aero_dva.flight.flight_runtime import SWEEP_SOURCE
 from aero_dva.flight.scenario import airspeed_at, density_at, sample_times, sweep_damping_at
-from aero_dva.flight.scenario_flight import SWEEP_SOURCE
 
 __all__ = ["PREFIX_COST", "default_jobs", "record_sweep"]
 
@@ -49,7 +50,7 @@ _QUEUE = 2  # chunks queued for a writer thread
 #: states, no outputs) relative to simulating and writing it: 0.19 s against 1.3 s of CPU for
 #: the default training sweep. Spans are sized so that every process has the same work.
 PREFIX_COST = 0.15
-_MIN_SPAN = 4 * sweep_batch.CHUNK_SAMPLES  # shorter flights are not worth a process
+_MIN_SPAN = 4 * sweep_simulator.CHUNK_SAMPLES  # shorter flights are not worth a process
 
 
 def default_jobs(n_samples: int) -> int:
@@ -69,8 +70,8 @@ class _Sweep:
     """What every process of a recording needs (inherited by forked processes)."""
 
     runtime: object  # FlightRuntime, only read
-    plan: sweep_batch.SweepPlan
-    maps: sweep_batch.SweepMaps  # built once, before any fork
+    plan: sweep_simulator.SweepPlan
+    maps: sweep_simulator.SweepMaps  # built once, before any fork
     block: int  # samples per message block
     outputs: tuple[str, ...]
     displacement: bool
@@ -87,11 +88,11 @@ def record_sweep(bag_dir, runtime, progress: Callable[[int, int], None] | None =
                  block_size: int | None = None, chunk_samples: int | None = None,
                  displacement: bool = True, overlap: bool | None = None, jobs: int = 1,
                  **options) -> RecordedFlight:
-    """Record a stepped sweep simulated parallel in time (:mod:`aero_dva.flight.sweep`).
+    """Record a stepped sweep simulated parallel in time (:mod:`aero_dva.flight.sweep_simulator`).
 
     A flight the parallel path does not model
-    (:func:`~aero_dva.flight.sweep.unsupported_reason`: not a sweep, varying density, a
-    hidden plant, ...) is flown by :func:`~aero_dva.bag.batch_recording_io.record_runtime`
+    (:func:`~aero_dva.flight.sweep_simulator.unsupported_reason`: not a sweep, varying density, a
+    hidden plant, ...) is flown by :func:`~aero_dva.bag.runtime_recording.record_runtime`
     instead (one process), so this is always safe to call. ``runtime`` is only read (its
     config, scenario and critical airspeed), not stepped.
 
@@ -114,7 +115,7 @@ def record_sweep(bag_dir, runtime, progress: Callable[[int, int], None] | None =
         another value must divide every dwell, so that each block has one (U, c2).
     chunk_samples : int, optional
         Samples simulated and encoded together (default
-        :data:`~aero_dva.flight.sweep.CHUNK_SAMPLES`; bounds the memory used).
+        :data:`~aero_dva.flight.sweep_simulator.CHUNK_SAMPLES`; bounds the memory used).
     displacement : bool
         Record ``wing/displacement`` (True, as the graph records every topic). False records
         only what a wing test measures (accelerations, force, flight condition, damper
@@ -133,9 +134,8 @@ def record_sweep(bag_dir, runtime, progress: Callable[[int, int], None] | None =
         (Linux; elsewhere 1 is used), and forks the calling process: call it where no other
         thread holds a lock the processes need (the CLI runs no other thread).
     **options
-        ``namespace``, ``compression``, ``chunk_size``, ``ros_distro``, ``engine``,
-        ``chunk_crc`` of :class:`~aero_dva.bag.batch_recording_io.BatchRecorder`
-        (``engine="bagwriter"`` only with one process).
+        ``namespace``, ``compression``, ``chunk_size``, ``ros_distro``, ``chunk_crc`` of
+        :class:`~aero_dva.bag.batch_recorder.BatchRecorder`.
 
     Returns
     -------
@@ -144,7 +144,7 @@ def record_sweep(bag_dir, runtime, progress: Callable[[int, int], None] | None =
     """
     if isinstance(jobs, bool) or not isinstance(jobs, (int, np.integer)) or jobs < 1:
         raise ValueError(f"jobs must be a positive integer, got {jobs!r}")
-    reason = sweep_batch.unsupported_reason(runtime.config, runtime.scenario)
+    reason = sweep_simulator.unsupported_reason(runtime.config, runtime.scenario)
     if reason is None and max(runtime.scenario.sweep_damping) > \
             runtime.config.damper.absurd_limit:
         reason = "the damper rejects some sweep c2"  # recorded as the node would, stepped
@@ -156,7 +156,7 @@ def record_sweep(bag_dir, runtime, progress: Callable[[int, int], None] | None =
                               **options)
     started = time.monotonic()
     scenario, config = runtime.scenario, runtime.config
-    plan = sweep_batch.plan_sweep(config, scenario)
+    plan = sweep_simulator.plan_sweep(config, scenario)
     n = runtime.block_size if block_size is None else block_size
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
         raise ValueError(f"block_size must be a positive integer, got {block_size!r}")
@@ -165,19 +165,16 @@ def record_sweep(bag_dir, runtime, progress: Callable[[int, int], None] | None =
     if block_size is not None and (dwell % n or np.any(plan.lengths % n)):
         raise ValueError(f"block_size {n} must divide the dwell ({dwell} samples) so that "
                          "each block has one (U, c2)")
-    outputs = sweep_batch.OUTPUTS if displacement else \
-        ("leading_edge",) + sweep_batch.OUTPUTS[4:]
+    outputs = OUTPUT_NAMES if displacement else ("leading_edge",) + ACCELERATION_OUTPUTS
     if "fork" not in multiprocessing.get_all_start_methods():
         jobs = 1
-    spans = sweep_batch.split_sweep(plan, int(jobs), align=n,
+    spans = sweep_simulator.split_sweep(plan, int(jobs), align=n,
                                     weights=_balanced_weights(int(jobs)))
-    sweep = _Sweep(runtime=runtime, plan=plan, maps=sweep_batch.sweep_maps(config, plan),
+    sweep = _Sweep(runtime=runtime, plan=plan, maps=sweep_simulator.sweep_maps(config, plan),
                    block=n, outputs=outputs, displacement=bool(displacement),
-                   chunk_samples=chunk_samples or sweep_batch.CHUNK_SAMPLES,
+                   chunk_samples=chunk_samples or sweep_simulator.CHUNK_SAMPLES,
                    overlap=len(spans) == 1 if overlap is None else bool(overlap),
                    started=started)
-    if len(spans) > 1 and options.get("engine", "numpy") != "numpy":
-        raise ValueError("jobs > 1 writes a split bag, which needs engine='numpy'")
     total = plan.n_samples
 
     def report(done: int) -> None:
@@ -216,14 +213,14 @@ def _fly_span(sweep: _Sweep, recorder: BatchRecorder, span: tuple[int, int],
     """
     runtime, n = sweep.runtime, sweep.block
     first, end = span
-    limit = 0.5 * runtime.config.wing.chord  # BlockSimulator's default divergence limit
+    limit = 0.5 * runtime.config.wing.chord  # StreamingSimulator's default divergence limit
     edge = sweep.outputs.index("leading_edge")
     done, diverged_at = first, None
     writer = _Pipeline(lambda item: _write_sweep_blocks(recorder, runtime, n, *item),
                        threaded=sweep.overlap)
     try:
         pending = None  # samples of a block cut by a chunk boundary
-        chunks = sweep_batch.simulate_sweep(runtime.config, sweep.plan,
+        chunks = sweep_simulator.simulate_sweep(runtime.config, sweep.plan,
                                             chunk_samples=sweep.chunk_samples,
                                             outputs=sweep.outputs, span=span,
                                             maps=sweep.maps)
@@ -259,8 +256,8 @@ def _write_status(sweep: _Sweep, recorder: BatchRecorder, done: int,
     """The node's final "simulator: flight" status: completed, or where the wing diverged."""
     runtime, rate = sweep.runtime, sweep.rate
     blocks = -(-done // sweep.block)
-    published = {t: blocks for _, t in _BLOCK_TOPICS if not t.startswith("/")}
-    values = _summary_values(done / rate, sweep.started, runtime, published)
+    published = dict.fromkeys(published_topics(), blocks)
+    values = flight_status_values(done / rate, sweep.started, runtime, published)
     if diverged_at is None:
         recorder.write_diagnostics(done / rate, [("ok", "flight completed", values)])
         return
@@ -291,6 +288,7 @@ def _record_split(bag_dir, sweep: _Sweep, spans: list[tuple[int, int]],
     """Fly ``spans[:-1]`` in forked processes and the last span here; returns (bag summary,
     samples flown to, first sample of the diverging block or None)."""
     context = multiprocessing.get_context("fork")
+    load_definitions()  # once, inherited by the forked processes
     directory, _ = create_bag_directory(bag_dir)
     names = [f"{directory.name}_{j}.mcap" for j in range(len(spans))]
     counters = [context.Value("q", 0, lock=False) for _ in spans]
@@ -484,7 +482,7 @@ class _Pipeline:
 
 def _first_diverged_block(leading_edge: np.ndarray, outputs: np.ndarray, n: int,
                           limit: float) -> int | None:
-    """Index of the first block of ``n`` samples that BlockSimulator would call diverged.
+    """Index of the first block of ``n`` samples that StreamingSimulator would call diverged.
 
     Its test: |leading edge| > ``limit``, or an output not finite (``outputs`` (m, T): the
     channels computed; a state that overflows makes every output it feeds non-finite).
@@ -546,5 +544,5 @@ def _sweep_damper_states(config, t0: np.ndarray, c2: np.ndarray) -> dict[str, np
                              f"({snap.status.name}); the stepped path records that")
         rows.append((snap.time, snap.commanded_damping, snap.applied_damping,
                      snap.min_damping, snap.max_damping, snap.command_age, int(snap.status)))
-    table = np.array(rows, dtype=np.float64).reshape(-1, 7)
-    return dict(zip(_DAMPER_COLUMNS, table.T))
+    table = np.array(rows, dtype=np.float64).reshape(-1, len(DAMPER_COLUMNS))
+    return dict(zip(DAMPER_COLUMNS, table.T))

@@ -22,7 +22,7 @@ optimum (NaN, minimum RMS ``inf``).
 
 Simulated route (:func:`simulated_rms`), as the seed did
 --------------------------------------------------------
-Each pair is flown at constant airspeed and ``c2`` with :func:`~aero_dva.flight.block_simulator.
+Each pair is flown at constant airspeed and ``c2`` with :func:`~aero_dva.flight.batch_simulator.
 simulate_flights` (white Gaussian force held over each sample); a settling time is discarded
 and the RMS of the rest is taken. Its expected relative standard error follows from the exact
 autocorrelation of the sampled response (:meth:`~aero_dva.control.stationary_rms.StationaryRMS.
@@ -38,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from aero_dva.control.stationary_rms import METHODS, stationary_rms
-from aero_dva.flight.block_simulator import simulate_flights
+from aero_dva.flight.batch_simulator import simulate_flights
 from aero_dva.wing.checks import non_negative, positive, real_array
 from aero_dva.wing.model import DISPLACEMENT_NAMES, AeroelasticModel
 

@@ -4,7 +4,7 @@ The seed's control objective is the RMS of the vibration response, which it esti
 long simulations. For a linear model driven by white noise the stationary RMS has an exact
 value; this module computes it in two settings.
 
-Sampled system (``method="discrete"``), exactly as :mod:`aero_dva.flight.block_simulator` simulates
+Sampled system (``method="discrete"``), exactly as :mod:`aero_dva.flight.batch_simulator` simulates
 -------------------------------------------------------------------------------------------
 The aileron force is held over each sample of ``dt = 1 / sample_rate`` (zero-order hold) and
 is independent from sample to sample with standard deviation ``sigma = force_std`` [N]. With

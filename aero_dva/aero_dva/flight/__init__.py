@@ -1,4 +1,5 @@
-"""The flight layer: the wing in time (exact zero-order hold), the damper model, scenarios, the
-streaming and batch simulators, the training sweep and the hidden plant for discrepancy tests.
-May import: ``aero_dva.wing`` and the package root; never ``control`` or ``bag``.
+"""The flight layer: the wing sampled in time (one discrete model, exact zero-order hold), its
+simulators (streaming, batch, parallel-in-time sweep, hidden plant, modal), the damper,
+scenarios and the flight runtime. May import: ``aero_dva.wing`` and the package root; never
+``control`` or ``bag``.
 """

@@ -1,6 +1,6 @@
 """The tunable damper c2 of the Maxwell-element DVA as the simulator applies it.
 
-The seed treats c2 as ideal: whatever the controller asks for acts at once (section 7).
+Zhang (2006) treats c2 as ideal: whatever the controller asks for acts at once (section 7).
 A real semi-active damper has a range, may lag, and must survive bad or missing commands, so
 the simulator passes every command through :class:`DamperModel`:
 
@@ -75,7 +75,7 @@ class DamperConfig:
         [s] longest sim time without an accepted command before the fallback applies
         (``math.inf`` disables the fallback).
     time_constant : float
-        [s] first-order lag of the damper; 0 is the seed's ideal damper.
+        [s] first-order lag of the damper; 0 is the study's ideal damper.
     absurd_factor : float
         Commands above ``absurd_factor * max_damping`` are rejected rather than saturated.
     """

@@ -1,6 +1,6 @@
-"""Exact zero-order-hold discretisation (seed eq. 6.7-6.9), vectorised over many systems.
+"""Exact zero-order-hold discretisation (Zhang (2006) eq. 6.7-6.9), vectorised over many systems.
 
-The seed writes ``Gamma = A^-1 (Phi - I) B`` (eq. 6.9), which fails when ``A`` is singular
+The study writes ``Gamma = A^-1 (Phi - I) B`` (eq. 6.9), which fails when ``A`` is singular
 (a locked Maxwell damper, lag states at ``U = 0``) and loses accuracy when it is
 ill-conditioned (the Maxwell node as ``c2 -> 0``). Instead both come from one matrix
 exponential of the augmented matrix (Van Loan)::

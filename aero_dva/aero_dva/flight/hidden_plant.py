@@ -19,15 +19,17 @@ recorded topics names:
 - ``sensor_noise`` (plunge [m/s^2], pitch [rad/s^2], leading edge [m/s^2]): white Gaussian
   accelerometer noise with these standard deviations.
 - ``sensor_gain`` (three factors): accelerometer calibration errors (an effect outside the
-  discrepancy engine's library, for testing that it does not misattribute).
+  discrepancy loop's library, for testing that it does not misattribute).
 
-:class:`PlantSimulator` has the :class:`~aero_dva.flight.block_simulator.BlockSimulator` streaming
-interface (``advance(force, airspeed, density, damping)``): exact ZOH steps with the condition
-held over 10 samples and only renewed when it moved by more than 0.1 % (as FlightRuntime;
-2 % for the lagged c2, which moves continuously; 0.5 % for a drifting stiffness), one matrix
-per hold period for a linear plant and sample by sample with a cubic stiffness. So
-:class:`~aero_dva.flight.scenario_flight.FlightRuntime` swaps it in when a scenario has a
-``plant`` section. Pure numerics (no ROS).
+:class:`PlantSimulator` has the streaming interface of
+:class:`~aero_dva.flight.streaming_simulator.StreamingSimulator` (``advance(force, airspeed,
+density, damping)``) and flies the same :class:`~aero_dva.flight.discrete_model.DiscreteWing`
+(one per drift step, with a pitch-moment input): exact ZOH steps with the condition held over
+the default hold and only renewed when it moved by more than the flight quantum (0.1 %, as the
+flight runtime; 2 % for the lagged c2, which moves continuously; 0.5 % for a drifting
+stiffness), one matrix per hold period for a linear plant and sample by sample with a cubic
+stiffness. So :class:`~aero_dva.flight.flight_runtime.FlightRuntime` swaps it in when a
+scenario has a ``plant`` section. Pure numerics (no ROS).
 """
 from __future__ import annotations
 
@@ -37,21 +39,30 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aero_dva.flight.block_simulator import SimulationBlock
-from aero_dva.flight.discretize import check_sampling, zoh
+from aero_dva.flight.discrete_model import (
+    DEFAULT_HOLD,
+    FLIGHT_QUANTUM,
+    N_DISPLACEMENTS,
+    N_OUTPUTS,
+    OUTPUT_NAMES,
+    DiscreteWing,
+    next_held,
+)
+from aero_dva.flight.streaming_simulator import SimulationBlock
 from aero_dva.wing.aerodynamics import QuasiSteadyAero, WagnerAero
-from aero_dva.wing.model import AeroelasticModel
+from aero_dva.wing.model import ACCELERATION_NAMES, AeroelasticModel
 
 DRIFT_PARAMETERS = ("pitch_stiffness", "plunge_stiffness", "absorber_stiffness")
-CHANNELS = ("plunge", "pitch", "leading_edge")
-HOLD = 10  # samples between updates of the held condition (as BlockSimulator)
-QUANTUM = 1e-3  # relative change of a held airspeed, density or c2 below which the cached
-# matrices are reused: FlightRuntime's, so the plant flies every condition step the log shows
-# (with 0.5 % a 0.3 % airspeed step between two dwells was not flown: the log then lied)
+CHANNELS = ACCELERATION_NAMES  # the accelerometers the sensor options act on
+# The held airspeed, density and c2 change with FLIGHT_QUANTUM, the flight runtime's, so the
+# plant flies every condition step the log shows (with 0.5 % a 0.3 % airspeed step between two
+# dwells was not flown: the log then lied).
 QUANTUM_DRIFT = 5e-3  # the drifting stiffness factor is applied in steps of 0.5 %
 QUANTUM_LAGGED = 0.02  # the same for the lagged c2 (it moves continuously after each step)
 DRIFT_UPDATE = 0.05  # [s] the drifting stiffness is updated at this interval
 MAX_CUBIC_PITCH = 0.5  # [rad] beyond this the pitch "spring" is no longer a spring: diverged
+PITCH = OUTPUT_NAMES.index("pitch")
+LEADING_EDGE = OUTPUT_NAMES.index("leading_edge")
 
 
 def _finite(name: str, value, low: float, high: float, low_open: bool = False) -> float:
@@ -130,32 +141,8 @@ class PlantOptions:
                 "(at most 50 % allowed)")
 
 
-def pitch_moment_input(model: AeroelasticModel, airspeed, density, damping,
-                       other: AeroelasticModel | None = None) -> np.ndarray:
-    """State-space input vector of a unit pitch moment [N m] at the given conditions.
-
-    ``B`` of the aileron force at x is M^-1 [1, -x, ...] on the velocity rows, linear in x, so
-    a pitch moment's column is (B(x_2) - B(x_1)) / (x_1 - x_2) (public API only). ``other``
-    (optional, for speed) is :func:`moment_probe` of ``model``.
-    """
-    other = moment_probe(model) if other is None else other
-    x1, x2 = model.wing.aileron_position, other.wing.aileron_position
-    _, b1 = model.matrices(airspeed, density, damping)
-    _, b2 = other.matrices(airspeed, density, damping)
-    return (b2 - b1) / (x1 - x2)
-
-
-def moment_probe(model: AeroelasticModel) -> AeroelasticModel:
-    """``model`` with the aileron force moved along the chord (see :func:`pitch_moment_input`)."""
-    wing = model.wing
-    x2 = wing.leading_edge
-    if math.isclose(wing.aileron_position, x2):
-        x2 = wing.trailing_edge
-    return AeroelasticModel(wing.replace(aileron_position=x2), model.absorber, model.aero)
-
-
 class PlantSimulator:
-    """Streaming simulator of the hidden plant (``BlockSimulator``'s ``advance`` contract).
+    """Streaming simulator of the hidden plant (``StreamingSimulator``'s ``advance`` contract).
 
     Parameters
     ----------
@@ -188,9 +175,8 @@ class PlantSimulator:
             divergence_limit)
         self._rng = np.random.default_rng([int(seed), 0x5E75])  # not the excitation's stream
         self._delay = int(round(plant.sensor_delay * self.sample_rate))
-        self._models: dict[float, tuple[AeroelasticModel, AeroelasticModel]] = {}
-        self._maps: dict[tuple, np.ndarray] = {}
-        self._periods: dict[tuple, np.ndarray] = {}
+        self.hold = DEFAULT_HOLD
+        self._wings: dict[float, DiscreteWing] = {}
         self._index = 0
         self._y = None
         self._held = None
@@ -205,10 +191,10 @@ class PlantSimulator:
     def diverged(self) -> bool:
         return self._diverged
 
-    def _model(self, factor: float) -> tuple[AeroelasticModel, AeroelasticModel]:
-        """The plant's model at a drift factor, and its moment probe."""
-        models = self._models.get(factor)
-        if models is None:
+    def _wing(self, factor: float) -> DiscreteWing:
+        """The plant's sampled wing at a drift factor, with the pitch-moment input."""
+        wing_d = self._wings.get(factor)
+        if wing_d is None:
             name = self.plant.drift_parameter
             wing, absorber = self.wing0, self.absorber
             if factor != 1.0 and name == "absorber_stiffness":
@@ -217,62 +203,13 @@ class PlantSimulator:
                 absorber = dataclasses.replace(absorber, stiffness=absorber.stiffness * factor)
             elif factor != 1.0:
                 wing = wing.replace(**{name: getattr(wing, name) * factor})
-            model = AeroelasticModel(wing, absorber, self.aero)
-            models = (model, moment_probe(model))
-            if len(self._models) > 64:
-                self._models.clear()
-            self._models[factor] = models
-        return models
-
-    def _step_map(self, key: tuple) -> np.ndarray:
-        """(n + 7, n + 2) map of [state; force; pitch moment] -> [next state; outputs]."""
-        step = self._maps.get(key)
-        if step is not None:
-            return step
-        factor, u, rho, c = key
-        model, probe = self._model(factor)
-        damping = c if model.absorber is not None else None
-        a, b = model.matrices(u, rho, damping)
-        if not self._checked:
-            check_sampling(a, self.dt)
-            self._checked = True
-        bm = pitch_moment_input(model, u, rho, damping, probe)
-        inputs = np.stack([b, bm], axis=-1)
-        phi, gam = zoh(a, inputs, self.dt)
-        cacc, dacc = model.acceleration_output(a, b)
-        _, dmom = model.acceleration_output(a, bm)
-        ns = model.n_states
-        step = np.zeros((ns + 7, ns + 2))
-        step[:ns, :ns], step[:ns, ns:] = phi, gam
-        step[ns:ns + 4, :ns] = model.c_displacement
-        step[ns + 4:, :ns] = cacc
-        step[ns + 4:, ns], step[ns + 4:, ns + 1] = dacc, dmom
-        if len(self._maps) > 4096:
-            self._maps.clear()
-        self._maps[key] = step
-        return step
-
-    def _period_map(self, key: tuple, step: np.ndarray) -> np.ndarray:
-        """(n + 7 HOLD, n + HOLD) map of [state; HOLD forces] -> [end state; outputs], output
-        o at sample j in row n + o HOLD + j (linear plant: no moment input)."""
-        period = self._periods.get(key)
-        if period is not None:
-            return period
-        ns = step.shape[1] - 2
-        x = np.zeros((ns + 1, ns + HOLD))
-        x[:ns, :ns] = np.eye(ns)
-        outputs = np.empty((7, HOLD, ns + HOLD))
-        for j in range(HOLD):
-            x[ns] = 0.0
-            x[ns, ns + j] = 1.0
-            r = step[:, :ns + 1] @ x
-            outputs[:, j] = r[ns:]
-            x[:ns] = r[:ns]
-        period = np.concatenate([x[:ns], outputs.reshape(7 * HOLD, ns + HOLD)], axis=0)
-        if len(self._periods) > 4096:
-            self._periods.clear()
-        self._periods[key] = period
-        return period
+            wing_d = DiscreteWing(AeroelasticModel(wing, absorber, self.aero), self.sample_rate,
+                                  hold=self.hold, inputs=("force", "pitch_moment"),
+                                  max_conditions=4096)
+            if len(self._wings) > 64:
+                self._wings.clear()
+            self._wings[factor] = wing_d
+        return wing_d
 
     def _true_damping(self, reported: np.ndarray) -> np.ndarray:
         """c2 acting on the wing: the reported c2 through the actuator's first-order lag."""
@@ -290,14 +227,13 @@ class PlantSimulator:
     def _hold(self, raw: tuple) -> tuple:
         if self._held is None:
             return raw
-        quanta = (QUANTUM_DRIFT, QUANTUM, QUANTUM,
-                  QUANTUM_LAGGED if self.plant.actuator_lag > 0 else QUANTUM)
-        return tuple(cur if abs(v - cur) <= q * abs(cur) else v
-                     for v, cur, q in zip(raw, self._held, quanta))
+        quanta = (QUANTUM_DRIFT, FLIGHT_QUANTUM, FLIGHT_QUANTUM,
+                  QUANTUM_LAGGED if self.plant.actuator_lag > 0 else FLIGHT_QUANTUM)
+        return next_held(raw, self._held, quanta)
 
     def advance(self, force, airspeed, density, damping=None) -> SimulationBlock:
         """Simulate ``len(force)`` samples (as
-        :class:`~aero_dva.flight.block_simulator.BlockSimulator` does).
+        :class:`~aero_dva.flight.streaming_simulator.StreamingSimulator` does).
         """
         f = np.asarray(force, dtype=float)
         n = f.size
@@ -312,7 +248,8 @@ class PlantSimulator:
             raise ValueError("force, airspeed, density and damping must be finite")
         plant = self.plant
         kappa_moment = self.wing0.pitch_stiffness * plant.cubic_stiffness
-        out = np.empty((7, n))
+        out = np.empty((N_OUTPUTS, n))
+        h = self.hold
         y = self._y
         j = 0
         while j < n:
@@ -323,35 +260,41 @@ class PlantSimulator:
                 t_q = math.floor(t / DRIFT_UPDATE) * DRIFT_UPDATE
                 factor = round(1.0 + plant.drift_rate * t_q, 9)
             self._held = self._hold((factor, float(u[j]), float(rho[j]), float(c[j])))
-            step = self._step_map(self._held)
-            ns = step.shape[1] - 2
+            wing_d = self._wing(self._held[0])
+            if not self._checked:
+                wing_d.check_sampling(*self._held[1:])
+                self._checked = True
+            condition = wing_d.at(*self._held[1:])
+            ns = wing_d.n_states
             if y is None:
                 y = np.zeros(ns)
             elif y.size != ns:
                 raise ValueError("the plant's state size changed during the flight")
-            end = min(j + HOLD - i % HOLD, n)
-            if not kappa_moment and end - j == HOLD:
+            end = min(j + h - i % h, n)
+            if not kappa_moment and end - j == h:
                 # linear plant, whole hold period: one matrix-vector product
-                r = self._period_map(self._held, step) @ np.concatenate((y, f[j:end]))
+                r = condition.period @ np.concatenate((y, f[j:end]))
                 y = r[:ns]
-                out[:, j:end] = r[ns:].reshape(7, HOLD)
+                out[:, j:end] = r[ns:].reshape(N_OUTPUTS, h)
                 j = end
                 continue
+            step = condition.step
+            pitch = wing_d.state_names.index("pitch")
             for k in range(j, end):
-                moment = -kappa_moment * y[1] ** 3 if kappa_moment else 0.0
+                moment = -kappa_moment * y[pitch] ** 3 if kappa_moment else 0.0
                 r = step @ np.concatenate((y, (f[k], moment)))
                 y = r[:ns]
                 out[:, k] = r[ns:]
             j = end
         self._y = y
         self._index += n
-        disp = out[:4]
-        acc = self._sensors(out[4:])
+        disp = out[:N_DISPLACEMENTS]
+        acc = self._sensors(out[N_DISPLACEMENTS:])
         if not self._diverged:
             self._diverged = bool(
                 not np.all(np.isfinite(y)) or not np.all(np.isfinite(disp))
-                or (n and np.max(np.abs(disp[2])) > self.divergence_limit)
-                or (kappa_moment and n and np.max(np.abs(disp[1])) > MAX_CUBIC_PITCH))
+                or (n and np.max(np.abs(disp[LEADING_EDGE])) > self.divergence_limit)
+                or (kappa_moment and n and np.max(np.abs(disp[PITCH])) > MAX_CUBIC_PITCH))
         time = (self._index - n + np.arange(n)) / self.sample_rate
         return SimulationBlock(time=time, displacements=disp, accelerations=acc,
                                diverged=self._diverged)

@@ -2,17 +2,17 @@
 
 A scenario is plain data (frozen dataclasses) with vectorised profile functions of time, so the
 simulator node, the batch path and the tests evaluate the very same profiles. Airspeeds may be
-given as ratios of a reference critical airspeed (the seed's U/Ucr); :func:`resolve_airspeeds`
+given as ratios of a reference critical airspeed (the study's U/Ucr); :func:`resolve_airspeeds`
 turns them into m/s once that airspeed is known.
 
 Profiles
 --------
 - airspeed ``constant``: U(t) = U0.
-- airspeed ``ramp``: U rises linearly from ``start`` to ``end`` over the flight (seed ch. 6-7:
-  0.8 -> 1.2 Ucr in 30 s).
+- airspeed ``ramp``: U rises linearly from ``start`` to ``end`` over the flight (the study's
+  ch. 6-7: 0.8 -> 1.2 Ucr in 30 s).
 - airspeed ``steps``: a stepped sweep; each airspeed is held for ``len(sweep_damping)`` dwells of
-  ``dwell`` seconds, one per c2 value (seed sec. 7.2.1 training experiment).
-- density: rho(t) = rho0 (1 + mu sin(2 pi f t)) (seed eq. 7.2, with f = 1 Hz there).
+  ``dwell`` seconds, one per c2 value (the study's sec. 7.2.1 training experiment).
+- density: rho(t) = rho0 (1 + mu sin(2 pi f t)) (Zhang (2006) eq. 7.2, with f = 1 Hz there).
 - excitation: zero-mean white Gaussian aileron force with standard deviation ``force_std``
   (1 kN in the seed), drawn per sample from ``numpy.random.default_rng(seed)``; optionally
   scaled by ``force_levels`` taken in turn for ``level_dwell`` seconds each (a flight test at

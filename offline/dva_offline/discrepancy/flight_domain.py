@@ -1,4 +1,4 @@
-"""Domain 2 of the discrepancy engine: flight logs (MCAP) against the wing + Maxwell DVA model.
+"""Domain 2 of the discrepancy loop: flight logs (MCAP) against the wing + Maxwell DVA model.
 
 Observations: H1 estimates of the frequency response from the measured aileron force to the
 measured plunge and pitch accelerations, per flight segment (airspeed, density and reported
@@ -7,7 +7,8 @@ c2 nearly constant; Hann windows, see :mod:`.flight_frf`), at every other DFT bi
 airspeed, reported c2, pitch displacement RMS, time since the last c2 change.
 
 Model values (output error through the estimator): the model is simulated along the whole log,
-driven by the logged force at the logged airspeed, density and c2 (:mod:`.flight_simulation`),
+driven by the logged force at the logged airspeed, density and c2, held per block of
+:data:`BLOCK` samples (the discrete wing in modal form, :mod:`aero_dva.flight.modal_simulator`),
 and the same estimator is applied to its accelerations on the same windows. Leakage and the
 transients of each window are then the same in both and cancel: a correct model leaves the
 sensor noise alone (a noise-free flight is reproduced to 1e-6), where comparing with the
@@ -17,7 +18,7 @@ Weights: w_j = median(eps) / (|H_j| eps_j), eps_j = sqrt(G_nn / S_xx,j) / |H_j| 
 error the sensor noise alone gives the estimate (G_nn per channel from the output power not
 coherent with the force well above the modes), so the residual w_j (H_model,j - H_j) is the
 relative error scaled to the median point's noise and a correct model leaves residuals of about
-equal size everywhere (the engine's noise floor and consistency test assume that).
+equal size everywhere (the loop's noise floor and consistency test assume that).
 
 Baseline: :class:`~aero_dva.wing.model.AeroelasticModel` of the wing file (chapter-6 wing
 by default) with its Maxwell DVA and aerodynamics, calibrated by three parameters: pitch
@@ -43,11 +44,12 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import lfilter
 
-from aero_dva.flight.hidden_plant import pitch_moment_input
+from aero_dva.bag import channels
+from aero_dva.flight.discrete_model import DiscreteWing, pitch_moment_input
+from aero_dva.flight.modal_simulator import ModalBlocks, simulate
 from aero_dva.wing.aerodynamics import QuasiSteadyAero, TheodorsenAero, WagnerAero
 from aero_dva.wing.model import AeroelasticModel
-from dva_offline.discrepancy.engine import (
-    DecisionRule,
+from dva_offline.discrepancy.fitting import (
     ModelSpec,
     NotApplicable,
     Observations,
@@ -58,10 +60,11 @@ from dva_offline.discrepancy.flight_frf import (
     hann,
     runs_of_constant_condition,
 )
-from dva_offline.discrepancy.flight_simulation import BLOCK, ModalBlocks, simulate
-from dva_offline.discrepancy.flight_simulation import delay as delay_outputs
+from dva_offline.discrepancy.loop import DecisionRule
 
 CHANNELS = ("plunge", "pitch")  # accelerometer channels used (leading edge = their combination)
+OUTPUTS = tuple(f"{channel}_acceleration" for channel in CHANNELS)  # the discrete wing's names
+BLOCK = 50  # [samples] conditions are held per block (the hidden plant's drift/lag resolution)
 CALIBRATION = ("pitch_stiffness", "plunge_stiffness", "damping_factor")
 CALIBRATION_RANGE = 1.5  # calibrated parameters stay within a factor of the file's values
 DRIFT_PARAMETERS = ("absorber_stiffness", "pitch_stiffness", "plunge_stiffness")
@@ -79,6 +82,18 @@ SIGNATURES = {
     "parameter_drift": "modes shift steadily with flight time (depends on time, not on "
                        "level or c2)",
 }
+
+
+def delay_outputs(outputs: np.ndarray, samples: float) -> np.ndarray:
+    """``outputs`` (p, n) delayed by ``samples`` (fractional: a linear phase over the whole
+    record, zero-padded so nothing wraps round from the end; samples before 0 are zero)."""
+    if samples == 0:
+        return outputs
+    n = outputs.shape[-1]
+    m = 1 << int(np.ceil(np.log2(n + int(np.ceil(abs(samples))) + 2)))
+    spec = np.fft.rfft(outputs, m, axis=-1)
+    spec *= np.exp(-2j * np.pi * np.fft.rfftfreq(m) * samples)
+    return np.fft.irfft(spec, m, axis=-1)[..., :n]
 
 
 class FlightDataError(ValueError):
@@ -142,11 +157,11 @@ def arrays_from_log(log) -> FlightArrays:
     """
     missing = []
     if np.all(np.isnan(log.accelerations)):
-        missing.append("/wing/acceleration (accelerations)")
+        missing.append(f"{channels.ACCELERATION.absolute()} (accelerations)")
     if np.all(np.isnan(log.force)):
-        missing.append("/wing/excitation (aileron force)")
+        missing.append(f"{channels.EXCITATION.absolute()} (aileron force)")
     if np.all(np.isnan(log.applied_damping)):
-        missing.append("/dva/damper_state (c2)")
+        missing.append(f"{channels.DAMPER_STATE.absolute()} (c2)")
     if missing:
         raise FlightDataError("the log lacks " + ", ".join(missing)
                               + "; a flight log needs force, accelerations, flight condition "
@@ -161,7 +176,7 @@ def arrays_from_log(log) -> FlightArrays:
 
 
 class FlightDomain:
-    """The flight-log domain (module docstring) for :func:`.engine.run`.
+    """The flight-log domain (module docstring) for :func:`.loop.run`.
 
     Parameters
     ----------
@@ -174,7 +189,7 @@ class FlightDomain:
     name = "flight"
     # H1 estimates of neighbouring segments share windows and the noise floor from second
     # differences is only approximate here: a clearly significant candidate is not hidden by
-    # a high noise floor estimate (engine.DecisionRule.strict_consistency).
+    # a high noise floor estimate (loop.DecisionRule.strict_consistency).
     decision_rule = DecisionRule(strict_consistency=True)
     error_definition = (
         "RMS over held-out points j (not used in any fit) of w_j |H_model_j - H_j|, "
@@ -400,16 +415,17 @@ class FlightDomain:
             a_step, _ = self._model(step, aero).matrices(u, rho, c)
             # A is affine in each stiffness (beta K follows): p(t) = p (1 + r t)
             a = a + (rate * keys[:, 3] / 0.01)[:, None, None] * (a_step - a)
-        c_acc, d_acc = model.acceleration_output(a, b)
-        modes = ModalBlocks(a, b, c_acc[:, :2], d_acc[:, :2], self.dt)
+        wing = DiscreteWing(model, self.data.sample_rate, hold=BLOCK)
+        modes = ModalBlocks.of(wing, a, b, OUTPUTS)
         y = simulate(modes, inverse, self._force)
         if kappa > 0:
             # the cubic part of the pitch spring as a pitch moment input computed from the
             # logged pitch angle: exact for the nonlinear wing, distortion included
             bm = self._moment_column(model, aero_scale, u, rho, c)
-            _, d_m = model.acceleration_output(a, bm)
+            _, d_m = wing.output_matrices(a, bm)
             moment = -kappa * cal[0] * self._pitch**3
-            y = y + simulate(modes.with_input(bm, d_m[:, :2]), inverse, moment)
+            y = y + simulate(modes.with_input(bm, d_m[:, wing.output_index(OUTPUTS)]), inverse,
+                             moment)
         if delay:
             y = delay_outputs(y, delay / self.dt)
         # the segments' estimator applied to the simulated accelerations

@@ -9,8 +9,8 @@ import pytest
 from aero_dva.control.airspeed_schedule import AirspeedSchedule
 from aero_dva.control.optimal_damping import optimal_damping
 from aero_dva.control.rbf_network import InputScaling, RBFNetwork, spectrum_input_names
+from aero_dva.flight.flight_runtime import load_runtime_config
 from aero_dva.flight.scenario import AirspeedProfile, Scenario
-from aero_dva.flight.scenario_flight import load_runtime_config
 from aero_dva.wing.model import AeroelasticModel
 from dva_offline.closed_loop import (
     FixedControl,

@@ -8,7 +8,7 @@ import pytest
 import yaml
 
 from aero_dva import data_files
-from aero_dva.flight.block_simulator import divergence_airspeed
+from aero_dva.flight.divergence import divergence_airspeed
 from aero_dva.flight.scenario_io import scenario_from_dict
 from dva_offline import cli
 from dva_offline.evaluation import (

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 
-from aero_dva.bag import batch_recording_io as br
 from aero_dva.bag import sweep_recording_io as sr
-from aero_dva.bag.mcap_io import bag_topics, read_messages
-from aero_dva.flight import sweep as sweep_batch
-from aero_dva.flight.scenario_flight import FlightRuntime, load_runtime_config
+from aero_dva.bag.bag_reader import bag_topics, read_messages
+from aero_dva.bag.chunk_framing import ChunkedMcapFile
+from aero_dva.flight import sweep_simulator
+from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
 from tests.unit.aero_dva.bag.test_batch_recording import SWEEP
 
 # The mini sweep of test_batch_recording (3 airspeeds x 3 c2 x 0.6 s = 5.4 s at 1 kHz);
@@ -51,9 +51,9 @@ def _writer_threads() -> list[str]:
 
 def test_simulate_sweep_computes_only_the_channels_asked_for(scenario):
     runtime = _runtime(scenario)
-    plan = sweep_batch.plan_sweep(runtime.config, runtime.scenario)
-    full = list(sweep_batch.simulate_sweep(runtime.config, plan, chunk_samples=1300))
-    some = list(sweep_batch.simulate_sweep(
+    plan = sweep_simulator.plan_sweep(runtime.config, runtime.scenario)
+    full = list(sweep_simulator.simulate_sweep(runtime.config, plan, chunk_samples=1300))
+    some = list(sweep_simulator.simulate_sweep(
         runtime.config, plan, chunk_samples=1300,
         outputs=("leading_edge_acceleration", "leading_edge")))
     assert [c.outputs.shape[0] for c in some] == [2] * len(full)
@@ -65,7 +65,7 @@ def test_simulate_sweep_computes_only_the_channels_asked_for(scenario):
     with pytest.raises(ValueError, match="this chunk has"):
         some[0].displacements  # noqa: B018 - the property raises
     with pytest.raises(ValueError, match="outputs must be distinct names"):
-        next(sweep_batch.simulate_sweep(runtime.config, plan, outputs=("stroke",)))
+        next(sweep_simulator.simulate_sweep(runtime.config, plan, outputs=("stroke",)))
 
 
 def test_measured_only_sweep_is_the_full_bag_without_the_displacement(tmp_path, scenario):
@@ -112,7 +112,7 @@ def _on_writer_thread() -> bool:
 
 def test_the_writer_is_at_most_two_runs_behind(tmp_path, scenario, monkeypatch):
     simulated, lag = [], []
-    append = br._ChunkedBag.add_messages
+    append = ChunkedMcapFile.add_messages
 
     def slow_append(bag, *args):
         if _on_writer_thread():
@@ -120,7 +120,7 @@ def test_the_writer_is_at_most_two_runs_behind(tmp_path, scenario, monkeypatch):
             threading.Event().wait(0.05)
         return append(bag, *args)
 
-    monkeypatch.setattr(br._ChunkedBag, "add_messages", slow_append)
+    monkeypatch.setattr(ChunkedMcapFile, "add_messages", slow_append)
     result = sr.record_sweep(tmp_path / "bag", _runtime(scenario), chunk_samples=1300,
                              progress=lambda done, total: simulated.append(done))
     assert result.samples == 5400 and len(lag) == 5  # one encoded run per chunk here
@@ -138,7 +138,7 @@ def _raw_reference(tmp_path: Path, scenario: str) -> list[tuple]:
 def test_a_writer_error_is_raised_and_leaves_no_completed_flight(tmp_path, scenario,
                                                                   monkeypatch):
     calls = []
-    append = br._ChunkedBag.add_messages
+    append = ChunkedMcapFile.add_messages
 
     def failing(bag, *args):
         if _on_writer_thread():
@@ -147,7 +147,7 @@ def test_a_writer_error_is_raised_and_leaves_no_completed_flight(tmp_path, scena
                 raise OSError(28, "No space left on device")
         return append(bag, *args)
 
-    monkeypatch.setattr(br._ChunkedBag, "add_messages", failing)
+    monkeypatch.setattr(ChunkedMcapFile, "add_messages", failing)
     with pytest.raises(OSError, match="No space left"):
         sr.record_sweep(tmp_path / "bag", _runtime(scenario), chunk_samples=1300)
     assert _writer_threads() == []
@@ -164,7 +164,7 @@ def test_a_writer_error_is_raised_and_leaves_no_completed_flight(tmp_path, scena
 
 
 def test_a_simulation_error_stops_the_writer(tmp_path, scenario, monkeypatch):
-    simulate = sweep_batch.simulate_sweep
+    simulate = sweep_simulator.simulate_sweep
 
     def breaks_after_two(*args, **kwargs):
         chunks = simulate(*args, **kwargs)
@@ -172,7 +172,7 @@ def test_a_simulation_error_stops_the_writer(tmp_path, scenario, monkeypatch):
         yield next(chunks)
         raise FloatingPointError("simulation failed")
 
-    monkeypatch.setattr(sweep_batch, "simulate_sweep", breaks_after_two)
+    monkeypatch.setattr(sweep_simulator, "simulate_sweep", breaks_after_two)
     with pytest.raises(FloatingPointError, match="simulation failed"):
         sr.record_sweep(tmp_path / "bag", _runtime(scenario), chunk_samples=1300)
     assert _writer_threads() == []
@@ -180,7 +180,7 @@ def test_a_simulation_error_stops_the_writer(tmp_path, scenario, monkeypatch):
 
 
 def test_training_names_the_missing_displacement_of_a_measured_only_bag(tmp_path, scenario):
-    from aero_dva.bag.mcap_io import TopicNotFoundError
+    from aero_dva.bag.bag_reader import TopicNotFoundError
     from dva_offline.train_cli import _check_topics
 
     sr.record_sweep(tmp_path / "bag", _runtime(scenario), displacement=False)

@@ -8,12 +8,13 @@ import pytest
 import yaml
 from mcap.reader import make_reader
 
-from aero_dva.bag import batch_recording_io as br
+from aero_dva.bag import bag_reader
 from aero_dva.bag import sweep_recording_io as sr
+from aero_dva.bag.bag_reader import BagReadError, bag_topics, read_messages
+from aero_dva.bag.batch_recorder import BatchRecorder
 from aero_dva.bag.flight_log_io import load_flight_log
-from aero_dva.bag.mcap_io import BagReadError, bag_topics, read_messages
-from aero_dva.flight import sweep as sweep_batch
-from aero_dva.flight.scenario_flight import FlightRuntime, load_runtime_config
+from aero_dva.flight import sweep_simulator
+from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
 from tests.unit.aero_dva.bag.test_batch_recording import SWEEP
 
 # The mini sweep: 9 dwells of 600 samples (5.4 s at 1 kHz), one segment each.
@@ -50,18 +51,18 @@ def _status(bag: Path) -> list[str]:
 
 def test_spans_are_segment_starts_on_block_boundaries_balanced_by_weight(tmp_path):
     runtime = _runtime(tmp_path)
-    plan = sweep_batch.plan_sweep(runtime.config, runtime.scenario)
-    assert sweep_batch.split_sweep(plan, 1) == [(0, 5400)]
-    assert sweep_batch.split_sweep(plan, 2, weights=[1.2, 1]) == [(0, 3000), (3000, 5400)]
-    assert sweep_batch.split_sweep(plan, 3, weights=[2.2, 1, 1]) == \
+    plan = sweep_simulator.plan_sweep(runtime.config, runtime.scenario)
+    assert sweep_simulator.split_sweep(plan, 1) == [(0, 5400)]
+    assert sweep_simulator.split_sweep(plan, 2, weights=[1.2, 1]) == [(0, 3000), (3000, 5400)]
+    assert sweep_simulator.split_sweep(plan, 3, weights=[2.2, 1, 1]) == \
         [(0, 3000), (3000, 4200), (4200, 5400)]  # the segment starts nearest 2829 and 4114
-    assert sweep_batch.split_sweep(plan, 2, align=1800, weights=[1.2, 1]) == \
+    assert sweep_simulator.split_sweep(plan, 2, align=1800, weights=[1.2, 1]) == \
         [(0, 3600), (3600, 5400)]
-    assert len(sweep_batch.split_sweep(plan, 20)) == 9  # one span per segment at most
+    assert len(sweep_simulator.split_sweep(plan, 20)) == 9  # one span per segment at most
     with pytest.raises(ValueError, match="parts must be a positive integer"):
-        sweep_batch.split_sweep(plan, 0)
+        sweep_simulator.split_sweep(plan, 0)
     with pytest.raises(ValueError, match="weights must be 2 finite values > 0"):
-        sweep_batch.split_sweep(plan, 2, weights=[1.0, -1.0])
+        sweep_simulator.split_sweep(plan, 2, weights=[1.0, -1.0])
     # Equal work: a later span also carries the state over the samples before it.
     weights = sr._balanced_weights(3)
     starts = np.concatenate([[0.0], np.cumsum(weights)[:-1]])
@@ -70,12 +71,12 @@ def test_spans_are_segment_starts_on_block_boundaries_balanced_by_weight(tmp_pat
 
 def test_a_span_is_the_same_bits_as_that_part_of_the_whole_flight(tmp_path):
     runtime = _runtime(tmp_path)
-    plan = sweep_batch.plan_sweep(runtime.config, runtime.scenario)
-    whole = list(sweep_batch.simulate_sweep(runtime.config, plan, chunk_samples=1300))
+    plan = sweep_simulator.plan_sweep(runtime.config, runtime.scenario)
+    whole = list(sweep_simulator.simulate_sweep(runtime.config, plan, chunk_samples=1300))
     outputs = np.concatenate([c.outputs for c in whole], axis=1)
     force = np.concatenate([c.force for c in whole])
     for first, end in ((1800, 4200), (4200, 5400)):
-        part = list(sweep_batch.simulate_sweep(runtime.config, plan, chunk_samples=1300,
+        part = list(sweep_simulator.simulate_sweep(runtime.config, plan, chunk_samples=1300,
                                                span=(first, end)))
         assert part[0].first_index == first
         np.testing.assert_array_equal(np.concatenate([c.outputs for c in part], axis=1),
@@ -83,7 +84,7 @@ def test_a_span_is_the_same_bits_as_that_part_of_the_whole_flight(tmp_path):
         np.testing.assert_array_equal(np.concatenate([c.force for c in part]),
                                       force[first:end])
     with pytest.raises(ValueError, match=r"span \(100, 600\) must be two segment starts"):
-        next(sweep_batch.simulate_sweep(runtime.config, plan, span=(100, 600)))
+        next(sweep_simulator.simulate_sweep(runtime.config, plan, span=(100, 600)))
 
 
 @pytest.mark.parametrize("jobs", [2, 3])
@@ -112,8 +113,8 @@ def test_several_processes_write_the_messages_of_one(tmp_path, jobs):
 
 def test_divergence_in_an_early_span_ends_the_bag_there(tmp_path):
     runtime = _runtime(tmp_path, DIVERGES_FIRST)
-    plan = sweep_batch.plan_sweep(runtime.config, runtime.scenario)
-    spans = sweep_batch.split_sweep(plan, 2, align=50, weights=sr._balanced_weights(2))
+    plan = sweep_simulator.plan_sweep(runtime.config, runtime.scenario)
+    spans = sweep_simulator.split_sweep(plan, 2, align=50, weights=sr._balanced_weights(2))
     one = sr.record_sweep(tmp_path / "one", _runtime(tmp_path, DIVERGES_FIRST))
     assert one.outcome == "diverged" and one.samples < spans[0][1]  # in the first span
     split = sr.record_sweep(tmp_path / "split", _runtime(tmp_path, DIVERGES_FIRST), jobs=2)
@@ -128,14 +129,14 @@ def test_divergence_in_an_early_span_ends_the_bag_there(tmp_path):
 
 
 def test_a_failed_span_leaves_no_completed_bag(tmp_path, monkeypatch):
-    write = br.BatchRecorder.write_samples
+    write = BatchRecorder.write_samples
 
     def fails_at_the_start(recorder, first_index, *args, **kwargs):
         if first_index == 0:  # the first span's process
             raise OSError(28, "No space left on device")
         return write(recorder, first_index, *args, **kwargs)
 
-    monkeypatch.setattr(br.BatchRecorder, "write_samples", fails_at_the_start)
+    monkeypatch.setattr(BatchRecorder, "write_samples", fails_at_the_start)
     with pytest.raises(RuntimeError, match="recording span 0 of the sweep failed: OSError: "
                                            r"\[Errno 28\] No space left"):
         sr.record_sweep(tmp_path / "bag", _runtime(tmp_path), jobs=2)
@@ -146,14 +147,14 @@ def test_a_failed_span_leaves_no_completed_bag(tmp_path, monkeypatch):
 
 
 def test_a_failure_in_the_last_span_keeps_the_prefix_without_status(tmp_path, monkeypatch):
-    write = br.BatchRecorder.write_samples
+    write = BatchRecorder.write_samples
 
     def fails_late(recorder, first_index, *args, **kwargs):
         if first_index >= 3000:  # the calling process's span
             raise OSError(5, "Input/output error")
         return write(recorder, first_index, *args, **kwargs)
 
-    monkeypatch.setattr(br.BatchRecorder, "write_samples", fails_late)
+    monkeypatch.setattr(BatchRecorder, "write_samples", fails_late)
     with pytest.raises(OSError, match="Input/output error"):
         sr.record_sweep(tmp_path / "bag", _runtime(tmp_path), jobs=2)
     # The first span's file and what the second wrote before failing (nothing here) make
@@ -172,13 +173,11 @@ def test_jobs_must_be_a_positive_integer(tmp_path):
 
 
 def test_a_split_bag_without_metadata_is_salvaged_in_file_order(tmp_path):
-    from aero_dva.bag import mcap_io
-
     sr.record_sweep(tmp_path / "bag", _runtime(tmp_path), jobs=3)
     (tmp_path / "bag" / "metadata.yaml").unlink()  # as if the recording had crashed
     blocks = [m.message.first_sample_index for m in read_messages(
         tmp_path / "bag", ["/wing/excitation"], allow_truncated=True)]
     assert blocks == list(range(0, 5400, 50))
     names = [Path(f"bag_{i}.mcap") for i in (10, 2, 1)]
-    assert [p.name for p in sorted(names, key=mcap_io._file_order)] == \
+    assert [p.name for p in sorted(names, key=bag_reader._file_order)] == \
         ["bag_1.mcap", "bag_2.mcap", "bag_10.mcap"]

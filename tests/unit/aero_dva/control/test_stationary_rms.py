@@ -12,7 +12,7 @@ from aero_dva.control.stationary_rms import (
     stationary_covariance,
     stationary_rms,
 )
-from aero_dva.flight.block_simulator import simulate_flights
+from aero_dva.flight.batch_simulator import simulate_flights
 from aero_dva.flight.discretize import zoh
 from aero_dva.wing.aerodynamics import WagnerAero
 from aero_dva.wing.flutter import flutter_speed

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from aero_dva.control import dva_design as dd
-from aero_dva.flight.block_simulator import divergence_airspeed, ramp_airspeed, simulate_flights
+from aero_dva.flight.batch_simulator import simulate_flights
+from aero_dva.flight.divergence import divergence_airspeed, ramp_airspeed
 from aero_dva.wing.absorbers import MaxwellAbsorber, PassiveAbsorber
 from aero_dva.wing.flutter import flutter_speed
 from aero_dva.wing.modal import min_damping_ratio

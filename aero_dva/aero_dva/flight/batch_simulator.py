@@ -1,0 +1,482 @@
+"""Many whole flights of the wing at once: the batch simulator.
+
+:func:`simulate_flights` runs a batch of flights vectorised across flights and across hold
+periods (only a short loop over hold periods stays sequential), on the sampled wing of
+:class:`~aero_dva.flight.discrete_model.DiscreteWing` with its parameter hold. When all flights
+share one schedule, the held conditions of the whole flight are found first and discretised in
+one vectorised call (:meth:`BatchStepper.prefetch`); then the states at the period boundaries
+are carried across periods, and the outputs follow either by stepping all periods' samples in
+parallel (few flights) or by one period map per hold period applied to all flights (eight or
+more, :data:`BATCH_COLUMNS`). :class:`BatchStepper` also serves the streaming simulator's long
+calls. Pure numerics.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from aero_dva.flight.discrete_model import (
+    DEFAULT_HOLD,
+    N_DISPLACEMENTS,
+    N_OUTPUTS,
+    DiscreteWing,
+    held_values,
+)
+from aero_dva.wing.checks import real_array
+from aero_dva.wing.model import AeroelasticModel
+
+__all__ = ["BATCH_COLUMNS", "BatchStepper", "FlightTraces", "simulate_flights"]
+
+@dataclass(frozen=True)
+class FlightTraces:
+    """Outputs of :func:`simulate_flights` for ``F`` flights of ``N`` samples.
+
+    Attributes
+    ----------
+    time : (N,) [s]
+    airspeed, density, damping, force : (F, N) the inputs as applied (held)
+    displacements : (F, 4, N) plunge [m], pitch [rad], leading_edge [m], absorber_stroke [m]
+    accelerations : (F, 3, N) plunge [m/s^2], pitch [rad/s^2], leading_edge [m/s^2]
+    final_state : (F, n_states)
+
+    ``displacements`` and ``accelerations`` are views of one sample-major (F, N, p) buffer
+    (p = :data:`~aero_dva.flight.discrete_model.N_OUTPUTS`)
+    (each hold period's outputs are computed as one contiguous block); use
+    ``np.ascontiguousarray`` where a channel-major copy is needed.
+    """
+
+    time: np.ndarray
+    airspeed: np.ndarray
+    density: np.ndarray
+    damping: np.ndarray
+    force: np.ndarray
+    displacements: np.ndarray
+    accelerations: np.ndarray
+    final_state: np.ndarray
+
+
+
+class _DiscreteCache:
+    """Per-condition discrete matrices, computed in batches and kept by exact key.
+
+    Three levels, each computed only when first needed: ``basic`` (one-sample ZOH ``phi``,
+    ``gam`` and the acceleration output, from :meth:`DiscreteWing.discretise`), ``carry``
+    (``phi^h`` and the forced state at the end of a hold period) and ``period`` (all outputs of
+    a hold period as one matrix, rows in sample-major order ``j * p + o`` so that a period's
+    outputs land contiguously in an (N, p) buffer).
+    """
+
+    LEVELS = {"basic": ("phi", "gam", "cacc", "dacc"), "carry": ("phih", "ctrb"),
+              "period": ("period",)}
+
+    def __init__(self, wing: DiscreteWing, max_size: int = 4096):
+        self.wing, self.model, self.hold, self.max_size = wing, wing.model, wing.hold, max_size
+        self.clear()
+
+    def clear(self):
+        n, h = self.model.n_states, self.hold
+        self.index: dict[tuple, int] = {}
+        self.size = 0
+        na = N_OUTPUTS - N_DISPLACEMENTS
+        shapes = {"phi": (n, n), "gam": (n,), "cacc": (na, n), "dacc": (na,), "phih": (n, n),
+                  "ctrb": (n, h), "period": (N_OUTPUTS * h, n + h)}
+        self.arr = {name: np.zeros((16,) + shape) for name, shape in shapes.items()}
+        self.done = {level: np.zeros(16, dtype=bool) for level in self.LEVELS}
+
+    def lookup(self, params: np.ndarray, level: str = "basic") -> np.ndarray:
+        """Indices (K,) of the rows of ``params`` (K, 3) = [U, rho, damping], computed to
+        ``level`` ("basic", "carry" or "period"; each includes the previous)."""
+        params = np.asarray(params, dtype=float).reshape(-1, 3)
+        # Held parameters come in runs: deduplicate the runs first (cheap), then the rest.
+        new_run = np.ones(len(params), dtype=bool)
+        new_run[1:] = np.any(params[1:] != params[:-1], axis=1)
+        starts = np.flatnonzero(new_run)
+        keys = [tuple(row) for row in params[starts].tolist()]
+        index = self.index
+        missing = list(dict.fromkeys(k for k in keys if k not in index))
+        if missing:
+            self._add_basic(np.array(missing, dtype=float))
+            for k in missing:
+                index[k] = len(index)
+        idx = np.fromiter((index[k] for k in keys), dtype=np.intp, count=len(keys))
+        if level in ("carry", "period"):
+            todo = np.unique(idx[~self.done["carry"][idx]])
+            if todo.size:
+                self._add_carry(todo)
+        if level == "period":
+            todo = np.unique(idx[~self.done["period"][idx]])
+            if todo.size:
+                self._add_period(todo)
+        return np.repeat(idx, np.diff(np.r_[starts, len(params)]))
+
+    def _grow(self, size):
+        cap = len(self.done["basic"])
+        if size <= cap:
+            return
+        grow = max(size, 2 * cap)
+        for name, arr in self.arr.items():
+            bigger = np.zeros((grow,) + arr.shape[1:])
+            bigger[:cap] = arr
+            self.arr[name] = bigger
+        for name, flags in self.done.items():
+            self.done[name] = np.concatenate([flags, np.zeros(grow - cap, dtype=bool)])
+
+    def _add_basic(self, p: np.ndarray):
+        # The parameters were checked where they entered (DiscreteWing.checked_inputs).
+        m = self.wing.discretise(p)
+        phi, gam = m.ad, m.bd
+        cacc, dacc = m.c[:, N_DISPLACEMENTS:], m.d[:, N_DISPLACEMENTS:]
+        k0, k1 = self.size, self.size + len(p)
+        self._grow(k1)
+        for name, value in (("phi", phi), ("gam", gam), ("cacc", cacc), ("dacc", dacc)):
+            self.arr[name][k0:k1] = value
+        self.done["basic"][k0:k1] = True
+        self.size = k1
+
+    def _add_carry(self, idx):
+        h = self.hold
+        phi, gam = self.arr["phi"][idx], self.arr["gam"][idx][..., None]
+        # Forced state at the end of a period from the force at sample j: phi^(h-1-j) gamma
+        # (a Krylov sequence, matrix-vector products only).
+        ctrb = np.empty(gam.shape[:-1] + (h,))
+        v = gam
+        for j in range(h - 1, -1, -1):
+            ctrb[..., j] = v[..., 0]
+            if j:
+                v = phi @ v
+        self.arr["ctrb"][idx] = ctrb
+        self.arr["phih"][idx] = _matrix_power(phi, h)
+        self.done["carry"][idx] = True
+
+    def _add_period(self, idx):
+        h, model = self.hold, self.model
+        phi, gam = self.arr["phi"][idx], self.arr["gam"][idx]
+        cacc, dacc = self.arr["cacc"][idx], self.arr["dacc"][idx]
+        k, n = gam.shape
+        # Outputs over one hold period as one linear map of (start state, forces):
+        # output o at sample j = obs[j, o] x0 + sum_i toep[j, o, i] u_i.
+        period = np.zeros((k, h, N_OUTPUTS, n + h))
+        obs = period[..., :n]
+        rows = np.concatenate([np.broadcast_to(model.c_displacement, (k, N_DISPLACEMENTS, n)),
+                               cacc], axis=1)
+        for j in range(h):  # C phi^j, by products from the left
+            obs[:, j] = rows
+            if j < h - 1:
+                rows = rows @ phi
+        markov = (obs @ gam[:, None, :, None])[..., 0]  # (k, h, p): C phi^j gamma
+        toep = period[..., n:]
+        for j in range(1, h):
+            toep[:, j, :, :j] = markov[:, j - 1::-1].transpose(0, 2, 1)
+        toep[:, np.arange(h), N_DISPLACEMENTS:, np.arange(h)] = dacc[None]
+        self.arr["period"][idx] = period.reshape(k, N_OUTPUTS * h, n + h)
+        self.done["period"][idx] = True
+
+
+def _matrix_power(m: np.ndarray, power: int) -> np.ndarray:
+    """``m ** power`` for a stack of square matrices (..., n, n), by repeated squaring."""
+    out = None
+    while power:
+        if power & 1:
+            out = m if out is None else out @ m
+        power >>= 1
+        if power:
+            m = m @ m
+    return out
+
+
+_TALL_ROWS = 4096
+"""Row block of :func:`_tall_product`: each block stays below OpenBLAS's threshold for
+multithreading a product (m n k < 262144), because on a shared, busy machine a threaded
+product of this size waits for the second core far longer than it computes."""
+
+
+def _tall_product(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a @ b`` for a tall ``a`` (M, k) and a small ``b`` (k, m), in row blocks."""
+    out = np.empty((a.shape[0], b.shape[1]))
+    for i in range(0, a.shape[0], _TALL_ROWS):
+        np.matmul(a[i:i + _TALL_ROWS], b, out=out[i:i + _TALL_ROWS])
+    return out
+
+
+def _run_partial(cache, y, keys, u, out):
+    """Step ``L`` samples with one key per flight: y (F, n), keys (F,), u (F, L).
+
+    Writes outputs into ``out`` (F, L, p); returns the final state (F, n).
+    """
+    arr = cache.arr
+    phi, gam = arr["phi"][keys], arr["gam"][keys]
+    cacc, dacc = arr["cacc"][keys], arr["dacc"][keys]
+    c_disp = cache.model.c_displacement
+    nd = N_DISPLACEMENTS
+    for j in range(u.shape[1]):
+        out[:, j, :nd] = y @ c_disp.T
+        out[:, j, nd:] = np.einsum("fon,fn->fo", cacc, y) + dacc * u[:, j, None]
+        y = np.einsum("fij,fj->fi", phi, y) + gam * u[:, j, None]
+    return y
+
+
+def _carry(p: np.ndarray, g: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Start states of the recurrence ``y[i+1] = p[i] @ y[i] + g[i]`` (column layout).
+
+    ``p`` (..., B, n, n), ``g`` (..., B, n, m), ``y`` (..., n, m) the first start; returns
+    (..., B + 1, n, m). Two levels of about ``sqrt(B)`` periods keep the Python loop short:
+    compose the maps within groups (vectorised over groups), carry the state across groups,
+    then fill in each group (vectorised over groups).
+    """
+    nb, n = g.shape[-3], g.shape[-2]
+    size = max(1, int(np.sqrt(nb / 2.0)))
+    ng = -(-nb // size)
+    pad = ng * size - nb
+    if pad:
+        eye = np.broadcast_to(np.eye(n), p.shape[:-3] + (pad, n, n))
+        p = np.concatenate([p, eye], axis=-3)
+        g = np.concatenate([g, np.zeros(g.shape[:-3] + (pad,) + g.shape[-2:])], axis=-3)
+    p = p.reshape(p.shape[:-3] + (ng, size, n, n))
+    g = g.reshape(g.shape[:-3] + (ng, size) + g.shape[-2:])
+    pc = np.broadcast_to(np.eye(n), p.shape[:-4] + (ng, n, n))
+    gc = np.zeros(g.shape[:-4] + (ng,) + g.shape[-2:])
+    for s in range(size):
+        ps = p[..., s, :, :]
+        pc = ps @ pc
+        gc = ps @ gc + g[..., s, :, :]
+    starts = np.empty(np.broadcast_shapes(gc.shape, y.shape[:-2] + (1,) + y.shape[-2:])[:-3]
+                      + (ng,) + gc.shape[-2:])
+    for k in range(ng):
+        starts[..., k, :, :] = y
+        y = pc[..., k, :, :] @ y + gc[..., k, :, :]
+    out = np.empty(starts.shape[:-3] + (ng, size) + starts.shape[-2:])
+    x = starts
+    for s in range(size):
+        out[..., s, :, :] = x
+        x = p[..., s, :, :] @ x + g[..., s, :, :]
+    out = out.reshape(out.shape[:-4] + (ng * size,) + out.shape[-2:])[..., :nb, :, :]
+    return np.concatenate([out, y[..., None, :, :]], axis=-3)
+
+
+def _period_outputs(period, keys, x, out):
+    """Outputs of every hold period from its start state and forces.
+
+    ``x`` (F, B, n + h) holds, per flight and period, the start state and the ``h`` forces;
+    ``keys`` (B,) the period's discretisation (shared by all flights). Writes
+    ``out[f, b] = period[keys[b]] @ x[f, b]`` into ``out`` (F, B, p h), a period's outputs in
+    sample-major order. Periods that share a key are done as one matrix product; with mostly
+    distinct keys a gathered batched product (written in place, no copy) is cheaper.
+    """
+    nb = x.shape[1]
+    uniq, inverse = np.unique(keys, return_inverse=True)
+    if len(uniq) * 4 > nb:
+        np.matmul(x.transpose(1, 0, 2), period[keys].transpose(0, 2, 1),
+                  out=out.transpose(1, 0, 2))
+        return
+    order = np.argsort(inverse, kind="stable")
+    bounds = np.searchsorted(inverse[order], np.arange(len(uniq) + 1))
+    for g, key in enumerate(uniq):
+        idx = order[bounds[g]:bounds[g + 1]]
+        if idx[-1] - idx[0] + 1 == len(idx):  # consecutive periods: write in place
+            sl = slice(idx[0], idx[-1] + 1)
+            np.matmul(x[:, sl], period[key].T, out=out[:, sl])
+        else:
+            out[:, idx] = x[:, idx] @ period[key].T
+
+
+BATCH_COLUMNS = 8
+"""From this many flights sharing one schedule on, whole hold periods are computed as one matrix
+product each (:func:`_period_outputs`); fewer flights step the samples of all periods in
+parallel, which needs no per-condition period map."""
+
+
+def _run_full(cache, y, rows, u, out):
+    """Full hold periods: y (F, n), parameter rows (F, B, 3), u (F, B, h).
+
+    Writes displacements and accelerations into ``out`` (F, B, h, p); returns the final
+    state. The forced response at the end of each period from rest is computed for all periods
+    at once, then the states at the period boundaries (:func:`_carry`), then the outputs of all
+    periods at once. Flights that share one parameter schedule share the matrices.
+    """
+    f, nb, h = u.shape
+    arr = cache.arr
+    shared = f == 1 or bool(np.all(rows == rows[:1]))
+    if shared:
+        k = cache.lookup(rows[0], "carry")
+        level = "period" if f >= BATCH_COLUMNS or 8 * len(np.unique(k)) <= nb else "carry"
+        if level == "period":
+            k = cache.lookup(rows[0], "period")
+        g = arr["ctrb"][k] @ u.transpose(1, 2, 0)  # (B, n, F)
+        starts = _carry(arr["phih"][k], g, y.T)  # (B + 1, n, F)
+        if level == "period":
+            x = np.concatenate([starts[:-1].transpose(2, 0, 1), u], axis=2)
+            _period_outputs(arr["period"], k, x, out.reshape(f, nb, -1))
+            return starts[-1].T
+        # Few flights, mostly distinct keys: step every period's samples in parallel, keep
+        # the states, then form all outputs with a few large products.
+        phi_t = arr["phi"][k].transpose(0, 2, 1)  # row states: x @ phi^T
+        ut = u.transpose(1, 2, 0)[..., None]  # (B, h, F, 1)
+        forced = ut * arr["gam"][k][:, None, None, :]  # (B, h, F, n): gamma u_j
+        n = phi_t.shape[-1]
+        rows_t = np.empty((nb, h, f, n))
+        x = starts[:-1].transpose(0, 2, 1)  # (B, F, n)
+        for j in range(h):
+            rows_t[:, j] = x
+            x = x @ phi_t
+            x += forced[:, j]
+        outs = out.transpose(1, 2, 0, 3)  # (B, h, F, p) view of out
+        nd, na = N_DISPLACEMENTS, N_OUTPUTS - N_DISPLACEMENTS
+        outs[..., :nd] = _tall_product(rows_t.reshape(-1, n),
+                                       cache.model.c_displacement.T).reshape(nb, h, f, nd)
+        acc = rows_t.reshape(nb, h * f, n) @ arr["cacc"][k].transpose(0, 2, 1)
+        outs[..., nd:] = acc.reshape(nb, h, f, na) + arr["dacc"][k][:, None, None, :] * ut
+        return starts[-1].T
+    keys = cache.lookup(rows.reshape(-1, 3), "period").reshape(f, nb)
+    g = np.einsum("fbnj,fbj->fbn", arr["ctrb"][keys], u)[..., None]
+    starts = _carry(arr["phih"][keys], g, y[..., None])[..., 0]  # (F, B + 1, n)
+    x = np.concatenate([starts[:, :-1], u], axis=2)
+    np.einsum("fbi,fboi->fbo", x, arr["period"][keys], out=out.reshape(f, nb, -1))
+    return starts[:, -1]
+
+
+class BatchStepper:
+    """Steps many flights of one :class:`DiscreteWing` (F, N) at once, in calls of any length:
+    the batch simulator's machinery, also taken by the streaming simulator's long calls."""
+
+    def __init__(self, wing: DiscreteWing):
+        self.wing = wing
+        self.hold, self.quantum = wing.hold, wing.quantum
+        self.cache = _DiscreteCache(wing)
+
+    def prefetch(self, u, rho, c, level):
+        """Held conditions of a whole flight from sample 0, discretised in one batch.
+
+        ``u``, ``rho``, ``c`` (N,) are the flight's checked inputs. Returns the held rows
+        (1, P, 3) of its hold periods, the rule of :meth:`run`, to pass on to :meth:`run`:
+        its lookups then find everything cached (one vectorised matrix exponential for the
+        whole flight instead of one per chunk).
+        """
+        raw = np.stack([u[::self.hold], rho[::self.hold], c[::self.hold]], axis=-1)[None]
+        rows = held_values(raw, np.full((1, 3), np.nan), self.quantum)
+        if rows.shape[1] <= self.cache.max_size:
+            self.cache.lookup(rows[0], level)
+        return rows
+
+    def run(self, y, start, force, u, rho, c, held, out, applied, shared=False, rows=None):
+        """Simulate samples ``start .. start + L - 1``; y (F, n), inputs (F, L).
+
+        ``held`` (F, 3) are the parameters in force before ``start`` (NaN: none). Writes the
+        outputs into ``out`` (F, L, p) (displacements then accelerations) and the applied
+        parameters into ``applied`` (F', L, 3) (F' = 1 when all flights share their inputs,
+        ``shared``). ``rows`` (F', P, 3), if given, are the held values of the hold periods
+        starting in this call (from :meth:`prefetch`). Returns (y_end, held_end).
+        """
+        f, total = force.shape
+        h = self.hold
+        if shared:  # the parameters of the first flight serve all
+            u, rho, c = u[:1], rho[:1], c[:1]
+        if self.cache.size > self.cache.max_size:
+            self.cache.clear()
+        first = min((h - start % h) % h, total)  # samples left in the current hold period
+        idx = np.arange(first, total, h)  # first samples of the new hold periods
+        if rows is None:
+            raw = np.stack([u[:, idx], rho[:, idx], c[:, idx]], axis=-1)
+            rows = held_values(raw, held[: raw.shape[0]], self.quantum)  # (F', P, 3)
+        nf = applied.shape[0]
+        if first:
+            y = self._partial(y, held, force, out, applied, 0, first)
+        n_full = (total - first) // h
+        if n_full and total >= 4 * h:
+            sl = slice(first, first + n_full * h)
+            pb = np.broadcast_to(rows[:, :n_full], (f, n_full, 3))
+            fb = force[:, sl].reshape(f, n_full, h)
+            y = _run_full(self.cache, y, pb, fb,
+                          out[:, sl].reshape(f, n_full, h, N_OUTPUTS))
+            applied[:, sl] = np.repeat(rows[:nf, :n_full], h, axis=1)
+            done = n_full
+        else:
+            done = 0
+        for p in range(done, len(idx)):  # short calls and the last, partial period
+            a = first + p * h
+            b = min(a + h, total)
+            y = self._partial(y, rows[:, p], force, out, applied, a, b)
+        held_end = rows[:, -1] if len(idx) else held
+        return y, np.broadcast_to(held_end, (f, 3)).copy()
+
+    def _partial(self, y, params, force, out, applied, a, b):
+        """Samples ``a:b`` within one hold period with ``params`` (F' or F, 3)."""
+        f = force.shape[0]
+        keys = self.cache.lookup(np.ascontiguousarray(params))
+        keys = np.broadcast_to(keys, (f,)) if keys.size == 1 else keys
+        applied[:, a:b] = params[: applied.shape[0], None, :]
+        return _run_partial(self.cache, y, keys, force[:, a:b], out[:, a:b])
+
+
+def simulate_flights(wing, absorber=None, *, force, airspeed, density, damping=None,
+                     sample_rate: float = 1000.0, aero=None, x0=None,
+                     hold: int = DEFAULT_HOLD, quantum: float = 2e-3,
+                     chunk: int | None = None) -> FlightTraces:
+    """Simulate a batch of whole flights at once.
+
+    Parameters
+    ----------
+    wing, absorber, aero
+        As for :class:`~aero_dva.flight.streaming_simulator.StreamingSimulator`.
+    force : array_like, shape (F, N) or (N,)
+        Aileron force [N] per flight and sample.
+    airspeed, density, damping : array_like
+        Broadcastable to (F, N): [m/s], [kg/m^3], [N s/m] (``None``: the absorber's value).
+    sample_rate : float
+        [Hz]
+    x0 : array_like, shape (n_states,) or (F, n_states), optional
+    hold, quantum : the parameter hold (:mod:`aero_dva.flight.discrete_model`). ``quantum``
+        (default 2e-3) lets a held value lag its input by up to 0.2 % (0.2 m/s at 100 m/s) in
+        exchange for speed.
+    chunk : int, optional
+        Hold periods processed together (bounds memory; default about 65536 / F).
+
+    Returns
+    -------
+    FlightTraces
+    """
+    model = AeroelasticModel(wing, absorber, aero)
+    dw = DiscreteWing(model, sample_rate, hold=hold, quantum=quantum)
+    eng = BatchStepper(dw)
+    f = real_array(force, "force")
+    if f.ndim == 1:
+        f = f[None, :]
+    if f.ndim != 2:
+        raise ValueError(f"force must have shape (F, N) or (N,), got {f.shape}")
+    nf, total = f.shape
+    u, rho, c = dw.checked_inputs(airspeed, density, damping, (nf, total))
+    n = model.n_states
+    y = np.zeros((nf, n)) if x0 is None else np.broadcast_to(real_array(x0, "x0"), (nf, n))
+    y = np.array(y, dtype=float)
+    dw.check_sampling(u[0, 0], rho[0, 0], c[0, 0])
+    shared = all(np.ndim(v) <= 1 for v in (airspeed, density, damping))
+    rows = None
+    if shared and total >= 4 * eng.hold:
+        rows = eng.prefetch(u[0], rho[0], c[0], "period" if nf >= BATCH_COLUMNS else "carry")
+    # sample-major: each hold period's outputs are contiguous
+    out = np.empty((nf, total, N_OUTPUTS))
+    applied = np.empty((1 if shared else nf, total, 3))
+    held = np.full((nf, 3), np.nan)
+    periods = int(np.clip(65536 // nf, 32, 4096)) if chunk is None else max(1, int(chunk))
+    if not shared:  # per-flight matrices are gathered: bound that memory (~32 MB)
+        periods = max(8, min(periods, int(4e6 // (nf * N_OUTPUTS * eng.hold
+                                                     * (n + eng.hold)))))
+    step = periods * eng.hold
+    for s in range(0, total, step):
+        sl = slice(s, min(s + step, total))
+        part = None if rows is None else rows[:, s // eng.hold:-(-sl.stop // eng.hold)]
+        y, held = eng.run(y, s, f[:, sl], u[:, sl], rho[:, sl], c[:, sl], held, out[:, sl],
+                          applied[:, sl], shared, part)
+    applied = np.broadcast_to(applied, (nf, total, 3))
+    return FlightTraces(
+        time=np.arange(total) / dw.sample_rate,
+        airspeed=applied[..., 0],
+        density=applied[..., 1],
+        damping=applied[..., 2],
+        force=f,
+        displacements=out.transpose(0, 2, 1)[:, :N_DISPLACEMENTS],
+        accelerations=out.transpose(0, 2, 1)[:, N_DISPLACEMENTS:],
+        final_state=y,
+    )
+

@@ -1,0 +1,230 @@
+"""The flight runtime: one scenario flown block by block, what the simulator node steps (no ROS).
+
+:class:`FlightRuntime` ties a scenario, the wing with its tunable Maxwell DVA, the damper model
+and the seeded excitation together. The simulator node calls :meth:`FlightRuntime.step` and
+publishes what it returns; the batch path and the tests call the same code, so a seed gives the
+same data through either route. A scenario with an active ``plant`` section flies the hidden
+plant of :mod:`aero_dva.flight.hidden_plant` instead of the nominal model; what is published (and
+the damper state) stays the same in kind, so the log does not reveal the plant options.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from aero_dva import data_files
+from aero_dva.flight.damper import CommandResult, DamperConfig, DamperModel, DamperSnapshot
+from aero_dva.flight.discrete_model import FLIGHT_QUANTUM
+from aero_dva.flight.hidden_plant import PlantSimulator
+from aero_dva.flight.scenario import (
+    Scenario,
+    airspeed_at,
+    density_at,
+    force_scale_at,
+    resolve_airspeeds,
+    sample_times,
+    sweep_damping_at,
+)
+from aero_dva.flight.scenario_io import load_scenario
+from aero_dva.flight.streaming_simulator import StreamingSimulator
+from aero_dva.wing.absorbers import MaxwellAbsorber
+from aero_dva.wing.flutter import flutter_speed
+from aero_dva.wing.model import AeroelasticModel, WingParameters
+from aero_dva.wing.wing_io import load_wing
+
+ABSORBER_CHOICES = ("maxwell", "none")
+SWEEP_SOURCE = "sweep"  # dva_msgs/DamperCommand.SOURCE_SWEEP
+
+
+@dataclass(frozen=True)
+class RuntimeConfig:
+    """Everything a flight needs, validated.
+
+    Attributes
+    ----------
+    scenario : Scenario
+        With airspeeds still possibly relative to the critical airspeed without DVA.
+    wing : WingParameters
+    aero : aerodynamic model of the wing file (quasi-steady by default)
+    absorber : MaxwellAbsorber or None
+        None flies the bare wing.
+    damper : DamperConfig
+    """
+
+    scenario: Scenario
+    wing: WingParameters
+    aero: object
+    absorber: MaxwellAbsorber | None
+    damper: DamperConfig
+
+
+@dataclass(frozen=True)
+class FlightBlock:
+    """One simulated block (time on the last axis).
+
+    Attributes
+    ----------
+    first_index : int
+        Index of the block's first sample since the start of the flight.
+    t0, t_end : float
+        [s] time of the first sample, and of the sample after the last one.
+    force : (n,) [N]; airspeed, density, damping : (n,) [m/s], [kg/m^3], [N s/m]
+    displacements : (4, n); accelerations : (3, n) (see
+        :mod:`aero_dva.flight.streaming_simulator`)
+    diverged : bool
+    """
+
+    first_index: int
+    t0: float
+    t_end: float
+    force: np.ndarray
+    airspeed: np.ndarray
+    density: np.ndarray
+    damping: np.ndarray
+    displacements: np.ndarray
+    accelerations: np.ndarray
+    diverged: bool
+
+
+def _nan_or(value: float, default: float) -> float:
+    return default if value is None or (isinstance(value, float) and math.isnan(value)) else value
+
+
+def load_runtime_config(params: dict) -> RuntimeConfig:
+    """Build a :class:`RuntimeConfig` from node-style parameters (see simulator_node).
+
+    Empty paths take the package's defaults; NaN absorber and damper values take the wing file's
+    Maxwell design. Raises ValueError naming the bad parameter.
+    """
+    scenario_path = params.get("scenario") or data_files.data_file("scenario_ramp.yaml")
+    scenario = load_scenario(scenario_path)
+    wing_file = load_wing(params.get("wing") or None)
+    choice = params.get("absorber", "maxwell")
+    if choice not in ABSORBER_CHOICES:
+        raise ValueError(f"parameter 'absorber' must be one of {ABSORBER_CHOICES}, got {choice!r}")
+    design = wing_file.maxwell_design
+    absorber = None
+    if choice == "maxwell":
+        absorber = MaxwellAbsorber(
+            mass=_nan_or(params.get("absorber_mass"), design.mass),
+            stiffness=_nan_or(params.get("absorber_stiffness"), design.stiffness),
+            series_stiffness=_nan_or(params.get("absorber_series_stiffness"),
+                                     design.series_stiffness),
+            damping=design.damping,
+            position=_nan_or(params.get("absorber_position"), design.position),
+        )
+        wing_file.wing.check_on_chord(absorber.position, "absorber_position")
+    low = float(params.get("damper_min", 0.0))
+    high = float(params.get("damper_max", 2500.0))
+    fallback = _nan_or(params.get("damper_fallback"), min(max(design.damping, low), high))
+    damper = DamperConfig(
+        min_damping=low, max_damping=high, fallback_damping=fallback,
+        initial_damping=_nan_or(params.get("damper_initial"), fallback),
+        stale_timeout=float(params.get("damper_timeout", 0.5)),
+        time_constant=float(params.get("damper_time_constant", 0.0)),
+    )
+    outside = [c for c in scenario.sweep_damping if not low <= c <= high]
+    if outside:
+        raise ValueError(f"sweep c2 values {outside} N s/m lie outside the damper's range "
+                         f"[{low}, {high}] (parameters damper_min, damper_max)")
+    return RuntimeConfig(scenario=scenario, wing=wing_file.wing, aero=wing_file.aero,
+                         absorber=absorber, damper=damper)
+
+
+class FlightRuntime:
+    """Step a flight block by block (see module docstring)."""
+
+    def __init__(self, config: RuntimeConfig):
+        self.config = config
+        bare = AeroelasticModel(config.wing, None, config.aero)
+        # Relative airspeeds (U/U_cr, as the study states them) refer to the wing without DVA.
+        self.critical_airspeed = flutter_speed(
+            bare, density=config.scenario.density).critical_airspeed
+        self.scenario = resolve_airspeeds(config.scenario, self.critical_airspeed)
+        self.sample_rate = self.scenario.sample_rate
+        self.block_size = self.scenario.block_size
+        self.block_duration = self.block_size / self.sample_rate
+        # Held airspeed/density/c2 change only by more than FLIGHT_QUANTUM (0.1 %) so a ramp
+        # reuses cached discretisations (eigenvalue shifts ~1e-3 relative, far below the
+        # model's accuracy).
+        plant = self.scenario.plant
+        if plant is not None and plant.active:
+            # Hidden plant: the wing flown differs from the model the log implies.
+            self._sim = PlantSimulator(config.wing, config.absorber, self.sample_rate,
+                                       config.aero, plant, seed=self.scenario.seed)
+        else:
+            self._sim = StreamingSimulator(config.wing, config.absorber,
+                                           sample_rate=self.sample_rate, aero=config.aero,
+                                           quantum=FLIGHT_QUANTUM)
+        self._damper = DamperModel(config.damper, start_time=0.0)
+        self._rng = np.random.default_rng(self.scenario.seed)
+        self._index = 0
+        self._sweep = self.scenario.airspeed.kind == "steps"
+
+    @property
+    def time(self) -> float:
+        """[s] sim time of the next sample."""
+        return self._index / self.sample_rate
+
+    @property
+    def done(self) -> bool:
+        return self._index >= self.scenario.n_samples
+
+    def command(self, damping: float, source: str) -> CommandResult | None:
+        """Hand a c2 command to the damper at the current sim time (None: a sweep ignores it)."""
+        if self._sweep:
+            return None
+        return self._damper.command(damping, self.time, source)
+
+    def damper_snapshot(self) -> DamperSnapshot:
+        return self._damper.snapshot()
+
+    def step(self) -> FlightBlock:
+        """Simulate the next block (shorter at the end of the flight)."""
+        n = min(self.block_size, self.scenario.n_samples - self._index)
+        if n <= 0:
+            raise ValueError("the flight is over")
+        t = sample_times(self.scenario, self._index, n)
+        airspeed = airspeed_at(self.scenario, t)
+        density = density_at(self.scenario, t)
+        if self._sweep:
+            # The sweep operates the damper itself: command it every block so the damper's
+            # state (and dva/damper_state) reports the c2 the wing really has.
+            damping = sweep_damping_at(self.scenario, t)
+            self._damper.command(float(damping[0]), float(t[0]), SWEEP_SOURCE)
+            self._damper.update(float(t[0]))
+        else:
+            # The damper is updated once per block: commands arrive between blocks.
+            damping = np.full(n, self._damper.update(float(t[0])))
+        force = self.scenario.force_std * self._rng.standard_normal(n)
+        if self.scenario.force_levels:
+            force *= force_scale_at(self.scenario, t)
+        out = self._sim.advance(force, airspeed, density,
+                                damping if self.config.absorber is not None else None)
+        block = FlightBlock(
+            first_index=self._index, t0=float(t[0]),
+            t_end=(self._index + n) / self.sample_rate,  # exactly the next block's t0
+            force=force, airspeed=airspeed, density=density, damping=damping,
+            displacements=out.displacements, accelerations=out.accelerations,
+            diverged=out.diverged)
+        self._index += n
+        if not self._sweep:
+            self._damper.update(block.t_end)
+        return block
+
+    def describe(self) -> dict:
+        """A short summary for logs."""
+        u = np.asarray(self.scenario.airspeed.values)
+        absorber = self.config.absorber
+        return {
+            "scenario": self.scenario.name, "duration_s": self.scenario.duration,
+            "sample_rate_hz": self.sample_rate, "airspeed_min": float(u.min()),
+            "airspeed_max": float(u.max()), "critical_airspeed": self.critical_airspeed,
+            "absorber": "none" if absorber is None else (
+                f"maxwell m1={absorber.mass:g} kg k1={absorber.stiffness:g} N/m "
+                f"k2={absorber.series_stiffness:g} N/m at {absorber.position:g} m"),
+        }
+
+

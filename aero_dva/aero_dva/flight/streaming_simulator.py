@@ -1,0 +1,241 @@
+"""One flight of the wing streamed block by block: the simulator node's simulator.
+
+::
+
+    sim = StreamingSimulator(wing, absorber, sample_rate=1000.0, aero=None, x0=None)
+    out = sim.advance(force, airspeed, density, damping=None)
+    out.time            # (n,) [s] sample times, first_sample_index / sample_rate onward
+    out.displacements   # (4, n) plunge [m], pitch [rad], leading_edge [m], absorber_stroke [m]
+    out.accelerations   # (3, n) plunge [m/s^2], pitch [rad/s^2], leading_edge [m/s^2]
+    out.diverged        # bool, sticky since the last reset
+    sim.state           # (n_states,) state after the last sample
+    sim.reset(x0=None)  # back to sample 0 with state x0 (zeros by default)
+
+``force`` (n,) [N] is the aileron force, held constant over each sample (zero-order hold).
+``airspeed`` [m/s], ``density`` [kg/m^3] and ``damping`` [N s/m] (``c2`` of a Maxwell
+absorber, ``c1`` of a passive one; ``None`` keeps the absorber's own value) are scalars or (n,)
+arrays. Sample ``i`` of a block is the state at ``time[i]`` and the acceleration there with the
+force ``force[i]`` acting.
+
+The wing is the :class:`~aero_dva.flight.discrete_model.DiscreteWing` with its parameter hold:
+airspeed, density and damping are sampled on a global grid of ``hold`` samples since the last
+reset and held (with hysteresis ``quantum``), so the result does not depend on how a run is cut
+into ``advance`` calls. Short calls (up to :data:`STREAM_MAX_PERIODS` hold periods, such as the
+simulator node's blocks) step the flight one hold period at a time with the discrete wing's
+cached per-condition maps; longer calls take the batch simulator's
+:class:`~aero_dva.flight.batch_simulator.BatchStepper`. Both give the same run up to rounding.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from aero_dva.flight.batch_simulator import BatchStepper
+from aero_dva.flight.discrete_model import (
+    DEFAULT_HOLD,
+    N_DISPLACEMENTS,
+    N_OUTPUTS,
+    OUTPUT_NAMES,
+    DiscreteWing,
+)
+from aero_dva.wing.checks import positive, real_array
+from aero_dva.wing.model import AeroelasticModel
+
+__all__ = ["STREAM_MAX_PERIODS", "SimulationBlock", "StreamingSimulator"]
+
+LEADING_EDGE = OUTPUT_NAMES.index("leading_edge")
+
+STREAM_MAX_PERIODS = 128
+""":meth:`StreamingSimulator.advance` calls spanning at most this many hold periods step the
+flight period by period; longer calls take the batch machinery, whose vectorised carry across
+periods is cheaper from a few hundred periods on."""
+
+
+@dataclass(frozen=True)
+class SimulationBlock:
+    """Outputs of one :meth:`StreamingSimulator.advance` call (time on the last axis)."""
+
+    time: np.ndarray
+    displacements: np.ndarray
+    accelerations: np.ndarray
+    diverged: bool
+
+
+def _input(value, name: str, allow_inf: bool = False):
+    """A flight input as a float (scalar) or a 1-D float array, checked as
+    :meth:`DiscreteWing.checked_inputs` checks it."""
+    arr = real_array(value, name, allow_inf=allow_inf)
+    if arr.ndim == 0:
+        x = float(arr)
+        if x < 0:
+            raise ValueError(f"{name} must be >= 0")
+        return x
+    if arr.size and arr.min() < 0:
+        raise ValueError(f"{name} must be >= 0")
+    return arr
+
+
+class StreamingSimulator:
+    """Streaming simulator of the wing (see the module docstring for the contract).
+
+    Parameters
+    ----------
+    wing : WingParameters
+    absorber : PassiveAbsorber or MaxwellAbsorber or None
+    sample_rate : float
+        [Hz], > 0; every oscillatory mode at the first condition must be below Nyquist.
+    aero : QuasiSteadyAero or WagnerAero, optional
+        Default quasi-steady (the study's).
+    x0 : array_like, shape (n_states,), optional
+        Initial state (default zeros).
+    hold : int
+        Samples between updates of airspeed, density and damping.
+    quantum : float
+        Relative change of an input below which the held value is kept (0 = exact).
+    divergence_limit : float, optional
+        [m] ``diverged`` becomes true once the leading-edge displacement exceeds this in
+        magnitude or a value is not finite (default: half the chord, far outside the range of
+        the linear model).
+    """
+
+    def __init__(self, wing, absorber=None, sample_rate: float = 1000.0, aero=None, x0=None,
+                 hold: int = DEFAULT_HOLD, quantum: float = 0.0, divergence_limit=None):
+        self.model = AeroelasticModel(wing, absorber, aero)
+        self.discrete = DiscreteWing(self.model, sample_rate, hold=hold, quantum=quantum)
+        self._batch = BatchStepper(self.discrete)
+        if divergence_limit is None:
+            divergence_limit = 0.5 * wing.chord
+        self.divergence_limit = positive(divergence_limit, "divergence_limit")
+        self._checked = False
+        self.reset(x0)
+
+    @property
+    def sample_rate(self) -> float:
+        """[Hz]"""
+        return self.discrete.sample_rate
+
+    @property
+    def n_states(self) -> int:
+        return self.model.n_states
+
+    @property
+    def state_names(self) -> tuple:
+        return self.model.state_names
+
+    @property
+    def state(self) -> np.ndarray:
+        """(n_states,) State after the last simulated sample (a copy)."""
+        return self._y[0].copy()
+
+    @property
+    def sample_index(self) -> int:
+        """Index of the next sample since the last reset."""
+        return self._index
+
+    @property
+    def diverged(self) -> bool:
+        return self._diverged
+
+    def reset(self, x0=None) -> None:
+        """Restart at sample 0 with state ``x0`` (zeros by default)."""
+        n = self.model.n_states
+        if x0 is None:
+            y = np.zeros(n)
+        else:
+            y = real_array(x0, "x0")
+            if y.shape != (n,):
+                raise ValueError(f"x0 must have shape ({n},), got {y.shape}")
+        self._y = y[None, :].copy()
+        self._index = 0
+        self._held = (np.nan, np.nan, np.nan)  # (airspeed, density, damping) in force
+        self._diverged = False
+
+    def advance(self, force, airspeed, density, damping=None) -> SimulationBlock:
+        """Simulate ``len(force)`` samples; see the module docstring.
+
+        Raises
+        ------
+        ValueError
+            Bad inputs (NaN, negative airspeed/density/damping, wrong lengths), or a sample
+            rate below the Nyquist rate of the wing's modes at the first condition.
+        """
+        f = real_array(force, "force")
+        if f.ndim != 1:
+            raise ValueError(f"force must be 1-D (n,), got shape {f.shape}")
+        n = f.size
+        for name, v in (("airspeed", airspeed), ("density", density), ("damping", damping)):
+            if v is not None and np.ndim(v) not in (0,) and np.shape(v) != (n,):
+                raise ValueError(f"{name} must be a scalar or have shape ({n},), "
+                                 f"got {np.shape(v)}")
+        dw = self.discrete
+        if damping is None:
+            damping = dw.default_damping()
+        u, rho = _input(airspeed, "airspeed"), _input(density, "density")
+        c = _input(damping, "damping", allow_inf=True)
+        if not self._checked and n:
+            dw.check_sampling(*(float(v) if np.ndim(v) == 0 else float(v[0])
+                                for v in (u, rho, c)))
+            self._checked = True
+        if -(-n // dw.hold) <= STREAM_MAX_PERIODS:
+            out, y, self._held = self._stream(self._y[0], f, u, rho, c)
+            self._y = y[None, :]
+        else:
+            out = np.empty((1, n, N_OUTPUTS))
+            shape = (1, n)
+            y, held = self._batch.run(self._y, self._index, f[None, :],
+                                      np.broadcast_to(u, shape), np.broadcast_to(rho, shape),
+                                      np.broadcast_to(c, shape), np.array([self._held]), out,
+                                      np.empty((1, n, 3)))
+            self._y, self._held, out = y, tuple(held[0].tolist()), out[0].T
+        disp, acc = out[:N_DISPLACEMENTS], out[N_DISPLACEMENTS:]
+        time = (self._index + np.arange(n)) / dw.sample_rate
+        self._index += n
+        if not self._diverged:
+            self._diverged = bool(
+                not np.all(np.isfinite(self._y))
+                or not np.all(np.isfinite(disp))
+                or (n and np.max(np.abs(disp[LEADING_EDGE])) > self.divergence_limit)
+            )
+        return SimulationBlock(time=time, displacements=disp, accelerations=acc,
+                               diverged=self._diverged)
+
+    def _stream(self, y, force, airspeed, density, damping):
+        """Step samples ``index .. index + len(force) - 1`` hold period by hold period.
+
+        For a 50-sample block the batch machinery (deduplicating parameter rows, gathering
+        per-condition matrices) costs far more than the arithmetic: here each held condition's
+        maps come from the discrete wing's cache by exact key, and a full hold period is one
+        matrix-vector product. Returns the outputs (p, len(force)), the end state and the
+        (airspeed, density, damping) in force at the end.
+        """
+        dw = self.discrete
+        total, h, ns = force.size, dw.hold, dw.n_states
+        first = min((h - self._index % h) % h, total)  # samples left in the current period
+        count = len(range(first, total, h))
+        values = [v[first::h].tolist() if isinstance(v, np.ndarray) else [v] * count
+                  for v in (airspeed, density, damping)]
+        held = self._held
+        segments = [(0, first, held)] if first else []
+        for p, key in enumerate(dw.held_sequence(zip(*values), held)):
+            a = first + p * h
+            segments.append((a, min(a + h, total), key))
+            held = key
+        maps = dw.conditions([key for _, _, key in segments])
+        out = np.empty((N_OUTPUTS, total))
+        for (a, b, _), cond in zip(segments, maps):
+            if b - a == h:
+                r = cond.period @ np.concatenate((y, force[a:b]))
+                y = r[:ns]
+                out[:, a:b] = r[ns:].reshape(N_OUTPUTS, h)
+                continue
+            x = np.empty(ns + 1)
+            step = cond.step
+            for j in range(a, b):
+                x[:ns] = y
+                x[ns] = force[j]
+                r = step @ x
+                y = r[:ns]
+                out[:, j] = r[ns:]
+        return out, np.array(y), held

@@ -1,0 +1,80 @@
+"""The flight runtime: the ROS-free stepping of a scenario behind the simulator node."""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from aero_dva.flight.damper import DamperStatus
+from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
+from aero_dva.flight.scenario import AirspeedProfile, Scenario
+
+
+def _runtime(scenario: Scenario, **params) -> FlightRuntime:
+    config = load_runtime_config(params)
+    return FlightRuntime(dataclasses.replace(config, scenario=scenario))
+
+
+def _fly(runtime: FlightRuntime) -> list:
+    blocks = []
+    while not runtime.done:
+        blocks.append(runtime.step())
+        if blocks[-1].diverged:
+            break
+    return blocks
+
+
+def test_same_seed_same_flight_and_blocks_tile_the_flight():
+    scenario = Scenario("c", 1.0, block_size=30, airspeed=AirspeedProfile("constant", (80.0,)),
+                        seed=4)
+    a, b = _fly(_runtime(scenario)), _fly(_runtime(scenario))
+    assert [x.first_index for x in a] == list(range(0, 1000, 30))
+    assert a[-1].force.size == 1000 - 33 * 30  # the last block is shorter
+    for x, y in zip(a, b):
+        np.testing.assert_array_equal(x.displacements, y.displacements)
+    assert all(x.t_end == y.t0 for x, y in zip(a, a[1:]))
+
+
+def test_sweep_drives_the_damper_and_reports_it():
+    scenario = Scenario("s", 8.0, block_size=50, airspeed=AirspeedProfile("steps", (80.0, 90.0)),
+                        dwell=2.0, sweep_damping=(300.0, 900.0))
+    runtime = _runtime(scenario)
+    seen = []
+    while not runtime.done:
+        block = runtime.step()
+        snapshot = runtime.damper_snapshot()
+        seen.append((block.damping[0], snapshot.applied_damping, snapshot.source))
+    assert all(model == reported for model, reported, _ in seen)
+    assert {c for c, _, _ in seen} == {300.0, 900.0}
+    assert all(source == "sweep" for _, _, source in seen)
+    assert runtime.command(50.0, "controller") is None  # a sweep ignores controllers
+
+
+def test_sweep_outside_the_damper_range_is_refused(tmp_path):
+    path = tmp_path / "sweep.yaml"
+    path.write_text("duration: auto\nairspeed: {kind: steps, values: [80.0]}\n"
+                    "sweep: {dwell: 2.0, damping: [100.0, 9000.0]}\n")
+    with pytest.raises(ValueError, match=r"9000.0\] N s/m lie outside"):
+        load_runtime_config({"scenario": str(path)})
+
+
+def test_bare_wing_diverges_above_its_flutter_speed_not_below():
+    below = Scenario("b", 5.0, airspeed=AirspeedProfile("constant", (0.95,), relative=True))
+    above = Scenario("a", 30.0, airspeed=AirspeedProfile("constant", (1.15,), relative=True))
+    assert not _fly(_runtime(below, absorber="none"))[-1].diverged
+    blocks = _fly(_runtime(above, absorber="none"))
+    assert blocks[-1].diverged and blocks[-1].t0 < 30.0
+    assert all(np.all(np.isfinite(b.displacements)) for b in blocks)
+
+
+def test_commands_pass_through_the_damper_model():
+    scenario = Scenario("c", 1.0, airspeed=AirspeedProfile("constant", (80.0,)))
+    runtime = _runtime(scenario, damper_timeout=0.3)
+    runtime.step()
+    assert runtime.command(float("nan"), "x").accepted is False
+    assert runtime.command(700.0, "x").accepted is True
+    assert runtime.step().damping[0] == 700.0
+    while not runtime.done:
+        runtime.step()
+    assert runtime.damper_snapshot().status == DamperStatus.FALLBACK_STALE
