@@ -76,6 +76,9 @@ SPEC = NodeSpec(
               "topic has this many subscribers", "", 0, 1000),
         Param("wait_for_nodes", [""], "... and these nodes are in the graph with all their "
               "subscriptions to played topics matched"),
+        Param("wait_for_topics", [""], "... and these topics, not played, have a publisher and "
+              "N subscribers in the graph (TOPIC or TOPIC:N, N default 1), e.g. the links "
+              "between the nodes the bag is replayed into"),
         Param("wait_timeout", 30.0, "wall time after which playing starts anyway (with a "
               "warning)", "s", 0.0, 1.0e6),
         Param("delay", 0.5, "wall time from the end of the wait to the first message: DDS "
@@ -124,6 +127,7 @@ class BagPlayer(Node):
         self._play_clock = bool(values["clock"])
         self._wait_for = int(values["wait_for_subscribers"])
         self._wait_nodes = [n for n in values["wait_for_nodes"] if n]
+        self._wait_topics = [self._topic_count(t) for t in values["wait_for_topics"] if t]
         self._wait_timeout = float(values["wait_timeout"])
         self._delay = float(values["delay"])
         self.played = self._select(values["topics"])
@@ -152,6 +156,15 @@ class BagPlayer(Node):
         described = ", ".join(f"{n} ({self.source.topics[n].message_count})" for n in self.played)
         self.get_logger().info(f"playing {values['bag']} at rate {self.rate:g}: {described}")
         self._thread.start()
+
+    @staticmethod
+    def _topic_count(entry: str) -> tuple[str, int]:
+        name, _, count = entry.rpartition(":") if ":" in entry else (entry, "", "1")
+        try:
+            return name, int(count)
+        except ValueError:
+            raise ValueError(f"parameter 'wait_for_topics': {entry!r} is not TOPIC or "
+                             "TOPIC:N") from None
 
     def _select(self, wanted) -> list[str]:
         names = [w if w.startswith("/") else "/" + w for w in wanted if w]
@@ -218,6 +231,9 @@ class BagPlayer(Node):
                 known = len(self.get_subscriptions_info_by_topic(pub.topic_name))
                 if pub.get_subscription_count() < known:
                     missing.append(f"matching of {known} subscribers on {name}")
+        for topic, count in self._wait_topics:
+            if self.count_publishers(topic) < 1 or self.count_subscribers(topic) < count:
+                missing.append(f"a publisher and {count} subscribers on {topic}")
         return missing
 
     def _play_once(self) -> None:
