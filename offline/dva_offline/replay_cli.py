@@ -190,11 +190,20 @@ def _replay(args) -> int:
         c = result[key]
         if c is None:
             continue
-        verdict = ("identical to the recorded" if c["identical"] else
-                   f"max |difference| {c['max_abs_difference']:.6g}, RMS "
-                   f"{c['rms_difference']:.6g}" + (" N s/m" if key == "commands" else ""))
+        if c["identical"]:
+            verdict = "identical to the recorded"
+        elif c["matched"] == 0:
+            verdict = "nothing to compare stamp by stamp"
+        else:
+            verdict = (f"max |difference| {c['max_abs_difference']:.6g}, RMS "
+                       f"{c['rms_difference']:.6g}" + (" N s/m" if key == "commands" else ""))
         print(f"{key:12s} {c['other']} re-run, {c['reference']} recorded, {c['matched']} "
               f"at the same stamps: {verdict}")
+        held = c.get("held")
+        if held and held["compared"] and not c["identical"]:
+            print(f"{'':12s} against the recorded c2 in force at each re-run command "
+                  f"({held['compared']}): mean {held['mean_difference']:+.6g}, max |difference| "
+                  f"{held['max_abs_difference']:.6g}, RMS {held['rms_difference']:.6g} N s/m")
     print(f"new bag      {args.out}")
     print(f"wall time    {wall:.1f} s")
     return 0
