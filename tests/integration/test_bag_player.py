@@ -168,6 +168,21 @@ def test_subset_offset_duration_and_the_status_at_the_end(flight, executor, spin
     assert values["published:/flight/condition"] == "21" and values["outcome"] == "completed"
 
 
+def test_loop_plays_the_part_again_until_stopped(flight, executor, spin, ros_context):
+    player = BagPlayer(context=ros_context, parameter_overrides=[
+        Parameter("bag", value=str(flight["bag"])), Parameter("rate", value=0.0),
+        Parameter("topics", value=["/flight/condition"]), Parameter("duration", value=0.1),
+        Parameter("loop", value=True), Parameter("delay", value=0.0)])
+    executor.add_node(player)
+    try:
+        # 0 .. 0.1 s of log time: 3 conditions a round
+        assert spin(executor, lambda: player.counts["/flight/condition"] >= 9, 30.0)
+        assert not player.finished.done()
+    finally:
+        player.close()
+    assert player.finished.done() and player.finished.result() == "stopped"
+
+
 def test_recorded_qos_is_offered_again(tmp_path, executor, spin, ros_context):
     bag = tmp_path / "qos"
     with BagWriter(bag) as writer:
