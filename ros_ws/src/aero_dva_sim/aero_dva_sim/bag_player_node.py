@@ -173,6 +173,9 @@ class BagPlayer(Node):
         if unknown:
             raise ValueError(f"parameter 'topics': {unknown} not in the bag; its topics: "
                              f"{sorted(available)}")
+        if self._play_clock and "/clock" in names:
+            raise ValueError("parameter 'topics' names /clock while 'clock' is true (the "
+                             "player's own /clock): set clock:=false to play the recorded one")
         chosen = names or sorted(available)
         if self._play_clock and not names:
             chosen = [n for n in chosen if n != "/clock"]  # the player's own clock replaces it
