@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from aero_dva.bag.mcap_io import bag_topics
+from aero_dva.bag.bag_reader import bag_topics
 from aero_dva.control.airspeed_schedule import fit_airspeed_schedule
 from aero_dva.control.dva_design import best_damping_curve
 from aero_dva.control.schedule_io import save_schedule

@@ -134,6 +134,22 @@ def _inputs(args, controllers, inputs: Path, log) -> dict:
     return made
 
 
+def _check_given_inputs(args, controllers) -> None:
+    """Read the input files the user gave, before anything is made or flown: a bad one ends
+    the run here with the file named, instead of failing (or, for a controller that cannot
+    start, flying on the damper's fallback) in every flight."""
+    from aero_dva.bag.bag_reader import bag_topics
+    from aero_dva.control.rbf_io import load_rbf_network
+    from aero_dva.control.schedule_io import load_schedule
+
+    if "schedule" in controllers and args.schedule:
+        load_schedule(args.schedule)
+    if "rbf" in controllers and args.network:
+        load_rbf_network(args.network)
+    elif "rbf" in controllers and args.sweep_bag:
+        bag_topics(args.sweep_bag)
+
+
 def _save(path, payload):
     from dva_offline.evaluation_io import save_json
 
@@ -269,15 +285,22 @@ def _evaluate(args) -> int:
     scenario_path = Path(args.scenario) if args.scenario else \
         data_files.data_file("scenario_ramp.yaml")
     base = load_base_scenario(scenario_path)
+    _check_given_inputs(args, controllers)
     stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
     out = Path(args.out or f"runs/evaluation_{stamp}").resolve()
+    created = not out.exists()
     (out / "flights").mkdir(parents=True, exist_ok=True)
     started = time.monotonic()
 
     def log(text):
         tqdm.write(f"dva evaluate: {text}", file=sys.stderr)
 
-    made = _inputs(args, controllers, out / "inputs", log)
+    try:
+        made = _inputs(args, controllers, out / "inputs", log)
+    except BaseException:
+        if created:  # nothing was flown: leave no directory that looks like an evaluation
+            shutil.rmtree(out, ignore_errors=True)
+        raise
     scenarios = {(mu, seed): write_scenario(out / "scenarios",
                                             evaluation_scenario(base, mu, seed))
                  for mu in mus for seed in seeds}

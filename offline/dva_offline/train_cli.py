@@ -26,15 +26,17 @@ from pathlib import Path
 
 import numpy as np
 
+from aero_dva.bag import channels as ch
+
 __all__ = ["register"]
 
 DEFAULT_C2 = "200:770:20"  # [N s/m] brackets the reference wing's optimum (350-420) by 150+
 TOPICS = {
-    "/wing/acceleration": "the spectra's accelerations",
-    "/wing/displacement": "the leading-edge RMS, the labels' objective; `dva train sweep "
-                          "--no-displacement` leaves it out",
-    "/flight/condition": "the airspeed",
-    "/dva/damper_state": "the applied c2",
+    ch.ACCELERATION.absolute(): "the spectra's accelerations",
+    ch.DISPLACEMENT.absolute(): "the leading-edge RMS, the labels' objective; `dva train sweep "
+                                "--no-displacement` leaves it out",
+    ch.FLIGHT_CONDITION.absolute(): "the airspeed",
+    ch.DAMPER_STATE.absolute(): "the applied c2",
 }
 
 
@@ -249,7 +251,7 @@ def load_runtime_config_checked(config):
 # -- rbf --------------------------------------------------------------------------------------
 
 def _check_topics(bag) -> None:
-    from aero_dva.bag.mcap_io import TopicNotFoundError, bag_topics
+    from aero_dva.bag.bag_reader import TopicNotFoundError, bag_topics
 
     present = bag_topics(bag)
     for topic, what in TOPICS.items():

@@ -40,6 +40,7 @@ from aero_dva.control.rbf_network import (
 )
 from aero_dva.control.spectrum import DEFAULT_FREQUENCIES, scaled_spectrum
 from aero_dva.flight.scenario import AirspeedProfile, Scenario, sweep_duration
+from aero_dva.wing.model import ACCELERATION_NAMES
 
 __all__ = [
     "ACCELERATION_CHANNELS",
@@ -59,8 +60,8 @@ __all__ = [
     "train_network",
 ]
 
-#: Acceleration channels of a FlightLog, in its row order.
-ACCELERATION_CHANNELS = ("plunge", "pitch", "leading_edge")
+#: Acceleration channels of a FlightLog, in its row order (the wing model's outputs).
+ACCELERATION_CHANNELS = ACCELERATION_NAMES
 #: Spectrum channels of the seed's network (translational, rotational), as the spectrum node.
 CHANNELS = ("plunge", "pitch")
 LEADING_EDGE = 2  # row of the leading-edge displacement in FlightLog.displacements

@@ -27,6 +27,7 @@ from pathlib import Path
 import yaml
 
 from aero_dva.data_files import data_file
+from aero_dva.text_input import read_text_input
 from aero_dva.wing.absorbers import MaxwellAbsorber, PassiveAbsorber
 from aero_dva.wing.aerodynamics import QuasiSteadyAero, aero_from_name
 from aero_dva.wing.checks import positive
@@ -138,9 +139,16 @@ def config_from_dict(data: dict, where: str = "wing file") -> WingConfig:
 def load_wing(path=None) -> WingConfig:
     """Read a wing file (default: the reference wing)."""
     path = Path(reference_wing_path() if path is None else path)
-    with open(path, encoding="utf-8") as fh:
-        data = yaml.safe_load(fh)
-    return config_from_dict(data, str(path))
+    return config_from_dict(_read_yaml(path, "wing file"), str(path))
+
+
+def _read_yaml(path: Path, what: str):
+    text = read_text_input(path, what)
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        detail = " ".join(str(exc).split())  # the parser's message spans several lines
+        raise ValueError(f"{what} {str(path)!r}: not valid YAML ({detail})") from None
 
 
 
@@ -158,6 +166,4 @@ def save_wing(path, config: WingConfig) -> None:
 
 def load_section(path) -> TypicalSection:
     """Read a typical-section file (keys of :class:`TypicalSection`)."""
-    with open(path, encoding="utf-8") as fh:
-        data = yaml.safe_load(fh)
-    return _build(TypicalSection, data, str(path))
+    return _build(TypicalSection, _read_yaml(Path(path), "section file"), str(path))

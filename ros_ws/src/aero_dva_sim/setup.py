@@ -19,13 +19,16 @@ setup(
     zip_safe=True,
     maintainer="aero-dva maintainers",
     maintainer_email="maintainers@aero-dva.org",
-    description="Simulator, recorder and run_flight nodes of the wing with a tunable Maxwell DVA.",
+    description="Simulator, recorder, bag player and run_flight nodes of the wing with a tunable "
+                "Maxwell DVA.",
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
+            "bag_player = aero_dva_sim.bag_player_node:main",
             "mcap_recorder = aero_dva_sim.mcap_recorder_node:main",
             "simulator = aero_dva_sim.simulator_node:main",
             "run_flight = aero_dva_sim.run_flight:main",
+            "replay_flight = aero_dva_sim.replay_flight:main",
         ],
     },
 )

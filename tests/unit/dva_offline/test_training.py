@@ -11,8 +11,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from aero_dva.bag.bag_reader import BagReadError, MessageTypeError, TopicNotFoundError
+from aero_dva.bag.bag_writer import BagWriter
 from aero_dva.bag.flight_log_io import load_flight_log
-from aero_dva.bag.mcap_io import BagReadError, BagWriter, MessageTypeError, TopicNotFoundError
 from aero_dva.control.rbf_io import load_rbf_network
 from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
 from aero_dva.flight.scenario import AirspeedProfile, Scenario

@@ -1,66 +1,92 @@
 """``mcap_recorder``: record topics to a rosbag2-layout MCAP bag, like ``ros2 bag record -s mcap``.
 
 Topics are discovered while the node runs and recorded as serialized CDR, untouched, with their
-``ros2msg`` schemas (and dependencies) from the installed .msg files. On SIGINT/SIGTERM the bag
-is closed cleanly: everything received is in the MCAP file, and ``metadata.yaml`` is written.
+``ros2msg`` schemas (and dependencies) from the installed .msg files. On SIGINT/SIGTERM the
+recorder first takes what is still queued (it can lag its publishers under load), then closes
+the bag cleanly: everything received is in the MCAP file, and ``metadata.yaml`` is written.
 
-Parameters
-----------
-output : str, default "bags/run_<UTC time>"
-    Bag directory to create; it must not exist or be empty (nothing is ever overwritten).
-topics : string array, default [] (all topics)
-    Record only these topics (names resolved in the node's namespace).
-exclude : string array, default []
-    Never record these topics.
-discovery_period : float, default 0.1
-    Wall-clock seconds between looks for new topics.
-flush_period : float, default 1.0
-    Wall-clock seconds between flushes of the MCAP chunk (bounds what a crash can lose).
+Its parameters (units, defaults, ranges) are the table ``SPEC`` below, which the node declares
+them from and ``mcap_recorder --help`` prints. Log times are the node's clock: sim time with
+``use_sim_time:=true``.
 """
 from __future__ import annotations
 
-import importlib
 import sys
 import time
 from pathlib import Path
 
+import yaml
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile, QoSReliabilityPolicy
 
-from aero_dva.bag.mcap_io import BagWriter, MessageDefinitionNotFound, qos_profile_yaml
+from aero_dva.bag.bag_writer import BagWriter, qos_profile_yaml
+from aero_dva.bag.schemas import MessageDefinitionNotFound
+from dva_ros_common.conversions import message_class
+from dva_ros_common.node_params import NodeSpec, Param, declare_parameters
 from dva_ros_common.node_tools import run_node
 
+SPEC = NodeSpec(
+    name="mcap_recorder",
+    package="aero_dva_sim",
+    summary="Record topics to a rosbag2-layout MCAP bag, like `ros2 bag record -s mcap`: "
+            "topics are discovered while the node runs and recorded as serialized CDR, "
+            "untouched, with their schemas and the QoS their publishers offer. On SIGINT or "
+            "SIGTERM the bag is closed cleanly (MCAP footer and metadata.yaml).",
+    params=(
+        Param("output", "", "bag directory to create; it must not exist or be empty (nothing "
+              "is overwritten)", default_text="bags/run_<UTC time>"),
+        Param("topics", [""], "record only these topics (resolved in the node's namespace)",
+              default_text="[] (every topic)"),
+        Param("exclude", [""], "never record these topics"),
+        Param("discovery_period", 0.1, "wall time between looks for new topics", "s",
+              1.0e-3, 60.0),
+        Param("flush_period", 1.0, "wall time between flushes of the MCAP chunk (bounds what a "
+              "crash can lose)", "s", 1.0e-3, 3600.0),
+    ),
+    topics="subscribes every matching topic (raw CDR); writes <output>/<name>_0.mcap and "
+           "metadata.yaml",
+)
 
-def message_class(type_name: str):
-    """The Python class of ``pkg/msg/Type`` (rosidl_runtime_py is not available everywhere)."""
-    package, _, name = type_name.split("/")
-    return getattr(importlib.import_module(f"{package}.msg"), name)
+
+def offered_qos_yaml(profiles) -> str:
+    """``offered_qos_profiles`` YAML (rosbag2 metadata) of the publishers' rclpy QoS profiles.
+
+    The graph does not tell a remote publisher's history: it is stored as system_default
+    (depth 0), as rosbag2 stores it; reliability and durability are what a player needs."""
+    rows = []
+    for q in profiles:
+        def name(policy, known):
+            text = getattr(policy, "name", str(policy)).lower()
+            return text if text in known else "system_default"
+
+        rows += yaml.safe_load(qos_profile_yaml(
+            reliability=name(q.reliability, ("reliable", "best_effort")),
+            durability=name(q.durability, ("volatile", "transient_local")),
+            history=name(q.history, ("keep_last", "keep_all")),
+            depth=max(int(q.depth), 0)))
+    return yaml.safe_dump(rows, sort_keys=False).strip() if rows else qos_profile_yaml()
 
 
 class McapRecorder(Node):
     """Subscribe (raw) to every matching topic and append each message to the bag."""
 
     def __init__(self, **kwargs) -> None:
-        super().__init__("mcap_recorder", **kwargs)
+        super().__init__(SPEC.name, **kwargs)
+        values = declare_parameters(self, SPEC)
         stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
-        self.declare_parameter("output", f"bags/run_{stamp}")
-        self.declare_parameter("topics", [""])
-        self.declare_parameter("exclude", [""])
-        self.declare_parameter("discovery_period", 0.1)
-        self.declare_parameter("flush_period", 1.0)
         self._only = {self.resolve_topic_name(t) for t in self._strings("topics")}
         self._exclude = {self.resolve_topic_name(t) for t in self._strings("exclude")}
-        self.output = Path(self.get_parameter("output").value)
+        self.output = Path(values["output"] or f"bags/run_{stamp}")
         self._writer = BagWriter(self.output)
         self._recorded: dict[str, object] = {}
         self._skipped: set[str] = set()
         self.received = 0
         try:
             wall = Clock(clock_type=ClockType.STEADY_TIME)
-            self.create_timer(float(self.get_parameter("discovery_period").value),
+            self.create_timer(float(values["discovery_period"]),
                               self._discover, clock=wall)
-            self.create_timer(float(self.get_parameter("flush_period").value), self._flush,
+            self.create_timer(float(values["flush_period"]), self._flush,
                               clock=wall)
             self._discover()
         except BaseException:  # e.g. a signal while starting: still leave a valid, empty bag
@@ -81,21 +107,22 @@ class McapRecorder(Node):
             if len(types) != 1:
                 self._skip(topic, f"it has several types {types}")
                 continue
+            offered = [info.qos_profile for info in self.get_publishers_info_by_topic(topic)]
             try:
-                self._writer.add_topic(topic, types[0], qos_profile_yaml())
+                self._writer.add_topic(topic, types[0], offered_qos_yaml(offered))
                 msg_type = message_class(types[0])
             except (MessageDefinitionNotFound, ImportError, AttributeError, ValueError) as exc:
                 self._skip(topic, str(exc))
                 continue
             self._recorded[topic] = self.create_subscription(
                 msg_type, topic, lambda data, t=topic: self._record(t, data),
-                self._qos_for(topic), raw=True)
+                self._qos_for(offered), raw=True)
             self.get_logger().info(f"recording {topic} [{types[0]}]")
 
-    def _qos_for(self, topic: str) -> QoSProfile:
+    @staticmethod
+    def _qos_for(offered) -> QoSProfile:
         # Match what the publishers offer, as rosbag2 does: a reliable reader would not match a
         # best-effort writer, and transient-local writers can replay what came before.
-        offered = [info.qos_profile for info in self.get_publishers_info_by_topic(topic)]
         reliable = all(q.reliability == QoSReliabilityPolicy.RELIABLE for q in offered)
         latched = offered and all(
             q.durability == QoSDurabilityPolicy.TRANSIENT_LOCAL for q in offered)
@@ -129,7 +156,8 @@ class McapRecorder(Node):
 
 
 def main(args=None) -> int:
-    return run_node(McapRecorder, "mcap_recorder", args)
+    # On SIGINT/SIGTERM, record what is still queued before closing the bag.
+    return run_node(McapRecorder, SPEC, args, drain=lambda node: node.received)
 
 
 if __name__ == "__main__":

@@ -42,7 +42,8 @@ def executable(package: str, name: str) -> str:
     return str(path)
 
 
-def _params(**values) -> list[str]:
+def ros_params(**values) -> list[str]:
+    """``-p name:=value`` arguments for a node's ``--ros-args`` (None and "" left out)."""
     out = []
     for key, value in values.items():
         if value is None or value == "":  # rcl cannot parse an empty override
@@ -57,27 +58,27 @@ def build_commands(args, bag: Path) -> dict[str, list[str]]:
     sim_time = {"use_sim_time": True}
     commands = {
         "mcap_recorder": [executable("aero_dva_sim", "mcap_recorder"), "--ros-args",
-                          *_params(output=bag, **sim_time)],
+                          *ros_params(output=bag, **sim_time)],
     }
     if args.controller == "rbf":
         commands["spectrum"] = [executable("dva_controller", "spectrum"), "--ros-args",
-                                *_params(**sim_time)]
+                                *ros_params(**sim_time)]
         commands["rbf_controller"] = [executable("dva_controller", "rbf_controller"),
                                       "--ros-args",
-                                      *_params(network_file=args.network, **sim_time)]
+                                      *ros_params(network_file=args.network, **sim_time)]
     elif args.controller == "schedule":
         commands["airspeed_controller"] = [executable("dva_controller", "airspeed_controller"),
                                            "--ros-args",
-                                           *_params(schedule_file=args.schedule, **sim_time)]
+                                           *ros_params(schedule_file=args.schedule, **sim_time)]
     elif args.controller == "fixed":
         commands["fixed_controller"] = [executable("dva_controller", "fixed_controller"),
                                         "--ros-args",
-                                        *_params(damping=args.damping, rate=20.0, **sim_time)]
+                                        *ros_params(damping=args.damping, rate=20.0, **sim_time)]
     # The flight starts once every other node of the graph is up (none misses its start).
     others = list(commands)
     commands["simulator"] = [
         executable("aero_dva_sim", "simulator"), "--ros-args",
-        *_params(scenario=args.scenario, wing=args.wing, absorber=args.absorber,
+        *ros_params(scenario=args.scenario, wing=args.wing, absorber=args.absorber,
                  real_time_factor=args.real_time_factor, wait_for_subscribers=1,
                  wait_for_nodes="[" + ",".join(others) + "]",
                  max_command_lag=DEFAULT_COMMAND_LAG[args.controller]
@@ -98,7 +99,8 @@ def die_with_parent() -> None:
         pass  # not Linux: the runner's finally-block still stops the nodes
 
 
-def _stop(process: subprocess.Popen, timeout: float) -> int:
+def stop_process(process: subprocess.Popen, timeout: float) -> int:
+    """SIGINT, then SIGKILL after ``timeout`` [s]; the exit code."""
     if process.poll() is None:
         process.send_signal(signal.SIGINT)
         try:
@@ -143,7 +145,7 @@ def run(args) -> dict:
                       f"see {logs / (name + '.log')}", file=sys.stderr)
         time.sleep(0.5)  # let the recorder take the last messages in flight off the wire
     finally:
-        codes = {name: _stop(p, timeout=15.0) for name, p in reversed(processes.items())}
+        codes = {name: stop_process(p, timeout=15.0) for name, p in reversed(processes.items())}
     wall = time.monotonic() - started
     if codes.get("simulator") not in (0, None):
         raise SystemExit(f"run_flight: error: simulator failed ({codes['simulator']}); "

@@ -6,34 +6,13 @@ time (``use_sim_time:=true``). The damper applies the latest accepted ``dva/damp
 through :class:`~aero_dva.flight.damper.DamperModel` (range, lag, stale fallback, rejection of
 absurd commands). A stepped-sweep scenario applies its own c2 values and ignores commands.
 
-Parameters (SI units)
----------------------
-scenario : str            scenario YAML (default: the package's scenario_ramp.yaml)
-wing : str                wing YAML (default: the package's reference wing)
-absorber : str            "maxwell" (default) or "none"
-absorber_mass [kg], absorber_stiffness k1 [N/m], absorber_series_stiffness k2 [N/m],
-absorber_position [m from the gravity centre, + toward the leading edge]
-    NaN (the default) takes the value of the wing file's Maxwell design.
-damper_min, damper_max, damper_initial, damper_fallback [N s/m], damper_timeout [s],
-damper_time_constant [s]
-real_time_factor : float  sim seconds per wall second (0 = as fast as possible), default 20
-wait_for_subscribers : int
-    Start the flight only when every data topic has this many subscribers (default 0) ...
-wait_for_nodes : string array
-    ... and these nodes are in the graph (default none), or after ``wait_timeout`` wall
-    seconds (default 30) with a warning.
-exit_on_end : bool        stop the node when the flight ends (default true)
-max_command_lag : float
-    [s] sim time the flight may run ahead of the newest accepted command's stamp (its input's
-    time); 0 (default) = free running. Once a controller has answered, the simulator waits for
-    it, so the loop's sim-time latency is bounded whatever the machine's load (lockstep when
-    set to one block for a per-block controller).
-command_wait_timeout : float
-    [s] wall time to wait for the controller before flying on (default 2); the damper's stale
-    fallback then takes over.
+Its parameters (units, defaults, ranges) are the table ``SPEC`` below, which the node declares
+them from and ``simulator --help`` prints.
 
 Publishes wing/acceleration, wing/displacement, wing/excitation, flight/condition,
 dva/damper_state, /clock and /diagnostics; subscribes dva/damper_command.
+Rejected commands are reported on /diagnostics at most once a second per reason, each report
+with the number rejected since the last one (all are counted in the end-of-flight summary).
 """
 from __future__ import annotations
 
@@ -42,36 +21,87 @@ import sys
 import time
 
 import numpy as np
-from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.task import Future
-from rosgraph_msgs.msg import Clock as ClockMsg
 
+from aero_dva.bag import channels as ch
 from aero_dva.flight.damper import DamperStatus
 from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
-from aero_dva_sim import messages
-from dva_msgs.msg import (
-    AccelerationBlock,
-    DamperCommand,
-    DamperState,
-    DisplacementBlock,
-    FlightCondition,
-    ForceBlock,
-)
-from dva_ros_common.conversions import time_to_seconds
+from dva_msgs.msg import DamperCommand
+from dva_ros_common import conversions
+from dva_ros_common.conversions import message_class, time_to_seconds
+from dva_ros_common.node_params import NodeSpec, Param, declare_parameters
 from dva_ros_common.node_tools import run_node
 
 POLL_PERIOD = 0.005  # [s] wall time between checks before the start and while held
-DATA_TOPICS = ("wing/acceleration", "wing/displacement", "wing/excitation", "flight/condition",
-               "dva/damper_state")
+# [s] wall time between two reports of rejected commands of one kind: a controller gone wrong
+# can send thousands a second, and one report (with the count) per second says as much.
+REJECTION_REPORT_PERIOD = 1.0
+#: The per-block topics in publish order (after /clock), as the bag records them.
+DATA_CHANNELS = tuple(c for c in ch.SIMULATOR_BLOCK if c != ch.CLOCK)
+DATA_TOPICS = tuple(c.name for c in DATA_CHANNELS)
+_NAN = float("nan")
+_DESIGN = "the wing file's Maxwell design"
+MAX_DAMPING = 1.0e6  # [N s/m] far above any damper of this size class; larger is a unit error
+
+SPEC = NodeSpec(
+    name="simulator",
+    package="aero_dva_sim",
+    summary="Fly a scenario with the pitch-plunge wing and the tunable Maxwell DVA, block by "
+            "block (exact zero-order hold), publish what sensors would see, and be the clock: "
+            "the rest of the graph runs on its /clock (use_sim_time:=true). The damper applies "
+            "the latest accepted dva/damper_command (range, lag, stale fallback, rejection of "
+            "absurd commands); a stepped-sweep scenario applies its own c2 values.",
+    params=(
+        Param("scenario", "", "scenario YAML", default_text="the package's scenario_ramp.yaml "
+              "(0.8 -> 1.2 U_cr in 30 s)"),
+        Param("wing", "", "wing YAML", default_text="the package's reference wing"),
+        Param("absorber", "maxwell", "absorber on the wing", choices=("maxwell", "none")),
+        Param("absorber_mass", _NAN, "DVA mass", "kg", 0.0, 1.0e5, nan_means=_DESIGN),
+        Param("absorber_stiffness", _NAN, "DVA spring k1", "N/m", 0.0, 1.0e10,
+              nan_means=_DESIGN),
+        Param("absorber_series_stiffness", _NAN, "spring k2 in series with the damper", "N/m",
+              0.0, 1.0e10, nan_means=_DESIGN),
+        Param("absorber_position", _NAN, "DVA position from the gravity centre, + toward the "
+              "leading edge (on the chord)", "m", nan_means=_DESIGN),
+        Param("damper_min", 0.0, "damper range, lower end", "N s/m", 0.0, MAX_DAMPING),
+        Param("damper_max", 2500.0, "damper range, upper end", "N s/m", 0.0, MAX_DAMPING),
+        Param("damper_initial", _NAN, "c2 before the first command", "N s/m", 0.0, MAX_DAMPING,
+              nan_means="the fallback c2"),
+        Param("damper_fallback", _NAN, "c2 when commands go stale", "N s/m", 0.0, MAX_DAMPING,
+              nan_means="the design's c2 clamped to the damper range"),
+        Param("damper_timeout", 0.5, "sim time without commands before the fallback applies",
+              "s", 0.0, 1.0e12),
+        Param("damper_time_constant", 0.0, "first-order lag of the damper (0: ideal, the "
+              "study's)", "s", 0.0, 3600.0),
+        Param("real_time_factor", 20.0, "sim seconds per wall second (0: as fast as possible)",
+              "", 0.0, 1.0e6),
+        Param("wait_for_subscribers", 0, "start the flight when every data topic has this many "
+              "subscribers", "", 0, 1000),
+        Param("wait_for_nodes", [""], "... and these nodes are in the graph"),
+        Param("wait_timeout", 30.0, "wall time after which the flight starts anyway (with a "
+              "warning)", "s", 0.0, 1.0e6),
+        Param("exit_on_end", True, "stop the node when the flight ends"),
+        Param("max_command_lag", 0.0, "sim time the flight may run ahead of the newest accepted "
+              "command's stamp (0: free running); bounds the loop's sim-time latency whatever "
+              "the machine's load", "s", 0.0, 3600.0),
+        Param("command_wait_timeout", 2.0, "wall time to wait for the controller before flying "
+              "on (the damper's stale fallback then acts)", "s", 0.0, 3600.0),
+    ),
+    topics="""
+publishes wing/acceleration, wing/displacement, wing/excitation, flight/condition,
+  dva/damper_state, /clock, /diagnostics
+subscribes dva/damper_command (dva_msgs/DamperCommand)
+""",
+)
 
 
 class Simulator(Node):
     """The plant: integrates the wing block by block and publishes what sensors would see."""
 
     def __init__(self, **kwargs) -> None:
-        super().__init__("simulator", **kwargs)
+        super().__init__(SPEC.name, **kwargs)
         config = load_runtime_config(self._declare_parameters())
         self.runtime = FlightRuntime(config)
         self.finished = Future()
@@ -83,15 +113,12 @@ class Simulator(Node):
         # run_node spins until ``done``: the end of the flight, or shutdown without exit_on_end
         self.done = self.finished if self._exit_on_end else None
 
-        self._pub = {
-            "wing/acceleration": self.create_publisher(AccelerationBlock, "wing/acceleration", 50),
-            "wing/displacement": self.create_publisher(DisplacementBlock, "wing/displacement", 50),
-            "wing/excitation": self.create_publisher(ForceBlock, "wing/excitation", 50),
-            "flight/condition": self.create_publisher(FlightCondition, "flight/condition", 50),
-            "dva/damper_state": self.create_publisher(DamperState, "dva/damper_state", 50),
-        }
-        self._clock_pub = self.create_publisher(ClockMsg, "/clock", 10)
-        self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self._pub = {c.name: self.create_publisher(message_class(c.type_name), c.name, 50)
+                     for c in DATA_CHANNELS}
+        self._clock_pub = self.create_publisher(message_class(ch.CLOCK.type_name),
+                                                ch.CLOCK.name, 10)
+        self._diag_pub = self.create_publisher(message_class(ch.DIAGNOSTICS.type_name),
+                                               ch.DIAGNOSTICS.name, 10)
         self.published = dict.fromkeys(DATA_TOPICS, 0)
         self._latencies: list[float] = []  # [s] sim time from a command's input to its effect
         self._max_lag = float(self.get_parameter("max_command_lag").value)
@@ -100,7 +127,9 @@ class Simulator(Node):
         self._lag_since: float | None = None
         self._controller_silent = False
         self.lag_timeouts = 0
-        self.create_subscription(DamperCommand, "dva/damper_command", self._on_command, 10)
+        self.rejected: dict[str, int] = {}  # rejection reason -> commands rejected
+        self._rejections_reported: dict[str, tuple[float, int]] = {}  # reason -> (wall, count)
+        self.create_subscription(DamperCommand, ch.DAMPER_COMMAND.name, self._on_command, 10)
 
         self._wall = Clock(clock_type=ClockType.STEADY_TIME)
         self._started_wall: float | None = None
@@ -123,20 +152,7 @@ class Simulator(Node):
 
     # ------------------------------------------------------------------ parameters
     def _declare_parameters(self) -> dict:
-        nan = float("nan")
-        defaults = {
-            "scenario": "", "wing": "", "absorber": "maxwell",
-            "absorber_mass": nan, "absorber_stiffness": nan, "absorber_series_stiffness": nan,
-            "absorber_position": nan,
-            "damper_min": 0.0, "damper_max": 2500.0, "damper_initial": nan,
-            "damper_fallback": nan, "damper_timeout": 0.5, "damper_time_constant": 0.0,
-            "real_time_factor": 20.0, "wait_for_subscribers": 0, "wait_for_nodes": [""],
-            "wait_timeout": 30.0,
-            "exit_on_end": True, "max_command_lag": 0.0, "command_wait_timeout": 2.0,
-        }
-        for name, value in defaults.items():
-            self.declare_parameter(name, value)
-        return {name: self.get_parameter(name).value for name in defaults}
+        return declare_parameters(self, SPEC)
 
     def _period(self) -> float:
         block = self.runtime.block_duration
@@ -154,9 +170,22 @@ class Simulator(Node):
             if not self._stepping and self._started_wall is not None:
                 self._step()
         if result is not None and not result.accepted:
-            self._diagnose("warn", f"rejected damper command {msg.damping!r} N s/m from "
-                           f"'{msg.source}': {result.rejection.value}",
-                           {"command": msg.damping, "source": msg.source})
+            self._report_rejection(msg, result.rejection.value)
+
+    def _report_rejection(self, msg: DamperCommand, reason: str) -> None:
+        """Count every rejected command; report each reason at most once a period."""
+        count = self.rejected[reason] = self.rejected.get(reason, 0) + 1
+        wall = time.monotonic()
+        last_wall, last_count = self._rejections_reported.get(reason, (-math.inf, 0))
+        if wall - last_wall < REJECTION_REPORT_PERIOD:
+            return
+        self._rejections_reported[reason] = (wall, count)
+        since = count - last_count
+        self._diagnose("warn", f"rejected damper command {msg.damping!r} N s/m from "
+                       f"'{msg.source}': {reason}"
+                       + (f" ({since} such commands since the last report)" if since > 1 else ""),
+                       {"command": msg.damping, "source": msg.source, "reason": reason,
+                        "rejected_since_last_report": since, "rejected_total": count})
 
     def _ready(self) -> bool:
         counts = {t: self._pub[t].get_subscription_count() for t in DATA_TOPICS}
@@ -253,14 +282,16 @@ class Simulator(Node):
 
     def _publish(self, block) -> None:
         fs, i0, t0 = self.runtime.sample_rate, block.first_index, block.t0
-        self._clock_pub.publish(messages.clock(block.t_end))
+        self._clock_pub.publish(conversions.clock(block.t_end))
         outgoing = {
-            "wing/acceleration": messages.acceleration_block(t0, fs, i0, block.accelerations),
-            "wing/displacement": messages.displacement_block(t0, fs, i0, block.displacements),
-            "wing/excitation": messages.force_block(t0, fs, i0, block.force),
-            "flight/condition": messages.flight_condition(
+            ch.ACCELERATION.name: conversions.acceleration_block(t0, fs, i0,
+                                                                 block.accelerations),
+            ch.DISPLACEMENT.name: conversions.displacement_block(t0, fs, i0,
+                                                                 block.displacements),
+            ch.EXCITATION.name: conversions.force_block(t0, fs, i0, block.force),
+            ch.FLIGHT_CONDITION.name: conversions.flight_condition(
                 t0, block.airspeed[0], block.density[0]),
-            "dva/damper_state": messages.damper_state(self.runtime.damper_snapshot()),
+            ch.DAMPER_STATE.name: conversions.damper_state(self.runtime.damper_snapshot()),
         }
         for topic, msg in outgoing.items():
             self._pub[topic].publish(msg)
@@ -274,6 +305,7 @@ class Simulator(Node):
                   "real_time_factor": sim / wall if wall > 0 else math.inf,
                   "critical_airspeed_no_dva": self.runtime.critical_airspeed}
         values.update({f"published:{t}": n for t, n in self.published.items()})
+        values.update({f"rejected:{reason}": n for reason, n in self.rejected.items()})
         if self._latencies:
             latency = np.array(self._latencies)
             values.update(command_latency_median_s=float(np.median(latency)),
@@ -290,8 +322,9 @@ class Simulator(Node):
             self.get_logger().warning(text)
         else:
             self.get_logger().info(text)
-        self._diag_pub.publish(messages.diagnostics(
-            self.runtime.time, "simulator: flight", "aero_dva_sim", [(level, text, values)]))
+        self._diag_pub.publish(conversions.diagnostics(
+            self.runtime.time, ch.FLIGHT_DIAGNOSTIC_NAME, ch.SIMULATOR_HARDWARE_ID,
+            [(level, text, values)]))
 
     def _finish(self, outcome: str) -> None:
         self._timer.cancel()
@@ -301,7 +334,7 @@ class Simulator(Node):
 
 
 def main(args=None) -> int:
-    return run_node(Simulator, "simulator", args)
+    return run_node(Simulator, SPEC, args)
 
 
 if __name__ == "__main__":

@@ -16,24 +16,9 @@ frequencies, scaling "band_sum", window function and window duration. A spectrum
 match, or holds NaN/inf magnitudes or a missing/negative c2, gives no command and is reported on
 ``/diagnostics``.
 
-Parameters
-----------
-network_file : str, required
-    The trained network (.npz).
-channels : string array, default ["plunge", "pitch"]
-    Spectrum channels the network was trained on, in order.
-frequencies : double array, default 5..20 in 1 Hz steps
-    [Hz] spectrum frequencies the network was trained on.
-window : str, default "rectangular"
-    Window function of the training spectra.
-window_duration : float, default 2.0
-    [s] window length of the training spectra.
-damping_min, damping_max : float, default 0.0, 2500.0
-    [N s/m] range of the damper; commands are clamped to it.
-stale_timeout : float, default 1.0
-    [s] ROS time without a spectrum after which the periodic status turns WARN.
-diagnostic_period : float, default 1.0
-    [s] ROS time between periodic status reports on ``/diagnostics``.
+Its parameters (units, defaults, ranges) are the table ``SPEC`` below, which the node declares
+them from and ``rbf_controller --help`` prints; the spectra's shape rows are the spectrum
+node's own (:mod:`dva_controller.shared_params`).
 
 Subscribes ``dva/spectrum`` (dva_msgs/ScaledSpectrum); publishes ``dva/damper_command``
 (dva_msgs/DamperCommand) and ``/diagnostics``. A command carries the stamp of the spectrum it
@@ -45,34 +30,47 @@ import math
 import sys
 
 import numpy as np
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 
+from aero_dva.bag import channels as ch
+from aero_dva.control.command_laws import RBFLaw
 from aero_dva.control.rbf_io import load_rbf_network
-from aero_dva.control.rbf_network import RBFNetwork, spectrum_input_names, spectrum_input_vector
-from aero_dva.control.spectrum import DEFAULT_FREQUENCIES, WINDOW_FUNCTIONS
-from dva_controller import messages
-from dva_controller.spectrum_node import checked_frequencies
+from aero_dva.control.rbf_network import RBFNetwork, spectrum_input_names
+from dva_controller.shared_params import (
+    DAMPER_RANGE,
+    SPECTRUM_SHAPE,
+    checked_channels,
+    checked_frequencies,
+    damping_range,
+)
 from dva_msgs.msg import DamperCommand, ScaledSpectrum
 from dva_ros_common import conversions
-from dva_ros_common.node_tools import InputHealth, Status, bounded, refuse_changes, run_node
+from dva_ros_common.node_params import NodeSpec, Param, declare_parameters
+from dva_ros_common.node_tools import INPUT_HEALTH_PARAMS, InputHealth, Status, run_node
 
-NODE_NAME = "rbf_controller"
-MAX_DAMPING = 1.0e6  # [N s/m] far above any damper of this size class; larger is a unit error
 FREQUENCY_TOLERANCE = 1.0e-6  # [Hz] spectrum frequencies must match the training ones this well
 DURATION_TOLERANCE = 1.0e-6  # [s]
 #: Hidden activations below this everywhere mean the input is far from every training centre.
 FAR_ACTIVATION = 1.0e-3
-_READ_AT_START = (
-    "network_file",
-    "channels",
-    "frequencies",
-    "window",
-    "window_duration",
-    "damping_min",
-    "damping_max",
-    "stale_timeout",
-    "diagnostic_period",
+
+SPEC = NodeSpec(
+    name="rbf_controller",
+    package="dva_controller",
+    summary="Command c2 from each scaled vibration spectrum with a trained RBF network (section "
+            "7.2 of Zhang (2006)). The spectra's shape below must be the one the network was "
+            "trained on (the file's input names are checked at start-up); commands are clamped "
+            "to the damper's range.",
+    params=(
+        Param("network_file", "", "trained RBF network (.npz, dva train rbf); required",
+              default_text="none (required)"),
+        *SPECTRUM_SHAPE,
+        *DAMPER_RANGE,
+        *INPUT_HEALTH_PARAMS,
+    ),
+    topics="""
+subscribes dva/spectrum (dva_msgs/ScaledSpectrum)
+publishes dva/damper_command (dva_msgs/DamperCommand, source "rbf_network"), /diagnostics
+""",
 )
 
 
@@ -100,79 +98,37 @@ class RBFController(Node):
     """Command c2 from each scaled spectrum with a trained RBF network."""
 
     def __init__(self, **kwargs) -> None:
-        super().__init__(NODE_NAME, **kwargs)
-        self.declare_parameter(
-            "network_file", "", ParameterDescriptor(description="trained RBF network (.npz)")
-        )
-        self.declare_parameter(
-            "channels",
-            ["plunge", "pitch"],
-            ParameterDescriptor(description="spectrum channels of the network, in order"),
-        )
-        self.declare_parameter(
-            "frequencies",
-            DEFAULT_FREQUENCIES.tolist(),
-            ParameterDescriptor(
-                description="spectrum frequencies of the network [Hz]", dynamic_typing=True
-            ),
-        )
-        self.declare_parameter(
-            "window",
-            "rectangular",
-            ParameterDescriptor(description=f"window function, one of {WINDOW_FUNCTIONS}"),
-        )
-        self.declare_parameter(
-            "window_duration", 2.0, bounded("window length [s]", 1.0e-3, 3600.0)
-        )
-        self.declare_parameter(
-            "damping_min", 0.0, bounded("damper range, lower end [N s/m]", 0.0, MAX_DAMPING)
-        )
-        self.declare_parameter(
-            "damping_max", 2500.0, bounded("damper range, upper end [N s/m]", 0.0, MAX_DAMPING)
-        )
-        channels = tuple(self.get_parameter("channels").value)
-        if not channels or len(set(channels)) != len(channels) or not all(channels):
-            raise ValueError(
-                f"parameter 'channels' must be distinct non-empty names, got {list(channels)}"
-            )
-        self.channels = channels
-        self.frequencies = checked_frequencies(self.get_parameter("frequencies").value)
-        self.window = str(self.get_parameter("window").value)
-        if self.window not in WINDOW_FUNCTIONS:
-            raise ValueError(
-                f"parameter 'window' must be one of {list(WINDOW_FUNCTIONS)}, got {self.window!r}"
-            )
-        self.window_duration = float(self.get_parameter("window_duration").value)
-        low = float(self.get_parameter("damping_min").value)
-        high = float(self.get_parameter("damping_max").value)
-        if not low < high:
-            raise ValueError(
-                f"parameters 'damping_min' and 'damping_max' must satisfy min < max, "
-                f"got {low}, {high} N s/m"
-            )
+        super().__init__(SPEC.name, **kwargs)
+        values = declare_parameters(self, SPEC)
+        self.channels = checked_channels(values["channels"])
+        self.frequencies = checked_frequencies(values["frequencies"])
+        self.window = str(values["window"])
+        self.window_duration = float(values["window_duration"])
+        low, high = damping_range(float(values["damping_min"]), float(values["damping_max"]))
         self.damping_range = (low, high)
-        path = str(self.get_parameter("network_file").value)
+        path = str(values["network_file"])
         if not path:
             raise ValueError("parameter 'network_file' is required (a trained RBF network .npz)")
         dim = len(self.channels) * self.frequencies.size + 1
         self.network = load_rbf_network(path, expected_input_dim=dim)  # RBFFileError names it
         check_network_inputs(self.network, path, self.channels, self.frequencies)
+        self.law = RBFLaw(self.network, self.damping_range)
 
         self.counts = dict.fromkeys(("spectra", "rejected", "commands", "far_inputs"), 0)
         self.last_command = math.nan
         self.last_activation = math.nan
-        self._health = InputHealth(self, "rbf network", "dva/spectrum", self.counts, self._status)
+        self._health = InputHealth(self, "rbf network", ch.SPECTRUM.name, self.counts,
+                                   self._status)
 
-        self._command_pub = self.create_publisher(DamperCommand, "dva/damper_command", 10)
-        self.create_subscription(ScaledSpectrum, "dva/spectrum", self._on_spectrum, 10)
-        refuse_changes(self, _READ_AT_START)
+        self._command_pub = self.create_publisher(DamperCommand, ch.DAMPER_COMMAND.name, 10)
+        self.create_subscription(ScaledSpectrum, ch.SPECTRUM.name, self._on_spectrum, 10)
         self.get_logger().info(
             f"RBF network {path}: {self.network.n_neurons} neurons, {dim} inputs "
             f"({list(self.channels)} x {self.frequencies.size} frequencies + c2); "
             f"commands clamped to [{low:g}, {high:g}] N s/m"
         )
 
-    def mismatch(self, spectrum: messages.SpectrumInput) -> str | None:
+    def mismatch(self, spectrum: conversions.SpectrumInput) -> str | None:
         """Why a spectrum is not an input of this network (None if it is)."""
         if spectrum.channel_names != self.channels:
             return f"channels {list(spectrum.channel_names)}, network has {list(self.channels)}"
@@ -200,18 +156,15 @@ class RBFController(Node):
             return f"current c2 (damping) is {spectrum.damping}, not a finite value >= 0"
         return None
 
-    def command_for(self, spectrum: messages.SpectrumInput) -> tuple[float, float]:
+    def command_for(self, spectrum: conversions.SpectrumInput) -> tuple[float, float]:
         """Clamped network output [N s/m] and the largest hidden activation for a spectrum."""
-        x = spectrum_input_vector(spectrum.magnitudes, spectrum.damping)
-        activation = float(self.network.hidden(x).max()) if self.network.n_neurons else 1.0
-        c2 = self.network.predict(x)
-        return min(max(c2, self.damping_range[0]), self.damping_range[1]), activation
+        return self.law.command(spectrum.magnitudes, spectrum.damping)
 
     def _on_spectrum(self, msg: ScaledSpectrum) -> None:
         self.counts["spectra"] += 1
         self._health.mark_input()
         try:
-            spectrum = messages.spectrum_input(msg)
+            spectrum = conversions.spectrum_input(msg)
             problem = self.mismatch(spectrum)
         except ValueError as exc:
             spectrum, problem = None, str(exc)
@@ -229,7 +182,7 @@ class RBFController(Node):
             self.counts["far_inputs"] += 1
         stamp_ns = spectrum.stamp_ns
         self._command_pub.publish(
-            messages.damper_command(
+            conversions.damper_command(
                 conversions.ns_to_time(stamp_ns), c2, DamperCommand.SOURCE_RBF_NETWORK
             )
         )
@@ -248,7 +201,7 @@ class RBFController(Node):
 
 
 def main(args=None) -> int:
-    return run_node(RBFController, NODE_NAME, args)
+    return run_node(RBFController, SPEC, args)
 
 
 if __name__ == "__main__":

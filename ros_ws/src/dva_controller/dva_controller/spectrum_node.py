@@ -10,138 +10,75 @@ block with NaN/inf samples, or a change of ``sample_rate`` drops the window coll
 and starts a new one; each reset is reported on ``/diagnostics`` (WARN) with its reason and the
 sample indices. A window whose band holds no signal (scaling by a zero sum) is not published.
 
-Parameters
-----------
-channels : string array, default ["plunge", "pitch"]
-    Acceleration channels to analyse, in order; each one of "plunge", "pitch", "leading_edge".
-window_duration : float, default 2.0
-    [s] window length; times the blocks' sample rate it must be a whole number of samples.
-hop : float, default 0.1
-    [s] time between window starts; a whole number of samples.
-frequencies : double array, default 5..20 in 1 Hz steps
-    [Hz] frequencies to evaluate; distinct, > 0 and below the blocks' Nyquist frequency.
-window : str, default "rectangular"
-    Window function, "rectangular" (the seed) or "hann".
-stale_timeout : float, default 1.0
-    [s] ROS time without acceleration blocks after which the periodic status turns WARN.
-diagnostic_period : float, default 1.0
-    [s] ROS time between periodic status reports on ``/diagnostics``.
+Its parameters (units, defaults, ranges) are the table ``SPEC`` below, which the node declares
+them from and ``spectrum --help`` prints; the spectra's shape rows are shared with the RBF
+controller (:mod:`dva_controller.shared_params`).
 
 Subscribes ``wing/acceleration`` (dva_msgs/AccelerationBlock) and ``dva/damper_state``
 (dva_msgs/DamperState, for the c2 applied during the window: the spectrum's ``damping`` is the
-mean of the latest applied c2 known when each block arrived, or the latest known value if a
-block of the window arrived before any damper state). Publishes ``dva/spectrum``
-(dva_msgs/ScaledSpectrum) and ``/diagnostics``. All times honour ``use_sim_time``.
+mean over the window's blocks of the applied c2 of the latest state stamped at or before each
+block's start, chosen by stamp so that a re-run on a recorded bag gives the same value; see
+:mod:`aero_dva.control.spectrum_stream`, which does the node's work without ROS). Publishes
+``dva/spectrum`` (dva_msgs/ScaledSpectrum) and ``/diagnostics``. All times honour ``use_sim_time``.
 """
 from __future__ import annotations
 
-import math
 import sys
 
-import numpy as np
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 
-from aero_dva.control.spectrum import DEFAULT_FREQUENCIES, WINDOW_FUNCTIONS, SlidingSpectrum
-from dva_controller import messages
+from aero_dva.bag import channels as ch
+from aero_dva.control.spectrum_stream import SpectrumStream
+from dva_controller.shared_params import SPECTRUM_SHAPE, checked_channels, checked_frequencies
 from dva_msgs.msg import AccelerationBlock, DamperState, ScaledSpectrum
 from dva_ros_common import conversions
-from dva_ros_common.node_tools import InputHealth, Status, bounded, refuse_changes, run_node
+from dva_ros_common.node_params import NodeSpec, Param, declare_parameters
+from dva_ros_common.node_tools import INPUT_HEALTH_PARAMS, InputHealth, Status, run_node
 
-NODE_NAME = "spectrum"
 QOS_DEPTH = 100  # blocks of 10-50 ms: a few seconds of slack at 20x real time before a gap
-_READ_AT_START = (
-    "channels",
-    "window_duration",
-    "hop",
-    "frequencies",
-    "window",
-    "stale_timeout",
-    "diagnostic_period",
+
+SPEC = NodeSpec(
+    name="spectrum",
+    package="dva_controller",
+    summary="Sliding-window scaled magnitude spectra of the wing's accelerations (eq. 7.3 of "
+            "Zhang (2006)): every hop, the last window of each channel at the chosen "
+            "frequencies, each channel divided by its sum over the band.",
+    params=(
+        *SPECTRUM_SHAPE,
+        Param("hop", 0.1, "time between window starts; a whole number of samples", "s",
+              1.0e-3, 3600.0),
+        *INPUT_HEALTH_PARAMS,
+    ),
+    topics="""
+subscribes wing/acceleration (dva_msgs/AccelerationBlock)
+subscribes dva/damper_state (dva_msgs/DamperState: c2 applied during the window)
+publishes dva/spectrum (dva_msgs/ScaledSpectrum), /diagnostics
+""",
 )
-
-
-def checked_channels(value) -> tuple[str, ...]:
-    """Validate the ``channels`` parameter."""
-    channels = tuple(value)
-    if not channels:
-        raise ValueError("parameter 'channels' must name at least one channel")
-    unknown = [c for c in channels if c not in messages.ACCELERATION_CHANNELS]
-    if unknown:
-        raise ValueError(
-            f"parameter 'channels': unknown channel(s) {unknown}, "
-            f"expected some of {list(messages.ACCELERATION_CHANNELS)}"
-        )
-    if len(set(channels)) != len(channels):
-        raise ValueError(f"parameter 'channels' lists a channel twice: {list(channels)}")
-    return channels
-
-
-def checked_frequencies(value) -> np.ndarray:
-    """Validate the ``frequencies`` parameter (numbers, finite, > 0, distinct)."""
-    try:
-        freqs = np.array([float(f) for f in value])
-    except (TypeError, ValueError):
-        raise ValueError(f"parameter 'frequencies' must be numbers, got {value!r}") from None
-    if freqs.size == 0 or not np.all(np.isfinite(freqs)) or np.any(freqs <= 0.0):
-        raise ValueError(
-            f"parameter 'frequencies' must be finite values > 0 Hz, got {freqs.tolist()}"
-        )
-    if np.unique(freqs).size != freqs.size:
-        raise ValueError(f"parameter 'frequencies' has repeated values: {freqs.tolist()}")
-    return freqs
 
 
 class SpectrumNode(Node):
     """Turn acceleration blocks into eq. 7.3 spectra over sliding windows."""
 
     def __init__(self, **kwargs) -> None:
-        super().__init__(NODE_NAME, **kwargs)
-        self.declare_parameter(
-            "channels",
-            ["plunge", "pitch"],
-            ParameterDescriptor(description="acceleration channels to analyse, in order"),
-        )
-        self.declare_parameter(
-            "window_duration", 2.0, bounded("window length [s]", 1.0e-3, 3600.0)
-        )
-        self.declare_parameter(
-            "hop", 0.1, bounded("time between window starts [s]", 1.0e-3, 3600.0)
-        )
-        self.declare_parameter(
-            "frequencies",
-            DEFAULT_FREQUENCIES.tolist(),
-            ParameterDescriptor(
-                description="frequencies to evaluate [Hz]", dynamic_typing=True
-            ),
-        )
-        self.declare_parameter(
-            "window",
-            "rectangular",
-            ParameterDescriptor(description=f"window function, one of {WINDOW_FUNCTIONS}"),
-        )
-        self.channels = checked_channels(self.get_parameter("channels").value)
-        self.frequencies = checked_frequencies(self.get_parameter("frequencies").value)
-        self.window = str(self.get_parameter("window").value)
-        if self.window not in WINDOW_FUNCTIONS:
-            raise ValueError(
-                f"parameter 'window' must be one of {list(WINDOW_FUNCTIONS)}, got {self.window!r}"
-            )
-        self.window_duration = float(self.get_parameter("window_duration").value)
-        self.hop = float(self.get_parameter("hop").value)
+        super().__init__(SPEC.name, **kwargs)
+        values = declare_parameters(self, SPEC)
+        self.channels = checked_channels(values["channels"])
+        self.frequencies = checked_frequencies(values["frequencies"])
+        self.window = str(values["window"])
+        self.window_duration = float(values["window_duration"])
+        self.hop = float(values["hop"])
 
-        self._sliding: SlidingSpectrum | None = None
-        self._problem: str | None = None  # a persistent input problem for the status
-        self._damping = math.nan  # latest applied c2 [N s/m]
-        self.counts = dict.fromkeys(
-            ("blocks", "rejected", "resets", "spectra", "empty_windows", "damper_states"), 0
-        )
-        self._health = InputHealth(self, "window", "wing/acceleration", self.counts, self._status)
+        self._stream = SpectrumStream(self.channels, self.window_duration, self.hop,
+                                      self.frequencies, self.window)
+        self.counts = self._stream.counts
+        self._health = InputHealth(self, "window", ch.ACCELERATION.name, self.counts, self._status)
 
-        self._spectrum_pub = self.create_publisher(ScaledSpectrum, "dva/spectrum", 10)
-        self.create_subscription(AccelerationBlock, "wing/acceleration", self._on_block, QOS_DEPTH)
-        self.create_subscription(DamperState, "dva/damper_state", self._on_damper_state, 10)
-        refuse_changes(self, _READ_AT_START)
+        self._spectrum_pub = self.create_publisher(ScaledSpectrum, ch.SPECTRUM.name, 10)
+        self.create_subscription(AccelerationBlock, ch.ACCELERATION.name, self._on_block,
+                                 QOS_DEPTH)
+        self.create_subscription(DamperState, ch.DAMPER_STATE.name, self._on_damper_state,
+                                 QOS_DEPTH)
         self.get_logger().info(
             f"spectra of {list(self.channels)} at {self.frequencies.size} frequencies "
             f"({self.frequencies.min():g}..{self.frequencies.max():g} Hz), "
@@ -150,136 +87,48 @@ class SpectrumNode(Node):
 
     @property
     def latest_damping(self) -> float:
-        """[N s/m] latest applied c2 from ``dva/damper_state`` (NaN before the first)."""
-        return self._damping
+        """[N s/m] applied c2 of the newest ``dva/damper_state`` (NaN before the first)."""
+        return self._stream.latest_damping
 
     # ------------------------------------------------------------------ callbacks
     def _on_damper_state(self, msg: DamperState) -> None:
-        value = messages.applied_damping(msg)
-        if math.isfinite(value) and value >= 0.0:
-            self._damping = value
-            self.counts["damper_states"] += 1
+        self._stream.damper_state(conversions.time_to_ns(msg.header.stamp),
+                                  conversions.applied_damping(msg))
 
     def _on_block(self, msg: AccelerationBlock) -> None:
-        self.counts["blocks"] += 1
         self._health.mark_input()
-        index = int(msg.first_sample_index)
         try:
-            block = messages.acceleration_samples(msg, self.channels)
+            block = conversions.acceleration_samples(msg, self.channels)
         except ValueError as exc:
-            self._reject("malformed", f"block at index {index} rejected: {exc}", index=index)
+            index = int(msg.first_sample_index)
+            self.counts["blocks"] += 1
+            self.counts["rejected"] += 1
+            self._health.report(conversions.WARN, "malformed",
+                                f"block at index {index} rejected: {exc}", index=index)
             return
-        rate = block.sample_rate
-        if not (math.isfinite(rate) and rate > 0.0):
-            self._reject(
-                "bad_sample_rate",
-                f"block at index {index} rejected: sample_rate {rate} Hz",
-                index=index,
-            )
-            return
-        if self._sliding is None or rate != self._sliding.sample_rate:
-            if not self._start_window(rate, index):
-                return
-        result = self._sliding.push(index, block.samples, damping=self._damping)
-        if result.reset is not None:
-            event = result.reset
-            self.counts["resets"] += 1
-            self._health.report(
-                conversions.WARN,
-                f"reset_{event.reason.value}",
-                event.describe(),
-                reason=event.reason.value,
-                expected_index=event.expected_index,
-                received_index=event.received_index,
-                dropped_samples=event.dropped_samples,
-            )
-        for window in result.spectra:
-            self._publish(block, window)
-
-    def _start_window(self, rate: float, index: int) -> bool:
-        """(Re)build the sliding window for a sample rate; report why. False: block rejected."""
-        old = self._sliding
-        self._sliding = None
-        if old is not None:
-            expected = old.expected_index
-            dropped = old.reset().dropped_samples
-            self.counts["resets"] += 1
-            self._health.report(
-                conversions.WARN,
-                "reset_sample_rate",
-                f"spectrum window reset: sample rate changed from {old.sample_rate:g} to "
-                f"{rate:g} Hz at index {index} (expected index {expected}); "
-                f"{dropped} samples discarded",
-                reason="sample_rate",
-                previous_sample_rate=old.sample_rate,
-                sample_rate=rate,
-                expected_index=expected,
-                received_index=index,
-                dropped_samples=dropped,
-            )
-        try:
-            self._sliding = SlidingSpectrum(
-                len(self.channels),
-                rate,
-                window_duration=self.window_duration,
-                hop=self.hop,
-                frequencies=self.frequencies,
-                window=self.window,
-            )
-        except (TypeError, ValueError) as exc:
-            self._problem = f"blocks at {rate:g} Hz cannot be analysed with the parameters: {exc}"
-            self._reject(
-                "unusable_sample_rate",
-                self._problem,
-                level=conversions.ERROR,
-                index=index,
-                sample_rate=rate,
-            )
-            return False
-        self._problem = None
-        return True
-
-    def _publish(self, block: messages.AccelerationSamples, window) -> None:
-        spectrum = window.spectrum
-        if not np.all(np.isfinite(spectrum.magnitudes)):
-            empty = [c for c, s in zip(self.channels, spectrum.band_sums) if not s > 0.0]
-            self.counts["empty_windows"] += 1
-            self._health.report(
-                conversions.WARN,
-                "empty_window",
-                f"window {window.first_sample_index}..{window.stop_sample_index - 1} not "
-                f"published: no signal in the band on {empty}",
-                first_index=window.first_sample_index,
-            )
-            return
-        damping = window.mean_damping
-        if not math.isfinite(damping):
-            damping = self._damping
-        stamp = conversions.ns_to_time(block.sample_time_ns(window.stop_sample_index - 1))
-        self._spectrum_pub.publish(
-            messages.scaled_spectrum_message(
-                stamp, block.frame_id, self.channels, spectrum, self._sliding.hop, damping
-            )
-        )
-        self.counts["spectra"] += 1
+        spectra, events = self._stream.block(block.stamp_ns, block.first_sample_index,
+                                             block.sample_rate, block.samples)
+        for event in events:
+            level = conversions.ERROR if event.level == "error" else conversions.WARN
+            self._health.report(level, event.event, event.text, **event.values)
+        for item in spectra:
+            self._spectrum_pub.publish(conversions.scaled_spectrum_message(
+                conversions.ns_to_time(item.stamp_ns), block.frame_id, self.channels,
+                item.spectrum, item.hop, item.damping))
 
     # ------------------------------------------------------------------ diagnostics
-    def _reject(self, event: str, text: str, level: int = conversions.WARN, **values) -> None:
-        self.counts["rejected"] += 1
-        self._health.report(level, event, text, **values)
-
     def _status(self) -> Status:
-        values = {"damping": self._damping}
-        if self._sliding is not None:
-            values.update(sample_rate=self._sliding.sample_rate,
-                          expected_index=self._sliding.expected_index)
-        if self._problem is not None:
-            return conversions.ERROR, self._problem, values
+        values = {"damping": self.latest_damping}
+        sliding = self._stream.sliding
+        if sliding is not None:
+            values.update(sample_rate=sliding.sample_rate, expected_index=sliding.expected_index)
+        if self._stream.problem is not None:
+            return conversions.ERROR, self._stream.problem, values
         return conversions.OK, f"{self.counts['spectra']} spectra published", values
 
 
 def main(args=None) -> int:
-    return run_node(SpectrumNode, NODE_NAME, args)
+    return run_node(SpectrumNode, SPEC, args)
 
 
 if __name__ == "__main__":

@@ -1,5 +1,6 @@
-"""ROS glue shared by every node: the executor and how it spins, the body of ``main``,
-bounded parameters and input health on ``/diagnostics``.
+"""ROS glue shared by every node: the executor and how it spins, the body of ``main`` (with
+``--help`` from the node's parameter table, :mod:`dva_ros_common.node_params`) and input health
+on ``/diagnostics``.
 
 Executor: rclpy's default executor rebuilds its wait set in Python for every callback, which
 held the node graph far below the events executor's rate (``bench/bench_graph.py`` measures both;
@@ -10,13 +11,11 @@ neither returns from an unbounded spin when the context is shut down (SIGINT/SIG
 ``spin_until_future_complete`` without a timeout, so :func:`spin` always spins in bounded
 slices and checks between them.
 
-:class:`InputHealth` declares the parameters
-
-stale_timeout : float, default 1.0
-    [s] ROS time without input after which the periodic status turns WARN.
-diagnostic_period : float, default 1.0
-    [s] ROS time between periodic status reports on ``/diagnostics``; also the least wall time
-    between two reports of the same kind of event.
+:class:`InputHealth` reads the parameters of :data:`INPUT_HEALTH_PARAMS` (a node lists them
+in its parameter table, :mod:`dva_ros_common.node_params`): ``stale_timeout`` [s] ROS time
+without input after which the periodic status turns WARN, and ``diagnostic_period`` [s] ROS time
+between periodic status reports on ``/diagnostics`` (also the least wall time between two
+reports of the same kind of event).
 """
 from __future__ import annotations
 
@@ -28,25 +27,27 @@ from collections.abc import Callable, Collection, Mapping
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.exceptions import ParameterException
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.task import Future
 
+from aero_dva.bag.channels import DIAGNOSTICS
 from dva_ros_common.conversions import ERROR, WARN, diagnostic_array, diagnostic_status
+from dva_ros_common.node_params import NodeSpec, Param, command_line, declare_parameters
+
+#: The rows of :class:`InputHealth` for a node's parameter table.
+INPUT_HEALTH_PARAMS = (
+    Param("stale_timeout", 1.0, "ROS time without input after which the status turns WARN", "s",
+          1.0e-3, 3600.0),
+    Param("diagnostic_period", 1.0, "ROS time between status reports on /diagnostics", "s",
+          1.0e-2, 3600.0),
+)
 
 #: A node's own status: level, message and extra key/values for ``/diagnostics``.
 Status = tuple[int, str, Mapping[str, object]]
-
-
-def bounded(description: str, low: float, high: float) -> ParameterDescriptor:
-    """Descriptor of a float parameter limited to ``[low, high]``."""
-    return ParameterDescriptor(
-        description=description,
-        floating_point_range=[FloatingPointRange(from_value=low, to_value=high)],
-    )
 
 
 def refuse_changes(node: Node, names: Collection[str]) -> None:
@@ -79,23 +80,22 @@ class InputHealth:
         counts: Mapping[str, int],
         status: Callable[[], Status],
     ) -> None:
-        stale = node.declare_parameter(
-            "stale_timeout", 1.0, bounded("input age reported as stale [s]", 1.0e-3, 3600.0)
-        )
-        period = node.declare_parameter(
-            "diagnostic_period", 1.0, bounded("status period [s]", 1.0e-2, 3600.0)
-        )
+        values = {}
+        for row in INPUT_HEALTH_PARAMS:  # declared from the node's table, or here
+            if not node.has_parameter(row.name):
+                declare_parameters(node, NodeSpec(node.get_name(), "", "", (row,)))
+            values[row.name] = float(node.get_parameter(row.name).value)
         self._node = node
         self._input_topic = input_topic
         self._counts = counts
         self._status = status
-        self._stale_ns = round(float(stale.value) * 1e9)
-        self._period = float(period.value)
+        self._stale_ns = round(values["stale_timeout"] * 1e9)
+        self._period = values["diagnostic_period"]
         self.name = f"{node.get_fully_qualified_name().lstrip('/')}: {subject}"
         self._last_input_ns: int | None = None
         self._first_tick_ns: int | None = None
         self._last_report: dict[str, float] = {}
-        self._pub = node.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self._pub = node.create_publisher(DiagnosticArray, DIAGNOSTICS.name, 10)
         node.create_timer(self._period, self._publish_status)
 
     def mark_input(self) -> int:
@@ -160,16 +160,64 @@ def spin(executor: Executor, until: Future | None = None) -> None:
         executor.spin_until_future_complete(until, timeout_sec=SLICE)
 
 
-def run_node(node_class: Callable[[], Node], node_name: str, args=None) -> int:
-    """Body of a node's ``main``: the exit code (2 with a one-line error for bad parameters or
-    files).
+DRAIN_IDLE = 0.05  # [s] wall time without a message that ends a drain
+DRAIN_LIMIT = 2.0  # [s] wall time a drain takes at most
 
-    The node spins until its ``done`` future completes, if it has one that is not None, else
-    until shutdown. A node with a ``close()`` method has it called once at the end, with
-    SIGINT and SIGTERM ignored so that a second Ctrl-C cannot cut it short (the recorder closes
-    its bag there). Errors while spinning are left to raise, so they keep their traceback.
+
+def _drain(executor: Executor, taken: Callable[[], int]) -> None:
+    """Take the messages that arrived before a stop request and wait in the executor's queue:
+    spin until ``taken()`` has not grown for DRAIN_IDLE s, at most DRAIN_LIMIT s."""
+    deadline = time.monotonic() + DRAIN_LIMIT
+    last, quiet_since = taken(), time.monotonic()
+    while time.monotonic() < deadline:
+        executor.spin_once(timeout_sec=0.01)
+        now = taken()
+        if now != last:
+            last, quiet_since = now, time.monotonic()
+        elif time.monotonic() - quiet_since >= DRAIN_IDLE:
+            return
+
+
+def _stop_on_signals() -> Future:
+    """A future that SIGINT or SIGTERM completes, in place of rclpy's handlers (which shut the
+    context down at once, dropping every message still queued)."""
+    stop = Future()
+
+    def request(signum, _frame) -> None:
+        if not stop.done():
+            stop.set_result(signum)
+
+    signal.signal(signal.SIGINT, request)
+    signal.signal(signal.SIGTERM, request)
+    return stop
+
+
+def run_node(node_class: Callable[[], Node], spec: NodeSpec, args=None, *,
+             drain: Callable[[Node], int] | None = None) -> int:
+    """Body of a node's ``main``: the exit code.
+
+    ``-h``/``--help`` prints the node's parameter table (``spec``) and returns 0 without
+    starting ROS; unknown arguments outside ``--ros-args`` return 2, as do bad parameters or
+    files (a one-line error). The node spins until its ``done`` future completes, if it has
+    one that is not None, else until shutdown. A node with a ``close()`` method has it called
+    once at the end, with SIGINT and SIGTERM ignored so that a second Ctrl-C cannot cut it
+    short (the recorder closes its bag there). Errors while spinning are left to raise, so they
+    keep their traceback. ``args`` is the whole command line (default ``sys.argv``).
+
+    ``drain(node)``, a count of messages the node has taken: SIGINT and SIGTERM stop the spin
+    but leave the context up, and the node takes what is still queued (until the count stops
+    growing, :func:`_drain`) before ``close()``. A busy recorder can be a second behind its
+    publishers; without this, a signal would drop that second (bench/bench_faults.py).
     """
-    rclpy.init(args=args)
+    from rclpy.signals import SignalHandlerOptions
+
+    code = command_line(spec, sys.argv if args is None else args)
+    if code is not None:
+        return code
+    node_name = spec.name
+    handlers = SignalHandlerOptions.NO if drain is not None else SignalHandlerOptions.ALL
+    rclpy.init(args=args, signal_handler_options=handlers)
+    stop = _stop_on_signals() if drain is not None else None
     node = None
     try:
         try:
@@ -179,12 +227,17 @@ def run_node(node_class: Callable[[], Node], node_name: str, args=None) -> int:
             print(f"{node_name}: error: {exc}", file=sys.stderr)
             return 2
         executor.add_node(node)
-        spin(executor, getattr(node, "done", None))
+        spin(executor, getattr(node, "done", None) or stop)
+        if stop is not None and stop.done():
+            _drain(executor, lambda: drain(node))
     except (KeyboardInterrupt, ExternalShutdownException):
         pass  # Ctrl-C or SIGTERM: a clean exit
-    except RCLError:
+    except RuntimeError:  # RCLError is one
+        # After a signal: the node was starting (RCLError), or the events executor could not
+        # hand a message to Python mid-shutdown (pybind11 "Unable to convert call argument",
+        # about 1 in 20 SIGINTs of a busy recorder, bench/bench_faults.py): a clean exit.
         if rclpy.ok():
-            raise  # otherwise a signal arrived while the node was starting: a clean exit
+            raise
     finally:
         if node is not None:
             if hasattr(node, "close"):

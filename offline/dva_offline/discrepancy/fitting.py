@@ -1,14 +1,10 @@
-"""Domain-independent model-discrepancy engine.
+"""Parametric models and their weighted least-squares fit on training points.
 
-Loop: fit the baseline on training points -> error on held-out points -> characterise the
-residual (noise floor, whiteness, localisation, phase trend, covariates) -> fit every candidate
-effect of the domain's library -> score on held-out points with a penalty per added parameter
--> verdict ``consistent`` / ``explained`` (with the effect's name) / ``unexplained``.
-
-A domain supplies (see :class:`Domain`): the observations (complex values, weights that make
-residuals relative, an ordering axis, groups = test conditions, covariates), the baseline as a
-:class:`ModelSpec` and a candidate library of :class:`ModelSpec` (or :class:`NotApplicable`),
-each a physical extension of the baseline that reduces to it at a null parameter value.
+The pieces every discrepancy domain builds on: :class:`ParamSpec` / :class:`ModelSpec` (a
+parametric model with bounds and starts), :class:`Observations` (complex values, weights,
+ordering axis, groups, covariates), :func:`holdout_split` (training and held-out points) and
+:func:`fit_model` (multi-start Levenberg-Marquardt in bounded coordinates, Gauss-Newton standard
+errors, held-out errors, and the parameters that ended on a bound).
 
 Error on held-out points (reported as ``error``), with weights w_j (w_j = 1 / |y_j| for FRFs):
 
@@ -17,34 +13,15 @@ Error on held-out points (reported as ``error``), with weights w_j (w_j = 1 / |y
 i.e. the RMS relative error per point. For noise of RMS sigma (relative), a correct model has
 e ~ sigma. ``error_l2`` is the unweighted sqrt(sum |yhat - y|^2 / sum |y|^2) over the same
 points (the isolator tool's FRF error), reported for reference.
-
-Scores and decision (all thresholds in :class:`DecisionRule`):
-
-* Noise floor sigma_hat from the data alone (:func:`.residual.noise_floor`).
-* ``consistent`` when the baseline's held-out error e_0 <= consistency_ratio * sigma_hat and
-  its residual passes the Ljung-Box whiteness test (p >= whiteness_alpha).
-* Each candidate c (p_c added parameters, all parameters refitted on the training points):
-  penalised held-out score dBIC_c = n ln(S_c / S_0) + p_c ln(n), n = 2 N_h real residuals,
-  S = held-out sum of squared weighted residuals; a nested F test on the training points
-  (baseline vs candidate) gives p-value p_c; the explained fraction
-  R_c = (S_0 - S_c) / (S_0 - N_h sigma_hat^2) is the share of the excess (non-noise) held-out
-  residual power that the candidate removes.
-* ``explained`` when the best candidate (lowest dBIC) has p_c < significance,
-  dBIC_c <= -min_bic_gain and R_c >= min_explained, and no other candidate with
-  R >= min_explained comes within ambiguity_margin of its dBIC. Otherwise ``unexplained``.
 """
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Protocol
 
 import numpy as np
-from scipy import stats
 from scipy.optimize import least_squares
 from scipy.special import expit
-
-from dva_offline.discrepancy.residual import NoiseFloor, ResidualFeatures, characterise
 
 EFFECT_VOCABULARY = {
     "maxwell_element": "one more Maxwell element (spring in series with a damper) in the mount",
@@ -83,6 +60,8 @@ class ParamSpec:
         Fit ln(value) (positive parameters spanning decades).
     scale : float
         Typical magnitude of a linear parameter (the optimiser works on value / scale).
+    at_lower, at_upper : str
+        What a fit ending on that bound means physically (reported with the bound hit).
     """
 
     name: str
@@ -92,6 +71,8 @@ class ParamSpec:
     upper: float = np.inf
     log: bool = False
     scale: float = 1.0
+    at_lower: str = ""
+    at_upper: str = ""
 
     def __post_init__(self) -> None:
         if not self.lower < self.upper:
@@ -104,7 +85,7 @@ class ParamSpec:
 
 @dataclass(frozen=True)
 class ModelSpec:
-    """A parametric model the engine can fit.
+    """A parametric model the loop can fit.
 
     Attributes
     ----------
@@ -159,7 +140,7 @@ class NotApplicable:
 
 @dataclass(frozen=True)
 class Observations:
-    """The data a domain hands to the engine.
+    """The data a domain hands to the loop.
 
     Attributes
     ----------
@@ -208,25 +189,6 @@ class Observations:
         object.__setattr__(self, "weights", w)
         object.__setattr__(self, "axis", x)
         object.__setattr__(self, "groups", g)
-
-
-class Domain(Protocol):
-    """What a domain supplies to :func:`run`."""
-
-    name: str
-    observations: Observations
-
-    def baseline(self, train: np.ndarray) -> ModelSpec:
-        """The baseline model, initialised from the training points (mask, shape (N,))."""
-
-    def candidates(
-        self, baseline: ModelFit, features: ResidualFeatures
-    ) -> Sequence[ModelSpec | NotApplicable]:
-        """The candidate library, each started from the fitted baseline."""
-
-    def variants(self, spec: ModelSpec) -> Sequence[ModelSpec]:
-        """Optional: other forms of a promising candidate (e.g. on a richer baseline); the
-        engine keeps the form with the best score. Return [] for none."""
 
 
 @dataclass(frozen=True)
@@ -285,6 +247,55 @@ class Estimate:
 
 
 @dataclass(frozen=True)
+class BoundHit:
+    """A fitted parameter that ended on (within 0.1 % of the range of) one of its bounds.
+
+    Its standard error is then meaningless (the bounded coordinates have no gradient there):
+    the data ask for a value outside the allowed range.
+    """
+
+    name: str
+    unit: str
+    value: float
+    bound: float
+    side: str  # "lower" or "upper"
+    meaning: str
+    added: bool  # one of the effect's parameters (not the baseline's)
+
+    def describe(self) -> str:
+        return (f"{self.name} = {self.value:.6g} {self.unit} is on its {self.side} bound "
+                f"{self.bound:.6g} {self.unit}: {self.meaning}")
+
+
+BOUND_TOLERANCE = 1e-3  # share of a parameter's range (in fit coordinates) counted as "on it"
+
+
+def _generic_meaning(p: ParamSpec, side: str) -> str:
+    return (f"the data push {p.name} beyond its {side} bound; the estimate and its standard "
+            "error are not meaningful")
+
+
+def bound_hits(params, values, n_added: int) -> tuple[BoundHit, ...]:
+    """The parameters whose fitted value sits on a finite bound (see :class:`BoundHit`)."""
+    out = []
+    first_added = len(params) - n_added
+    for i, (p, v) in enumerate(zip(params, values)):
+        def conv(x, p=p):
+            return np.log(x) if p.log else x / p.scale
+
+        lo = conv(p.lower) if np.isfinite(p.lower) else -np.inf
+        hi = conv(p.upper) if np.isfinite(p.upper) else np.inf
+        x = conv(v)
+        span = hi - lo if np.isfinite(hi - lo) else max(abs(x), 1.0)
+        for side, bound, edge, note in (("lower", p.lower, lo, p.at_lower),
+                                        ("upper", p.upper, hi, p.at_upper)):
+            if np.isfinite(edge) and abs(x - edge) <= BOUND_TOLERANCE * span:
+                out.append(BoundHit(p.name, p.unit, float(v), float(bound), side,
+                                    note or _generic_meaning(p, side), i >= first_added))
+    return tuple(out)
+
+
+@dataclass(frozen=True)
 class ModelFit:
     """A model fitted on the training points and scored on the held-out points.
 
@@ -311,6 +322,8 @@ class ModelFit:
     success : bool
         Optimiser success of the best start.
     n_starts : int
+    bound_hits : tuple of BoundHit
+        Parameters that ended on a bound.
     """
 
     name: str
@@ -329,6 +342,7 @@ class ModelFit:
     n_held: int
     success: bool
     n_starts: int
+    bound_hits: tuple = ()
 
     @property
     def n_params(self) -> int:
@@ -383,7 +397,8 @@ class _Coordinates:
         span = np.where(self.bounded, self.hi - self.lo, 1.0)
         x = np.where(self.bounded, self.lo + span * expit(z),
                      np.clip(z, self.lo, self.hi))
-        return np.where(self.log, np.exp(x), x * self.scale)
+        with np.errstate(over="ignore"):  # exp of a linear parameter's x is discarded
+            return np.where(self.log, np.exp(x), x * self.scale)
 
     def dvalues_dz(self, z) -> np.ndarray:
         z = np.asarray(z, dtype=float)
@@ -474,13 +489,9 @@ def fit_model(spec: ModelSpec, obs: Observations, split: HoldoutSplit,
     rss_tr = float(np.sum(np.abs(residual[train]) ** 2))
     rss_h = float(np.sum(np.abs(residual[held]) ** 2))
     n_tr, n_h = int(train.sum()), int(held.sum())
-    std = np.full(n_p, np.nan)
-    dof = 2 * n_tr - n_p
-    if n_p and dof > 0:
-        s2 = rss_tr / dof
-        cov = np.linalg.pinv(jac.T @ jac) * s2
-        std_u = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-        std = np.abs(coords.dvalues_dz(u)) * std_u  # delta method
+    hits = bound_hits(params, values, spec.n_added)
+    std = _standard_errors(params, values, coords, u, jac, rss_tr, 2 * n_tr,
+                           {h.name for h in hits})
     dy = pred[held] - obs.values[held]
     return ModelFit(
         name=spec.name, effect=spec.effect, label=spec.label,
@@ -491,294 +502,38 @@ def fit_model(spec: ModelSpec, obs: Observations, split: HoldoutSplit,
         error_l2=float(np.linalg.norm(dy) / np.linalg.norm(obs.values[held])),
         train_error=float(np.sqrt(rss_tr / n_tr)), rss_train=rss_tr, rss_held=rss_h,
         n_train=n_tr, n_held=n_h, success=success, n_starts=n_starts,
+        bound_hits=hits,
     )
 
 
-@dataclass(frozen=True)
-class DecisionRule:
-    """Thresholds of the verdict (module docstring).
+def _standard_errors(params, values, coords, u, jac, rss, n_res, at_bound) -> np.ndarray:
+    """Gauss-Newton standard errors of the parameter values (delta method).
 
-    Attributes
-    ----------
-    consistency_ratio : float
-        Baseline consistent if held-out error <= this x noise floor (and white).
-    whiteness_alpha : float
-        Ljung-Box p-value below which the residual is called correlated.
-    significance : float
-        F-test p-value a candidate must beat.
-    min_bic_gain : float
-        A candidate must lower the held-out BIC by at least this.
-    min_explained : float
-        Share of the excess residual power the best candidate must remove.
-    ambiguity_margin : float
-        Another candidate that also explains the residual within this BIC margin makes the
-        attribution ambiguous (verdict ``unexplained``).
-    strict_consistency : bool
-        If True, ``consistent`` also needs that no candidate is significant (F-test p <
-        significance and dBIC <= -min_bic_gain), and the noise level in the explained
-        fraction R is capped by the best candidate's held-out error (a noise floor estimate
-        that is too high, e.g. from correlated estimation noise, must not hide a clear
-        effect). Off by default (domain 1); the flight domain uses it.
+    The Jacobian is taken back from the bounded optimiser coordinates z to x = ln(value) or
+    value / scale (dividing each column by dx/dz), so a parameter that saturated the logistic
+    map does not wipe out the others' covariance; parameters on a bound are held fixed
+    (standard error NaN). Columns are normalised before the pseudo-inverse.
     """
-
-    consistency_ratio: float = 1.25
-    whiteness_alpha: float = 1e-3
-    significance: float = 1e-3
-    min_bic_gain: float = 10.0
-    min_explained: float = 0.9
-    ambiguity_margin: float = 10.0
-    strict_consistency: bool = False
-
-
-@dataclass(frozen=True)
-class CandidateScore:
-    """A library entry's result.
-
-    Attributes
-    ----------
-    effect, label : str
-    applicable : bool
-    reason : str
-        Why not applicable (empty otherwise).
-    fit : ModelFit or None
-    delta_bic : float
-        Penalised held-out score relative to the baseline (negative is better).
-    p_value : float
-        Nested F test on the training points (baseline vs candidate).
-    explained_fraction : float
-        R (module docstring); NaN when the baseline has no excess over the noise floor.
-    signature : str
-    """
-
-    effect: str
-    label: str
-    applicable: bool
-    reason: str
-    fit: ModelFit | None
-    delta_bic: float
-    p_value: float
-    explained_fraction: float
-    signature: str
-
-
-@dataclass(frozen=True)
-class Verdict:
-    """``status`` in :data:`STATUSES`; ``effect`` named only when explained."""
-
-    status: str
-    effect: str | None
-    label: str
-    evidence: str
-
-
-@dataclass(frozen=True)
-class DiscrepancyResult:
-    """Everything the engine found.
-
-    Attributes
-    ----------
-    domain : str
-    split : HoldoutSplit
-    baseline : ModelFit
-    noise : NoiseFloor
-    residual : ResidualFeatures
-        Of the baseline's residual (all points).
-    candidates : tuple of CandidateScore
-        Sorted best first (applicable ones by delta_bic, then the others).
-    verdict : Verdict
-    augmented : ModelFit or None
-        The named effect's fit, when explained.
-    augmented_residual : ResidualFeatures or None
-    rule : DecisionRule
-    error_definition : str
-    """
-
-    domain: str
-    split: HoldoutSplit
-    baseline: ModelFit
-    noise: NoiseFloor
-    residual: ResidualFeatures
-    candidates: tuple[CandidateScore, ...]
-    verdict: Verdict
-    augmented: ModelFit | None
-    augmented_residual: ResidualFeatures | None
-    rule: DecisionRule
-    error_definition: str = ERROR_DEFINITION
-
-    @property
-    def error_reduction(self) -> float | None:
-        """Augmented over baseline held-out error (None unless explained)."""
-        if self.augmented is None:
-            return None
-        return self.augmented.error / self.baseline.error
-
-
-def score_candidate(base: ModelFit, fit: ModelFit, sigma: float) -> tuple[float, float, float]:
-    """(delta_bic, p_value, explained_fraction) of a candidate fit against the baseline fit."""
-    n = 2 * fit.n_held
-    p_add = fit.n_added
-    delta_bic = n * np.log(fit.rss_held / base.rss_held) + p_add * np.log(n)
-    dof = 2 * fit.n_train - fit.n_params
-    if p_add == 0 or dof <= 0 or fit.rss_train >= base.rss_train:
-        p_value = 1.0
-    else:
-        f = ((base.rss_train - fit.rss_train) / p_add) / (fit.rss_train / dof)
-        p_value = float(stats.f.sf(f, p_add, dof))
-    excess = base.rss_held - fit.n_held * sigma**2
-    frac = (base.rss_held - fit.rss_held) / excess if excess > 0 else np.nan
-    return float(delta_bic), p_value, float(frac)
-
-
-def _features(obs: Observations, fit: ModelFit, sigma=None) -> ResidualFeatures:
+    n_p = len(params)
+    std = np.full(n_p, np.nan)
+    free = np.array([p.name not in at_bound for p in params], dtype=bool)
+    dof = n_res - int(free.sum())
+    if not n_p or dof <= 0 or not free.any():
+        return std
+    span = np.where(coords.bounded, coords.hi - coords.lo, 1.0)
+    sig = expit(u)
+    dxdz = np.where(coords.bounded, span * sig * (1 - sig), 1.0)
     with np.errstate(all="ignore"):
-        ratio = obs.values / fit.prediction
-    if not np.all(np.isfinite(ratio)) or np.any(ratio == 0):
-        ratio = None
-    return characterise(obs.axis, fit.residual, obs.groups, obs.covariates, ratio, sigma,
-                        log=obs.log_axis)
+        jx = jac[:, free] / dxdz[free]
+    if not np.all(np.isfinite(jx)):
+        return std
+    norm = np.linalg.norm(jx, axis=0)
+    norm[norm == 0] = 1.0
+    cov = np.linalg.pinv((jx / norm).T @ (jx / norm)) / np.outer(norm, norm) * (rss / dof)
+    std_x = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    v = np.asarray(values, float)[free]
+    log = np.array([p.log for p in params])[free]
+    scale = np.array([p.scale for p in params])[free]
+    std[free] = np.where(log, np.abs(v), scale) * std_x
+    return std
 
-
-def _describe(c: CandidateScore) -> str:
-    label = f" ({c.label})" if c.label else ""
-    return (f"{c.effect}{label}: held-out error {c.fit.error:.4f}, dBIC {c.delta_bic:.1f}, "
-            f"F-test p = {c.p_value:.2g}, explains {100 * c.explained_fraction:.0f} % of the "
-            "excess")
-
-
-def decide(base: ModelFit, noise: NoiseFloor, features: ResidualFeatures,
-           scores: Sequence[CandidateScore], rule: DecisionRule) -> Verdict:
-    """Apply :class:`DecisionRule` (module docstring) to the scored candidates."""
-    sigma = noise.sigma
-    ratio = base.error / sigma if sigma > 0 else np.inf
-    white = features.whiteness
-    head = (f"baseline held-out error {base.error:.4f} = {ratio:.2f} x the noise floor "
-            f"{sigma:.4f}; residual whiteness (Ljung-Box) p = {white.p_value:.2g}")
-    fitted = [c for c in scores if c.applicable and c.fit is not None]
-    eligible = [c for c in fitted if c.p_value < rule.significance
-                and c.delta_bic <= -rule.min_bic_gain]
-    if (ratio <= rule.consistency_ratio and white.p_value >= rule.whiteness_alpha
-            and not (rule.strict_consistency and eligible)):
-        return Verdict("consistent", None, "",
-                       f"{head}: the baseline fits within the noise; nothing added")
-    if not eligible:
-        best = min(fitted, key=lambda c: c.delta_bic) if fitted else None
-        tail = f"; best was {_describe(best)}" if best is not None else ""
-        return Verdict("unexplained", None, "",
-                       f"{head}; no candidate improves the held-out score significantly{tail}")
-    best = min(eligible, key=lambda c: c.delta_bic)
-    frac = best.explained_fraction
-    if not frac >= rule.min_explained:
-        return Verdict(
-            "unexplained", None, "",
-            f"{head}; the best candidate explains too little (< "
-            f"{100 * rule.min_explained:.0f} %): {_describe(best)}",
-        )
-    rivals = [c for c in eligible if c is not best and c.explained_fraction >= rule.min_explained
-              and c.delta_bic - best.delta_bic < rule.ambiguity_margin]
-    if rivals:
-        return Verdict(
-            "unexplained", None, "",
-            f"{head}; ambiguous: {_describe(best)} and {_describe(rivals[0])} explain the "
-            "residual about equally well",
-        )
-    runner = [c for c in fitted if c is not best]
-    tail = (f"; next best {_describe(min(runner, key=lambda c: c.delta_bic))}"
-            if runner else "")
-    return Verdict("explained", best.effect, best.label,
-                   f"{head}; {_describe(best)}; held-out error {base.error:.4f} -> "
-                   f"{best.fit.error:.4f}{tail}")
-
-
-def _capped_fractions(base: ModelFit, scores: list, sigma: float) -> list:
-    """Explained fractions with the noise level capped by the best candidate's held-out RMS
-    error (see ``DecisionRule.strict_consistency``)."""
-    fits = [c.fit for c in scores if c.applicable and c.fit is not None]
-    if not fits:
-        return scores
-    best_rms = min(np.sqrt(f.rss_held / f.n_held) for f in fits)
-    capped = min(sigma, best_rms)
-    out = []
-    for c in scores:
-        if c.applicable and c.fit is not None:
-            _, _, frac = score_candidate(base, c.fit, capped)
-            c = CandidateScore(c.effect, c.label, True, c.reason, c.fit, c.delta_bic, c.p_value,
-                               frac, c.signature)
-        out.append(c)
-    return out
-
-
-def run(domain: Domain, rule: DecisionRule | None = None, split: HoldoutSplit | None = None,
-        progress: Callable[[str], None] | None = None, n_variants: int = 2) -> DiscrepancyResult:
-    """Run the discrepancy loop on a domain.
-
-    Parameters
-    ----------
-    domain : Domain
-    rule : DecisionRule, optional
-    split : HoldoutSplit, optional
-        Default :func:`holdout_split` with every 4th point held out.
-    progress : callable, optional
-        Called with a short text before each fit (progress bars live in the CLI).
-    n_variants : int
-        How many of the best candidates get the domain's variants tried.
-
-    Returns
-    -------
-    DiscrepancyResult
-    """
-    rule = rule or DecisionRule()
-    obs = domain.observations
-    split = split or holdout_split(obs.groups)
-    if split.train.shape != obs.values.shape or split.held.sum() < 5:
-        raise ValueError("split must have the observations' shape and >= 5 held-out points")
-    if progress:
-        progress("baseline")
-    base = fit_model(domain.baseline(split.train), obs, split)
-    features = _features(obs, base)
-    noise = features.noise
-    scores = []
-    specs = {}
-    for item in domain.candidates(base, features):
-        if isinstance(item, NotApplicable):
-            scores.append(CandidateScore(item.effect, item.label, False, item.reason, None,
-                                         np.nan, np.nan, np.nan, ""))
-            continue
-        if progress:
-            progress(item.effect + (f" ({item.label})" if item.label else ""))
-        specs[(item.effect, item.label)] = item
-        fit = fit_model(item, obs, split)
-        dbic, p, frac = score_candidate(base, fit, noise.sigma)
-        scores.append(CandidateScore(item.effect, item.label, True, "", fit, dbic, p, frac,
-                                     item.signature))
-    # Promising candidates (lowest dBIC, significant) get their variants tried too.
-    variants = getattr(domain, "variants", None)
-    if variants is not None:
-        # (only while they leave residual power above the noise: nothing to gain otherwise)
-        ranked = sorted((c for c in scores if c.applicable and c.delta_bic < 0),
-                        key=lambda c: c.delta_bic)[:n_variants]
-        ranked = [c for c in ranked if c.fit.error > rule.consistency_ratio * noise.sigma]
-        for c in ranked:
-            for spec in variants(specs[(c.effect, c.label)]):
-                if progress:
-                    progress(f"{spec.name}")
-                fit = fit_model(spec, obs, split)
-                dbic, p, frac = score_candidate(base, fit, noise.sigma)
-                if dbic < c.delta_bic:
-                    i = scores.index(c)
-                    c = CandidateScore(c.effect, c.label, True, "", fit, dbic, p, frac,
-                                       c.signature)
-                    scores[i] = c
-    if rule.strict_consistency:
-        scores = _capped_fractions(base, scores, noise.sigma)
-    scores.sort(key=lambda c: (not c.applicable, c.delta_bic if c.applicable else 0.0))
-    verdict = decide(base, noise, features, scores, rule)
-    augmented = aug_features = None
-    if verdict.status == "explained":
-        chosen = next(c for c in scores if c.applicable and c.effect == verdict.effect
-                      and c.label == verdict.label)
-        augmented = chosen.fit
-        aug_features = _features(obs, augmented, noise.sigma)
-    # a domain whose weights are not plain 1/|y| states its own definition
-    definition = getattr(domain, "error_definition", ERROR_DEFINITION)
-    return DiscrepancyResult(domain.name, split, base, noise, features, tuple(scores), verdict,
-                             augmented, aug_features, rule, definition)

@@ -1,0 +1,180 @@
+"""Open-loop re-runs of a recorded flight's controller without ROS, and their comparison.
+
+The inputs a controller saw in a recorded flight (acceleration blocks and damper states for the
+spectrum and RBF network, flight conditions for the airspeed schedule) are fed, in the bag's
+order, through the very code the nodes run (:class:`~aero_dva.control.spectrum_stream.
+SpectrumStream`, :mod:`aero_dva.control.command_laws`). With the network or schedule that flew,
+the spectra and commands equal the recorded ones; with another, they are that controller's
+commands on the same data. ``dva replay`` runs this (``--offline``) or the same through the
+node graph, and compares either with the recording (:func:`compare`).
+
+The re-run is open loop: the wing does not respond to the new commands (the recorded
+accelerations and applied c2 are replayed as they were).
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from aero_dva.control.command_laws import RBFLaw, ScheduleLaw
+from aero_dva.control.spectrum_stream import SpectrumStream
+
+__all__ = ["CONTROLLERS", "Comparison", "CommandRecord", "SpectrumRecord", "compare",
+           "rbf_commands", "schedule_commands", "spectra_from_inputs"]
+
+CONTROLLERS = ("rbf", "schedule", "fixed")
+#: Channels of an acceleration block, in the order read from a bag (dva_msgs/AccelerationBlock).
+ACCELERATION_CHANNELS = ("plunge", "pitch", "leading_edge")
+
+
+@dataclass(frozen=True)
+class SpectrumRecord:
+    """One ``dva/spectrum`` message's numbers: stamp [ns], magnitudes (channels, n_freq),
+    band sums, the c2 of the window [N s/m]."""
+
+    stamp_ns: int
+    magnitudes: np.ndarray
+    band_sums: np.ndarray
+    damping: float
+
+
+@dataclass(frozen=True)
+class CommandRecord:
+    """One ``dva/damper_command``: stamp [ns] (its input's time), c2 [N s/m], source."""
+
+    stamp_ns: int
+    damping: float
+    source: str
+
+
+@dataclass(frozen=True)
+class BlockInput:
+    """An acceleration block as recorded: stamp [ns], index, rate [Hz], samples (3, n)."""
+
+    stamp_ns: int
+    first_index: int
+    sample_rate: float
+    samples: np.ndarray
+
+
+@dataclass(frozen=True)
+class StateInput:
+    """A damper state as recorded: stamp [ns], applied c2 [N s/m]."""
+
+    stamp_ns: int
+    applied: float
+
+
+def spectra_from_inputs(inputs: Iterable[BlockInput | StateInput], channels: Sequence[str],
+                        window_duration: float, hop: float, frequencies,
+                        window: str) -> list[SpectrumRecord]:
+    """The spectrum node's output for blocks and damper states in their recorded order."""
+    rows = [ACCELERATION_CHANNELS.index(c) for c in channels]
+    stream = SpectrumStream(channels, window_duration, hop, frequencies, window)
+    out = []
+    for item in inputs:
+        if isinstance(item, StateInput):
+            stream.damper_state(item.stamp_ns, item.applied)
+            continue
+        spectra, _ = stream.block(item.stamp_ns, item.first_index, item.sample_rate,
+                                  item.samples[rows])
+        out += [SpectrumRecord(s.stamp_ns, s.spectrum.magnitudes, s.spectrum.band_sums,
+                               s.damping) for s in spectra]
+    return out
+
+
+def rbf_commands(spectra: Iterable[SpectrumRecord], law: RBFLaw) -> list[CommandRecord]:
+    """The RBF controller's commands for each spectrum (a spectrum without a valid c2, or with
+    no finite network output, gives none, as in the node)."""
+    out = []
+    for s in spectra:
+        if not (math.isfinite(s.damping) and s.damping >= 0.0):
+            continue
+        c2, _ = law.command(s.magnitudes, s.damping)
+        if math.isfinite(c2):
+            out.append(CommandRecord(s.stamp_ns, c2, "rbf_network"))
+    return out
+
+
+def schedule_commands(conditions: Iterable[tuple[int, float]],
+                      law: ScheduleLaw) -> list[CommandRecord]:
+    """The airspeed controller's commands for (stamp [ns], airspeed [m/s]) conditions."""
+    out = []
+    for stamp_ns, airspeed in conditions:
+        result = law.step(stamp_ns, airspeed)
+        if result.kind == "command":
+            out.append(CommandRecord(stamp_ns, result.damping, "airspeed_schedule"))
+    return out
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """Two series of stamped values side by side (matched by stamp).
+
+    Attributes
+    ----------
+    reference, other : int
+        Messages in each series.
+    matched : int
+        Stamps in both.
+    max_abs_difference : float
+        Largest |difference| of the compared values over the matched stamps (0 if none).
+    rms_difference : float
+        RMS of those differences.
+    identical : bool
+        Same stamps, and every value equal bit for bit.
+    """
+
+    reference: int
+    other: int
+    matched: int
+    max_abs_difference: float
+    rms_difference: float
+    identical: bool
+
+    def to_dict(self) -> dict:
+        return dict(reference=self.reference, other=self.other, matched=self.matched,
+                    max_abs_difference=self.max_abs_difference,
+                    rms_difference=self.rms_difference, identical=self.identical)
+
+
+def _values(record) -> np.ndarray:
+    if isinstance(record, SpectrumRecord):
+        return np.concatenate([np.ravel(record.magnitudes), np.ravel(record.band_sums),
+                               [record.damping]])
+    return np.array([record.damping])
+
+
+def compare(reference: Sequence, other: Sequence) -> Comparison:
+    """Compare two series of :class:`SpectrumRecord` or :class:`CommandRecord` by stamp
+    (spectra: magnitudes, band sums and c2; commands: c2). A stamp repeated in a series is
+    matched in order."""
+    def keyed(series):
+        seen: dict[int, int] = {}
+        out = {}
+        for record in series:
+            n = seen.get(record.stamp_ns, 0)
+            seen[record.stamp_ns] = n + 1
+            out[(record.stamp_ns, n)] = _values(record)
+        return out
+
+    ref, oth = keyed(reference), keyed(other)
+    common = [k for k in ref if k in oth]
+    diffs = []
+    for k in common:
+        a, b = ref[k], oth[k]
+        d = np.abs(a - b) if a.shape == b.shape else np.array([np.inf])
+        if a.shape == b.shape:
+            d = np.where(np.isnan(a) & np.isnan(b), 0.0, np.where(np.isnan(d), np.inf, d))
+        diffs.append(d)
+    flat = np.concatenate(diffs) if diffs else np.zeros(0)
+    identical = len(common) == len(ref) == len(oth) and all(
+        ref[k].shape == oth[k].shape and np.array_equal(ref[k], oth[k], equal_nan=True)
+        for k in common)
+    finite = flat[np.isfinite(flat)]
+    max_diff = float(flat.max()) if flat.size else 0.0
+    rms = float(np.sqrt(np.mean(finite ** 2))) if finite.size else 0.0
+    return Comparison(len(ref), len(oth), len(common), max_diff, rms, identical)

@@ -1,0 +1,316 @@
+"""``bag_player``: publish a recorded bag back into the graph, like ``ros2 bag play``.
+
+The messages of a rosbag2-layout MCAP bag (one file or split) are published as their recorded
+CDR bytes, untouched, in log-time order, each with the QoS its publishers offered when it was
+recorded (reliability, durability, depth from ``metadata.yaml``). ``/clock`` follows the log
+times, so nodes with ``use_sim_time:=true`` run on the recording's time (the bag's own
+``/clock`` is then not played). With ``rate`` > 0 a message goes out when its log time, scaled
+by the rate, is due on the wall clock; with ``rate`` 0 as fast as the player can publish, and
+nothing is lost only while each subscriber's queue has room for what it has not yet taken
+(ROS 2 has no signal of a subscriber's progress; DDS acknowledgements arrive with the writer's
+heartbeats, about every 3 s here, far too late to pace by). Topics are remapped with
+``--ros-args -r FROM:=TO`` on the bag's names (``-r /wing/acceleration:=/replay/acceleration``).
+
+The playing runs on its own thread (precise pacing, no executor in between); the node's
+executor only serves the graph. When the bag ends the player publishes one status on
+``/diagnostics`` (counts per topic, wall time, lateness, damage) and exits, unless ``loop``.
+A bag cut short (crashed recorder) plays up to its damage, with a warning there and in the
+status.
+
+Its parameters (units, defaults, ranges) are the table ``SPEC`` below, which the node declares
+them from and ``bag_player --help`` prints.
+"""
+from __future__ import annotations
+
+import sys
+import threading
+import time
+
+import numpy as np
+from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.duration import Duration
+from rclpy.node import Node
+from rclpy.qos import (
+    DurabilityPolicy,
+    HistoryPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
+)
+from rclpy.task import Future
+from rosgraph_msgs.msg import Clock
+
+from aero_dva.bag import channels as ch
+from aero_dva_sim.bag_source import BagSource, BagTopic
+from dva_ros_common import conversions
+from dva_ros_common.conversions import message_class
+from dva_ros_common.node_params import NodeSpec, Param, declare_parameters
+from dva_ros_common.node_tools import run_node
+
+POLL = 0.01  # [s] wall time between looks at the graph while waiting for subscribers
+SLICE = 0.1  # [s] longest sleep, so a stop request is noticed quickly
+ACK_TIMEOUT = 4.0  # [s] at the end: longest wait for the subscribers' acknowledgements
+
+SPEC = NodeSpec(
+    name="bag_player",
+    package="aero_dva_sim",
+    summary="Publish a recorded bag (rosbag2-layout MCAP, one file or split) into the graph: "
+            "the recorded CDR bytes in log-time order, with the recorded timing scaled by "
+            "rate, each topic with the QoS recorded in metadata.yaml, /clock from the log "
+            "times. Remap topics with --ros-args -r /bag/topic:=/new/topic. A bag cut short "
+            "plays up to its damage, with a warning. Reports on /diagnostics when it ends.",
+    params=(
+        Param("bag", "", "bag directory (or one .mcap file) to play; required",
+              default_text="none (required)"),
+        Param("rate", 1.0, "speed relative to the recording (1: recorded timing; 0: as fast "
+              "as the player can publish, lossless only for subscribers with deep enough "
+              "queues)", "", 0.0, 1.0e6),
+        Param("topics", [""], "play only these topics (bag names, with or without the "
+              "leading /)", default_text="[] (every topic)"),
+        Param("start_offset", 0.0, "skip this much of the bag's start (log time)", "s",
+              0.0, 1.0e9),
+        Param("duration", 0.0, "play this much log time from start_offset (0: to the end)",
+              "s", 0.0, 1.0e9),
+        Param("loop", False, "play again from start_offset when the end is reached"),
+        Param("clock", True, "publish /clock from the log times (the bag's own /clock is then "
+              "not played)"),
+        Param("wait_for_subscribers", 0, "before the first message, wait until every played "
+              "topic has this many subscribers", "", 0, 1000),
+        Param("wait_for_nodes", [""], "... and these nodes are in the graph with all their "
+              "subscriptions to played topics matched"),
+        Param("wait_timeout", 30.0, "wall time after which playing starts anyway (with a "
+              "warning)", "s", 0.0, 1.0e6),
+        Param("delay", 0.5, "wall time from the end of the wait to the first message: DDS "
+              "matches the two ends of a topic separately, and a subscriber that has not yet "
+              "matched the player drops what it is sent", "s", 0.0, 3600.0),
+        Param("qos_depth", 100, "keep-last depth of a topic whose recorded depth is unknown",
+              "", 1, 100000),
+        Param("exit_on_end", True, "stop the node when the bag has been played"),
+    ),
+    topics="""
+publishes every played topic of the bag (remappable), /clock, /diagnostics (once, at the end)
+""",
+)
+
+
+def qos_profile(topic: BagTopic, default_depth: int) -> QoSProfile:
+    """The QoS to offer ``topic`` with: its recorded reliability, durability and depth."""
+    qos = topic.qos
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST,
+        depth=qos.depth if qos.depth > 0 else default_depth,
+        reliability=ReliabilityPolicy.BEST_EFFORT if qos.reliability == "best_effort"
+        else ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL if qos.durability == "transient_local"
+        else DurabilityPolicy.VOLATILE,
+    )
+
+
+class BagPlayer(Node):
+    """Publish a bag's messages with their recorded timing on a thread of its own."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__(SPEC.name, **kwargs)
+        values = declare_parameters(self, SPEC)
+        if not values["bag"]:
+            raise ValueError("parameter 'bag' is required (a bag directory or .mcap file)")
+        self.source = BagSource(values["bag"])  # BagReadError (a ValueError) names the bag
+        if self.source.damage:
+            self.get_logger().warning(f"bag {values['bag']} is damaged: it plays up to the "
+                                      f"damage ({self.source.damage})")
+        self.rate = float(values["rate"])
+        self.loop = bool(values["loop"])
+        self.offset_ns = round(float(values["start_offset"]) * 1e9)
+        duration = float(values["duration"])
+        self.duration_ns = round(duration * 1e9) if duration > 0 else None
+        self._play_clock = bool(values["clock"])
+        self._wait_for = int(values["wait_for_subscribers"])
+        self._wait_nodes = [n for n in values["wait_for_nodes"] if n]
+        self._wait_timeout = float(values["wait_timeout"])
+        self._delay = float(values["delay"])
+        self.played = self._select(values["topics"])
+
+        self._pub = {}
+        for name in self.played:
+            topic = self.source.topics[name]
+            try:
+                msg_type = message_class(topic.type_name)
+            except (ImportError, AttributeError, ValueError) as exc:
+                raise ValueError(f"bag {values['bag']}: topic {name} has type "
+                                 f"{topic.type_name!r}, which is not installed ({exc})") from None
+            self._pub[name] = self.create_publisher(
+                msg_type, name, qos_profile(topic, int(values["qos_depth"])))
+        self._clock_pub = self.create_publisher(Clock, ch.CLOCK.name, 10) \
+            if self._play_clock else None
+        self._diag_pub = self.create_publisher(DiagnosticArray, ch.DIAGNOSTICS.name, 10)
+
+        self.counts = dict.fromkeys(self.played, 0)
+        self.clock_published = 0
+        self.lateness: list[float] = []  # [s] wall time a message went out after it was due
+        self.finished = Future()
+        self.done = self.finished if bool(values["exit_on_end"]) else None
+        self.summary: dict = {}
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="bag_player", daemon=True)
+        described = ", ".join(f"{n} ({self.source.topics[n].message_count})" for n in self.played)
+        self.get_logger().info(f"playing {values['bag']} at rate {self.rate:g}: {described}")
+        self._thread.start()
+
+    def _select(self, wanted) -> list[str]:
+        names = [w if w.startswith("/") else "/" + w for w in wanted if w]
+        available = self.source.topics
+        unknown = [n for n in names if n not in available]
+        if unknown:
+            raise ValueError(f"parameter 'topics': {unknown} not in the bag; its topics: "
+                             f"{sorted(available)}")
+        chosen = names or sorted(available)
+        if self._play_clock and not names:
+            chosen = [n for n in chosen if n != ch.CLOCK.name]  # the player's clock replaces it
+        if not chosen:
+            raise ValueError("nothing to play: the bag has no topics")
+        return chosen
+
+    # ------------------------------------------------------------------ the playing thread
+    def _run(self) -> None:
+        outcome = "stopped"
+        try:
+            if self._wait_for_graph():
+                self._sleep_until(time.monotonic() + self._delay)
+                started = time.monotonic()
+                rounds = 0
+                while not self._stop.is_set():
+                    self._play_once()
+                    rounds += 1
+                    if not self.loop:
+                        break
+                if not self._stop.is_set():
+                    outcome = "completed"
+                self._report(outcome, time.monotonic() - started, rounds)
+                self._linger()
+        except Exception as exc:  # the context went away under a publish: a stop, not a crash
+            if self.context.ok():
+                outcome = f"failed: {type(exc).__name__}: {exc}"
+                self.get_logger().error(f"playing stopped: {outcome}")
+        finally:
+            if not self.finished.done():
+                self.finished.set_result(outcome)
+
+    def _wait_for_graph(self) -> bool:
+        deadline = time.monotonic() + self._wait_timeout
+        while not self._stop.is_set():
+            missing = self._missing()
+            if not missing:
+                return True
+            if time.monotonic() > deadline:
+                self.get_logger().warning(f"starting without {missing} after "
+                                          f"{self._wait_timeout:g} s")
+                return True
+            time.sleep(POLL)
+        return False
+
+    def _missing(self) -> list[str]:
+        """What the first message still waits for (empty: nothing)."""
+        missing = [f"{self._wait_for} subscribers on {n}" for n, p in self._pub.items()
+                   if p.get_subscription_count() < self._wait_for]
+        if self._wait_nodes:
+            present = set(self.get_node_names())
+            missing += [f"node {n}" for n in self._wait_nodes if n not in present]
+            # A node in the graph has its subscriptions in the graph too: wait until our
+            # publishers have matched every one of them, so none misses the first messages.
+            for name, pub in self._pub.items():
+                known = len(self.get_subscriptions_info_by_topic(pub.topic_name))
+                if pub.get_subscription_count() < known:
+                    missing.append(f"matching of {known} subscribers on {name}")
+        return missing
+
+    def _play_once(self) -> None:
+        origin = self.source.start_ns  # None: a damaged bag; its first message's time then
+        first_ns = None
+        wall0 = 0.0
+        last_clock = None
+        for log_ns, topic, data in self.source.messages(self.played):
+            if self._stop.is_set():
+                return
+            if origin is None:
+                origin = log_ns
+            start = origin + self.offset_ns
+            if log_ns < start:
+                continue
+            if self.duration_ns is not None and log_ns > start + self.duration_ns:
+                break
+            if first_ns is None:
+                first_ns, wall0 = log_ns, time.monotonic()
+            if self.rate > 0:
+                due = wall0 + (log_ns - first_ns) / 1e9 / self.rate
+                self._sleep_until(due)
+                self.lateness.append(time.monotonic() - due)
+            if self._clock_pub is not None and log_ns != last_clock:
+                self._clock_pub.publish(Clock(clock=conversions.ns_to_time(log_ns)))
+                self.clock_published += 1
+                last_clock = log_ns
+            pub = self._pub[topic]
+            pub.publish(data)
+            self.counts[topic] += 1
+        self._played_span_ns = 0 if first_ns is None else (last_clock or first_ns) - first_ns
+        if self.source.read_problems:
+            self.get_logger().warning(
+                f"bag ends early: played up to the damage ({self.source.read_problems[-1]})")
+
+    def _linger(self) -> None:
+        """Before exiting, let the subscribers acknowledge the last messages and the status
+        (reliable topics; a heartbeat period at most, ``ACK_TIMEOUT`` in all)."""
+        deadline = time.monotonic() + ACK_TIMEOUT
+        for pub in [*self._pub.values(), self._diag_pub]:
+            left = deadline - time.monotonic()
+            if left <= 0 or self._stop.is_set():
+                return
+            pub.wait_for_all_acked(Duration(seconds=left))
+
+    def _sleep_until(self, due: float) -> None:
+        while not self._stop.is_set():
+            left = due - time.monotonic()
+            if left <= 0:
+                return
+            time.sleep(min(left, SLICE))
+
+    def _report(self, outcome: str, wall: float, rounds: int) -> None:
+        span = getattr(self, "_played_span_ns", 0) / 1e9
+        total = sum(self.counts.values())
+        values = {"outcome": outcome, "messages": total, "wall_time_s": wall,
+                  "bag_time_played_s": span, "rounds": rounds,
+                  "messages_per_s": total / wall if wall > 0 else float("inf"),
+                  "real_time_factor": span * rounds / wall if wall > 0 else float("inf")}
+        if self.lateness:
+            late = np.asarray(self.lateness)
+            values.update(lateness_median_s=float(np.median(late)),
+                          lateness_p99_s=float(np.percentile(late, 99)),
+                          lateness_max_s=float(late.max()))
+        values.update({f"published:{t}": n for t, n in self.counts.items()})
+        if self._clock_pub is not None:
+            values["published:/clock"] = self.clock_published
+        damaged = self.source.damage
+        if damaged:
+            values["damage"] = damaged
+        level = conversions.WARN if damaged else conversions.OK
+        text = (f"played {total} messages of {self.source.path} in {wall:.3g} s"
+                + (f"; the bag is damaged: played up to the damage ({damaged})"
+                   if damaged else ""))
+        self.summary = values
+        self.get_logger().info(text)
+        self._diag_pub.publish(conversions.diagnostic_array(
+            self.get_clock().now().to_msg(),
+            [conversions.diagnostic_status(level, "bag_player: playback", text, values,
+                                           "aero_dva_sim")]))
+
+    def close(self) -> None:
+        """Stop the playing thread (idempotent)."""
+        self._stop.set()
+        if self._thread.is_alive() and self._thread is not threading.current_thread():
+            self._thread.join(timeout=5.0)
+
+
+def main(args=None) -> int:
+    return run_node(BagPlayer, SPEC, args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,166 @@
+"""What the bag player reads from a bag, in one small adapter over the domain's bag reader.
+
+Everything the player needs from a bag goes through here: the topics with their types, counts
+and recorded QoS (``offered_qos_profiles`` of ``metadata.yaml``), the bag's start time, and the
+messages in log-time order as raw CDR bytes. The reading itself is
+:func:`aero_dva.bag.bag_reader.read_messages` (``decode=False``) and
+:func:`~aero_dva.bag.bag_reader.bag_topics`; switching to another reader changes only this module.
+
+A bag that cannot be read whole (no metadata.yaml, a file cut short) is opened again allowing
+truncation: it plays up to its damage, and :attr:`BagSource.damage` says why.
+"""
+from __future__ import annotations
+
+import warnings
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import yaml
+
+from aero_dva.bag.bag_reader import BagReadError, bag_topics, read_messages
+
+__all__ = ["BagReadError", "BagSource", "BagTopic", "RecordedQos"]
+
+_RELIABILITY = {1: "reliable", 2: "best_effort"}  # rmw enums as rosbag2 stores them
+_DURABILITY = {1: "transient_local", 2: "volatile"}
+_HISTORY = {1: "keep_last", 2: "keep_all"}
+
+
+@dataclass(frozen=True)
+class RecordedQos:
+    """The QoS a topic's publishers offered when recorded (what a player offers again).
+
+    ``reliability`` is "reliable" unless a publisher was best effort; ``durability`` is
+    "transient_local" only if every publisher was; ``depth`` is the largest keep-last depth
+    (0 when the history was not known), as rosbag2 adapts several publishers into one.
+    """
+
+    reliability: str = "reliable"
+    durability: str = "volatile"
+    depth: int = 0
+    known: bool = False
+
+    @classmethod
+    def from_yaml(cls, text: str | None) -> RecordedQos:
+        try:
+            profiles = yaml.safe_load(text) if text else None
+        except yaml.YAMLError:
+            profiles = None
+        if not isinstance(profiles, list) or not profiles:
+            return cls()
+        try:
+            reliability = {_RELIABILITY.get(int(p.get("reliability", 0)), "reliable")
+                           for p in profiles}
+            durability = {_DURABILITY.get(int(p.get("durability", 0)), "volatile")
+                          for p in profiles}
+            depth = max((int(p.get("depth", 0)) for p in profiles
+                         if _HISTORY.get(int(p.get("history", 0))) == "keep_last"), default=0)
+        except (AttributeError, TypeError, ValueError):
+            return cls()
+        return cls(
+            reliability="best_effort" if "best_effort" in reliability else "reliable",
+            durability="transient_local" if durability == {"transient_local"} else "volatile",
+            depth=depth,
+            known=True,
+        )
+
+
+@dataclass(frozen=True)
+class BagTopic:
+    """A topic of the bag: fully qualified name, ``pkg/msg/Type``, message count, QoS."""
+
+    name: str
+    type_name: str
+    message_count: int
+    qos: RecordedQos
+
+
+class BagSource:
+    """A bag opened for playing.
+
+    Parameters
+    ----------
+    path : path-like
+        Bag directory (with ``metadata.yaml``; split bags included) or one MCAP file.
+
+    Attributes
+    ----------
+    topics : dict of str to BagTopic
+    start_ns : int or None
+        [ns] the bag's first log time (metadata.yaml), None if not recorded there.
+    damage : str or None
+        Why the bag could not be read whole (it then plays up to its damage).
+
+    Raises
+    ------
+    BagReadError
+        The bag does not exist or cannot be read at all.
+    """
+
+    def __init__(self, path) -> None:
+        self.path = Path(path)
+        self.damage: str | None = None
+        try:
+            found = bag_topics(self.path)
+        except BagReadError as exc:
+            if not self.path.exists():
+                raise
+            with warnings.catch_warnings(record=True) as caught:  # where the damage starts
+                warnings.simplefilter("always", RuntimeWarning)
+                found = bag_topics(self.path, allow_truncated=True)  # raises if nothing usable
+            self.damage = "; ".join([str(exc), *(str(w.message) for w in caught)])
+        metadata = self._metadata()
+        qos = {}
+        for entry in metadata.get("topics_with_message_count") or []:
+            meta = entry.get("topic_metadata", {}) if isinstance(entry, dict) else {}
+            if "name" in meta:
+                qos[meta["name"]] = RecordedQos.from_yaml(meta.get("offered_qos_profiles"))
+        self.topics = {
+            name: BagTopic(name, info.type_name, info.message_count,
+                           qos.get(name, RecordedQos()))
+            for name, info in found.items()
+        }
+        start = (metadata.get("starting_time") or {}).get("nanoseconds_since_epoch")
+        self.start_ns = int(start) if isinstance(start, int) and not self.damage else None
+        self.read_problems: list[str] = []  # damage met while reading (also in damage)
+
+    def _metadata(self) -> dict:
+        meta = self.path / "metadata.yaml"
+        if not meta.is_file():
+            return {}
+        try:
+            info = yaml.safe_load(meta.read_text(encoding="utf-8"))
+            return info.get("rosbag2_bagfile_information") or {}
+        except (OSError, yaml.YAMLError, AttributeError):
+            return {}
+
+    def messages(self, topics: Iterable[str]) -> Iterator[tuple[int, str, bytes]]:
+        """(log time [ns], topic, serialized CDR) of ``topics`` in log-time order (per file).
+
+        Damage found while reading ends the iteration; its text is appended to
+        :attr:`read_problems` (and :attr:`damage` set) instead of raising.
+        """
+        with warnings.catch_warnings():  # the damage was noted when the bag was opened
+            warnings.simplefilter("ignore", RuntimeWarning)
+            records = read_messages(self.path, list(topics), decode=False,
+                                    allow_truncated=self.damage is not None)
+        while True:
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always", RuntimeWarning)
+                try:
+                    record = next(records)
+                except StopIteration:
+                    record = None
+                except BagReadError as exc:
+                    self._note(str(exc))
+                    return
+            for warning in caught:
+                self._note(str(warning.message))
+            if record is None:
+                return
+            yield record.log_time_ns, record.topic, bytes(record.message)
+
+    def _note(self, text: str) -> None:
+        self.read_problems.append(text)
+        self.damage = self.damage or text

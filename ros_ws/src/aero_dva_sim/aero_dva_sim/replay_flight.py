@@ -1,0 +1,158 @@
+"""``replay_flight``: re-run a controller on a recorded flight through the node graph, open loop.
+
+Starts, as ``ros2 run`` would and as separate processes on sim time: ``mcap_recorder`` (the new
+bag), the controller (with ``spectrum`` before it for the RBF network), then ``bag_player``,
+which waits for them and plays the recorded controller inputs (``wing/acceleration``,
+``dva/damper_state``, ``flight/condition``) with ``/clock`` from the log times. When the bag has
+been played the others are stopped with SIGINT (the recorder closes its bag). ``dva replay``
+runs this and compares the new spectra and commands with the recorded ones.
+
+Unless ``--domain-id`` is given, the graph runs on a ROS_DOMAIN_ID reserved for this run.
+"""
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from aero_dva.bag import channels as ch
+from aero_dva_sim.run_flight import die_with_parent, executable, ros_params, stop_process
+
+CONTROLLERS = ("rbf", "schedule", "fixed")
+INPUTS = tuple(c.absolute() for c in (ch.ACCELERATION, ch.DAMPER_STATE, ch.FLIGHT_CONDITION))
+DEFAULT_RATE = 10.0  # x recorded speed; docs/replay.md: what the graph keeps up with here
+
+
+def build_commands(args, inputs: list[str]) -> dict[str, list[str]]:
+    """The processes of the replay graph, in start order (the player last)."""
+    sim_time = {"use_sim_time": True}
+    commands = {
+        "mcap_recorder": [executable("aero_dva_sim", "mcap_recorder"), "--ros-args",
+                          *ros_params(output=args.out, **sim_time),
+                          "-p", "exclude:=[/rosout,/parameter_events]"],
+    }
+    if args.controller == "rbf":
+        commands["spectrum"] = [executable("dva_controller", "spectrum"), "--ros-args",
+                                *ros_params(**sim_time)]
+        commands["rbf_controller"] = [executable("dva_controller", "rbf_controller"),
+                                      "--ros-args",
+                                      *ros_params(network_file=args.network, **sim_time)]
+    elif args.controller == "schedule":
+        commands["airspeed_controller"] = [executable("dva_controller", "airspeed_controller"),
+                                           "--ros-args",
+                                           *ros_params(schedule_file=args.schedule, **sim_time)]
+    else:
+        commands["fixed_controller"] = [executable("dva_controller", "fixed_controller"),
+                                        "--ros-args",
+                                        *ros_params(damping=args.damping, rate=20.0, **sim_time)]
+    others = list(commands)
+    commands["bag_player"] = [
+        executable("aero_dva_sim", "bag_player"), "--ros-args",
+        *ros_params(bag=args.bag, rate=args.rate, wait_for_subscribers=1,
+                 wait_for_nodes="[" + ",".join(others) + "]",
+                 topics="[" + ",".join(inputs) + "]", wait_timeout=60.0),
+    ]
+    return commands
+
+
+def run(args) -> dict:
+    """Run the replay graph; return a summary (raises SystemExit on failure)."""
+    from aero_dva.bag.bag_reader import bag_topics
+
+    present = bag_topics(args.bag)
+    inputs = [t for t in INPUTS if t in present]
+    if not inputs:
+        raise SystemExit(f"replay_flight: error: bag {args.bag} holds none of {list(INPUTS)}")
+    out = Path(args.out).resolve()
+    if out.exists():
+        raise SystemExit(f"replay_flight: error: {out} exists; choose another --out")
+    args.out = str(out)
+    logs = out.with_name(out.name + "_logs")
+    logs.mkdir(parents=True, exist_ok=True)
+    env = dict(os.environ, ROS_DOMAIN_ID=str(args.domain_id), PYTHONUNBUFFERED="1")
+    processes: dict[str, subprocess.Popen] = {}
+    started = time.monotonic()
+    try:
+        for name, argv in build_commands(args, inputs).items():
+            with open(logs / f"{name}.log", "wb") as log:
+                processes[name] = subprocess.Popen(argv, env=env, stdout=log,
+                                                   stderr=subprocess.STDOUT,
+                                                   preexec_fn=die_with_parent)
+        try:
+            processes["bag_player"].wait(timeout=args.timeout)
+        except subprocess.TimeoutExpired:
+            raise SystemExit(f"replay_flight: error: playing took longer than {args.timeout} s;"
+                             f" node logs in {logs}") from None
+        time.sleep(0.5)  # the controller's last outputs on their way to the recorder
+    finally:
+        codes = {name: stop_process(p, timeout=15.0) for name, p in reversed(processes.items())}
+    if codes.get("bag_player") != 0:
+        raise SystemExit(f"replay_flight: error: bag_player failed ({codes['bag_player']}); "
+                         f"see {logs / 'bag_player.log'}")
+    counts = {name: info.message_count for name, info in bag_topics(out).items()}
+    return {"bag": str(out), "node_logs": str(logs), "played": inputs, "rate": args.rate,
+            "wall_time": time.monotonic() - started, "exit_codes": codes, "counts": counts}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="replay_flight",
+        description="Re-run a controller on a recorded flight through the ROS 2 node graph "
+                    "(bag_player -> [spectrum ->] controller -> mcap_recorder, open loop) and "
+                    "record its spectra and commands as a new bag. `dva replay` compares them "
+                    "with the recorded ones.")
+    parser.add_argument("bag", help="recorded flight (bag directory or .mcap file)")
+    parser.add_argument("--controller", choices=CONTROLLERS, required=True)
+    parser.add_argument("--network", default=None, help="RBF network .npz (rbf)")
+    parser.add_argument("--schedule", default=None, help="airspeed schedule JSON (schedule)")
+    parser.add_argument("--damping", type=float, default=None,
+                        help="c2 [N s/m] for --controller fixed (default: the node's default)")
+    parser.add_argument("--out", required=True, help="bag directory to create")
+    parser.add_argument("--rate", type=float, default=DEFAULT_RATE,
+                        help=f"playing speed, x recorded (default {DEFAULT_RATE:g})")
+    parser.add_argument("--domain-id", type=int, default=None,
+                        help="ROS_DOMAIN_ID (default: one reserved for this run)")
+    parser.add_argument("--timeout", type=float, default=600.0,
+                        help="[s] wall time allowed for playing (default 600)")
+    parser.add_argument("--json", action="store_true", help="print the summary as JSON")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    for option, needed in (("schedule", "schedule"), ("network", "rbf")):
+        if args.controller == needed and not getattr(args, option):
+            print(f"replay_flight: error: --controller {needed} needs --{option} FILE",
+                  file=sys.stderr)
+            return 2
+    if not args.rate > 0:
+        print("replay_flight: error: --rate must be > 0 (the graph must keep up)",
+              file=sys.stderr)
+        return 2
+    with contextlib.ExitStack() as stack:
+        if args.domain_id is None:
+            from domain_coordinator import domain_id
+
+            args.domain_id = stack.enter_context(domain_id())
+        try:
+            summary = run(args)
+        except SystemExit as exc:
+            print(exc, file=sys.stderr)
+            return 1
+        except ValueError as exc:  # an unreadable bag (BagReadError)
+            print(f"replay_flight: error: {exc}", file=sys.stderr)
+            return 2
+    if args.json:
+        print(json.dumps(summary, indent=2))
+    else:
+        print("\n".join(f"{k:12s} {v}" for k, v in summary.items()))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,309 @@
+"""One parameter table per node: the node declares its parameters from it and ``--help`` prints it.
+
+A node module defines a :class:`NodeSpec` (name, package, what it does, its topics) holding a
+tuple of :class:`Param` rows (name, default, unit, range or choices, description). The node's
+constructor calls :func:`declare_parameters` with the table, and ``run_node`` prints
+:func:`help_text` of the same table for ``-h``/``--help``, so the help cannot drift from what the
+node declares. Nothing here needs an rclpy context: ``--help`` answers without starting ROS.
+
+Ranges are checked when the node starts (one-line ``ValueError`` naming the parameter, exit 2):
+for numbers through the parameter descriptor's range (so ``ros2 param describe`` shows it), for
+parameters whose NaN means "take another value" by this module, for strings by ``choices``.
+"""
+from __future__ import annotations
+
+import math
+import sys
+import textwrap
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+
+HELP_WIDTH = 99
+#: Parameters every rclpy node has; listed in the help, declared by rclpy itself.
+ROS_STANDARD = (
+    ("use_sim_time", "bool", "false", "follow /clock (sim time) instead of the wall clock"),
+)
+
+
+@dataclass(frozen=True)
+class Param:
+    """One row of a node's parameter table.
+
+    Attributes
+    ----------
+    name : str
+        Parameter name.
+    default : bool, int, float, str or list
+        Default value; its type is the parameter's type (a list of str: string array, of
+        float: double array; an empty string array is declared as ``[""]``, as rcl needs a
+        typed value).
+    description : str
+        What it does, without the unit (one short sentence).
+    unit : str
+        SI unit ("s", "N s/m", "Hz", ...), "" for none.
+    low, high : float, optional
+        Inclusive range of a number (or of every element of a double array).
+    choices : tuple of str
+        Allowed values of a string (or of every element of a string array).
+    nan_means : str
+        If set, NaN is allowed and means this (e.g. "the wing file's value").
+    default_text : str
+        How the help shows the default when the value alone would not say it.
+    dynamic : bool
+        May change while the node runs (``ros2 param set``); others are read at start-up.
+    """
+
+    name: str
+    default: object
+    description: str
+    unit: str = ""
+    low: float | None = None
+    high: float | None = None
+    choices: tuple[str, ...] = ()
+    nan_means: str = ""
+    default_text: str = ""
+    dynamic: bool = False
+
+    @property
+    def type_name(self) -> str:
+        value = self.default
+        if isinstance(value, bool):
+            return "bool"
+        if isinstance(value, int):
+            return "int"
+        if isinstance(value, float):
+            return "float"
+        if isinstance(value, str):
+            return "string"
+        if all(isinstance(v, str) for v in value):
+            return "string array"
+        return "double array"
+
+    def range_text(self) -> str:
+        parts = []
+        if self.low is not None or self.high is not None:
+            low = "-inf" if self.low is None else f"{self.low:g}"
+            high = "inf" if self.high is None else f"{self.high:g}"
+            parts.append(f"[{low}, {high}]")
+        if self.choices:
+            parts.append("one of " + ", ".join(self.choices))
+        if self.nan_means:
+            parts.append(f"NaN: {self.nan_means}")
+        return "; ".join(parts)
+
+    def default_shown(self) -> str:
+        if self.default_text:
+            return self.default_text
+        value = self.default
+        if isinstance(value, bool):
+            return str(value).lower()
+        if isinstance(value, str):
+            return repr(value)
+        if isinstance(value, float):
+            return "NaN" if math.isnan(value) else f"{value:g}"
+        if isinstance(value, list):
+            items = [v for v in value if v != ""]
+            if not items:
+                return "[] (none)"
+            return "[" + ", ".join(f"{v:g}" if isinstance(v, float) else str(v)
+                                   for v in items) + "]"
+        return str(value)
+
+
+@dataclass(frozen=True)
+class NodeSpec:
+    """What ``--help`` says about a node, and the table it declares its parameters from.
+
+    Attributes
+    ----------
+    name : str
+        Node name and executable name (``ros2 run <package> <name>``).
+    package : str
+        ROS package of the executable.
+    summary : str
+        What the node does (a few sentences; wrapped as written).
+    params : tuple of Param
+        The parameter table, in help order.
+    topics : str
+        What it subscribes and publishes (a few lines, as written).
+    """
+
+    name: str
+    package: str
+    summary: str
+    params: tuple[Param, ...]
+    topics: str = ""
+    _by_name: dict = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        by_name = {p.name: p for p in self.params}
+        if len(by_name) != len(self.params):
+            raise ValueError(f"node {self.name!r}: a parameter is listed twice")
+        object.__setattr__(self, "_by_name", by_name)
+
+    def __getitem__(self, name: str) -> Param:
+        return self._by_name[name]
+
+    @property
+    def read_at_start(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.params if not p.dynamic)
+
+
+def _wrap(text: str, indent: str, then: str | None = None) -> list[str]:
+    return textwrap.wrap(text, HELP_WIDTH, initial_indent=indent,
+                         subsequent_indent=indent if then is None else then,
+                         break_on_hyphens=False)
+
+
+def help_text(spec: NodeSpec) -> str:
+    """The ``--help`` text of a node: usage, what it does, every parameter with its unit,
+    default and range, its topics."""
+    lines = [
+        f"usage: ros2 run {spec.package} {spec.name} [-h]",
+        "         [--ros-args [-p NAME:=VALUE ...] [--params-file FILE] [-r FROM:=TO ...]]",
+        "",
+        *_wrap(spec.summary.strip(), ""),
+        "",
+        "parameters (set with --ros-args -p NAME:=VALUE, or --params-file FILE):",
+    ]
+    for p in spec.params:
+        unit = f" [{p.unit}]" if p.unit else ""
+        facts = [f"default {p.default_shown()}"]
+        if p.low is not None or p.high is not None:
+            low = "-inf" if p.low is None else f"{p.low:g}"
+            high = "inf" if p.high is None else f"{p.high:g}"
+            facts.append(f"range [{low}, {high}]")
+        if p.choices:
+            facts.append("one of " + ", ".join(p.choices))
+        if p.nan_means:
+            facts.append(f"NaN = {p.nan_means}")
+        if p.dynamic:
+            facts.append("can change at run time")
+        lines += _wrap(f"{p.name} ({p.type_name}{unit}): {p.description}", "  ", " " * 6)
+        lines += _wrap("; ".join(facts), " " * 6)
+    for name, type_name, default, text in ROS_STANDARD:
+        lines += [f"  {name} ({type_name}): {text} (every node)", f"      default {default}"]
+    if spec.topics:
+        lines += ["", "topics:", *("  " + t.strip() for t in spec.topics.strip().splitlines())]
+    lines += [
+        "",
+        "options:",
+        "  -h, --help    print this help and exit (the node does not start)",
+        "  Other arguments outside --ros-args are refused (exit code 2).",
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def command_line(spec: NodeSpec, argv: Sequence[str]) -> int | None:
+    """Answer ``-h``/``--help`` (0) or refuse unknown non-ROS arguments (2); None: start the node.
+
+    ``argv`` is the full command line (``sys.argv``: the program first). ROS arguments (after
+    ``--ros-args``, up to ``--``) are left to rcl; only the rest is checked here.
+    """
+    from rclpy.utilities import remove_ros_args  # parses; creates no context
+
+    try:
+        rest = remove_ros_args(list(argv))[1:]
+    except Exception as exc:  # rclpy's UnknownROSArgsError / RCLInvalidROSArgsError
+        text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        if type(exc).__name__ == "UnknownROSArgsError":
+            if "'-h'" in text or "'--help'" in text:  # e.g. `--ros-args --help`
+                sys.stdout.write(help_text(spec))
+                return 0
+            text = f"unknown ROS arguments {text}"
+        print(f"{spec.name}: error: {text} (see --help)", file=sys.stderr)
+        return 2
+    if set(rest) & {"-h", "--help"}:
+        sys.stdout.write(help_text(spec))
+        return 0
+    if rest:
+        print(f"{spec.name}: error: unrecognized arguments: {' '.join(rest)} (node parameters "
+              f"go after --ros-args as -p NAME:=VALUE; see --help)", file=sys.stderr)
+        return 2
+    return None
+
+
+def _descriptor(p: Param):
+    from rcl_interfaces.msg import (
+        FloatingPointRange,
+        IntegerRange,
+        ParameterDescriptor,
+    )
+
+    unit = f" [{p.unit}]" if p.unit else ""
+    descriptor = ParameterDescriptor(description=p.description + unit,
+                                     additional_constraints=p.range_text())
+    numeric = p.type_name in ("float", "int") and not p.nan_means
+    if numeric and (p.low is not None or p.high is not None):
+        low = -math.inf if p.low is None else p.low
+        high = math.inf if p.high is None else p.high
+        if p.type_name == "int":
+            descriptor.integer_range = [IntegerRange(from_value=int(max(low, -2**62)),
+                                                     to_value=int(min(high, 2**62)), step=0)]
+        else:
+            descriptor.floating_point_range = [FloatingPointRange(from_value=float(low),
+                                                                  to_value=float(high))]
+    if p.type_name == "double array":
+        descriptor.dynamic_typing = True  # "[5, 6]" parses as an integer array
+    return descriptor
+
+
+def check_value(p: Param, value):
+    """``value`` of parameter ``p`` if it is allowed; else ValueError naming the parameter."""
+    unit = f" {p.unit}" if p.unit else ""
+    if p.type_name == "double array":
+        try:
+            items = [float(v) for v in value]
+        except (TypeError, ValueError):
+            raise ValueError(f"parameter '{p.name}' must be numbers, got {value!r}") from None
+    elif p.type_name == "float":
+        items = [float(value)]
+    elif p.type_name == "int":
+        items = [int(value)]
+    elif p.type_name == "string array":
+        items = [str(v) for v in value if v != ""]  # [""] is rcl's typed empty array
+    else:
+        items = [value]
+    for item in items:
+        if isinstance(item, float):
+            if math.isnan(item):
+                if p.nan_means:
+                    continue
+                raise ValueError(f"parameter '{p.name}' is NaN")
+            if (p.low is not None and item < p.low) or (p.high is not None and item > p.high):
+                raise ValueError(f"parameter '{p.name}' must be in {p.range_text()}{unit}, "
+                                 f"got {item:g}{unit}")
+        elif isinstance(item, int) and not isinstance(item, bool):
+            if (p.low is not None and item < p.low) or (p.high is not None and item > p.high):
+                raise ValueError(f"parameter '{p.name}' must be in {p.range_text()}, got {item}")
+        if p.choices and item not in p.choices:
+            raise ValueError(f"parameter '{p.name}' must be one of {list(p.choices)}, "
+                             f"got {item!r}")
+    return value
+
+
+def declare_parameters(node, spec: NodeSpec, names: Iterable[str] | None = None) -> dict:
+    """Declare the table's parameters (or only ``names``) on ``node``; return their values.
+
+    Values outside a row's range or choices raise ValueError naming the parameter. Parameters
+    not marked ``dynamic`` refuse run-time changes (they are read at start-up).
+    """
+    from dva_ros_common.node_tools import refuse_changes
+
+    rows = spec.params if names is None else tuple(spec[n] for n in names)
+    values = {}
+    from rclpy.exceptions import InvalidParameterValueException
+
+    for p in rows:
+        try:
+            node.declare_parameter(p.name, p.default, _descriptor(p))
+        except InvalidParameterValueException as exc:  # the descriptor's range refused it
+            value = str(exc).partition("(")[2].partition(")")[0]
+            unit = f" {p.unit}" if p.unit else ""
+            raise ValueError(f"parameter '{p.name}' must be in {p.range_text()}{unit}, "
+                             f"got {value}{unit}") from None
+        values[p.name] = check_value(p, node.get_parameter(p.name).value)
+    fixed = [p.name for p in rows if not p.dynamic]
+    if fixed:
+        refuse_changes(node, fixed)
+    return values

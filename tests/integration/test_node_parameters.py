@@ -1,0 +1,43 @@
+"""Each node declares exactly the parameters of its table (the one --help prints)."""
+from __future__ import annotations
+
+import pytest
+from rclpy.parameter import Parameter
+
+from aero_dva_sim.mcap_recorder_node import McapRecorder
+from aero_dva_sim.simulator_node import Simulator
+from dva_controller.airspeed_controller_node import AirspeedController
+from dva_controller.fixed_controller_node import FixedController
+from dva_controller.spectrum_node import SpectrumNode
+
+ROS_OWN = ("use_sim_time", "start_type_description_service")  # rclpy declares these itself
+
+
+@pytest.mark.parametrize("node_class", [FixedController, SpectrumNode, AirspeedController,
+                                        Simulator, McapRecorder],
+                         ids=lambda c: c.__name__)
+def test_declared_parameters_are_the_table(node_class, ros_context, tmp_path):
+    overrides = [Parameter("output", value=str(tmp_path / "bag"))] \
+        if node_class is McapRecorder else []
+    module = __import__(node_class.__module__, fromlist=["SPEC"])
+    node = node_class(context=ros_context, parameter_overrides=overrides)
+    try:
+        declared = set(node.get_parameters_by_prefix("")) - set(ROS_OWN)
+        assert declared == {p.name for p in module.SPEC.params}
+        # a parameter read at start-up refuses a change while the node runs
+        fixed = module.SPEC.read_at_start[0]
+        result = node.set_parameters([Parameter(fixed, value=node.get_parameter(fixed).value)])
+        assert not result[0].successful and "start-up" in result[0].reason
+    finally:
+        if hasattr(node, "close"):
+            node.close()
+        node.destroy_node()
+
+
+def test_fixed_controller_damping_changes_at_run_time_within_its_range(ros_context):
+    node = FixedController(context=ros_context)
+    try:
+        assert node.set_parameters([Parameter("damping", value=800.0)])[0].successful
+        assert not node.set_parameters([Parameter("damping", value=-1.0)])[0].successful
+    finally:
+        node.destroy_node()

@@ -1,0 +1,96 @@
+"""The spectrum node's work without ROS: windows, stamps, and the c2 chosen by stamp."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from aero_dva.control.spectrum import scaled_spectrum
+from aero_dva.control.spectrum_stream import SpectrumStream
+
+FS = 1000.0
+BLOCK = 50
+T0 = 7_000_000_000  # [ns] time of sample 0
+FREQS = np.arange(5.0, 21.0)
+
+
+def _stamp(index: int) -> int:
+    return T0 + round(index * 1e9 / FS)
+
+
+def _signals(n: int) -> np.ndarray:
+    t = np.arange(n) / FS
+    rng = np.random.default_rng(3)
+    return np.vstack([np.sin(2 * np.pi * 12 * t), np.cos(2 * np.pi * 7 * t)]) \
+        + 0.1 * rng.standard_normal((2, n))
+
+
+def _stream(hop: float = 0.5) -> SpectrumStream:
+    return SpectrumStream(("plunge", "pitch"), 2.0, hop, FREQS, "rectangular")
+
+
+def _feed(stream, samples, applied, states_first: bool):
+    """Blocks with the simulator's damper state after each (stamped with the next block's
+    start); the state of step k-1 arrives before or after block k's neighbours."""
+    out = []
+    for k, start in enumerate(range(0, samples.shape[1], BLOCK)):
+        state = (_stamp(start + BLOCK), applied(k))
+        if states_first:
+            stream.damper_state(*state)  # state k before block k: too new for block k
+        spectra, events = stream.block(_stamp(start), start, FS, samples[:, start:start + BLOCK])
+        assert not events
+        out += spectra
+        if not states_first:
+            stream.damper_state(*state)
+    return out
+
+
+def test_windows_stamps_and_magnitudes_are_the_pure_function_of_the_window():
+    samples = _signals(4000)
+    spectra = _feed(_stream(), samples, lambda k: 800.0, states_first=False)
+    assert len(spectra) == 5  # windows starting at 0, 0.5, ..., 2.0 s
+    for i, s in enumerate(spectra):
+        first = 500 * i
+        assert (s.first_sample_index, s.stop_sample_index) == (first, first + 2000)
+        assert s.stamp_ns == _stamp(first + 1999)  # the window's last sample
+        expected = scaled_spectrum(samples[:, first:first + 2000], FS, FREQS)
+        np.testing.assert_allclose(s.spectrum.magnitudes, expected.magnitudes, rtol=1e-12)
+        assert s.hop == 0.5
+    # before the first state the first block had no c2: the completing block's c2 is used
+    assert spectra[0].damping == 800.0
+
+
+def test_c2_is_chosen_by_stamp_whatever_the_arrival_order():
+    """Block k uses the state stamped at its start (the simulator's state after block k-1);
+    a state of the same step that arrives early does not leak into the block."""
+    samples = _signals(4000)
+    c2 = lambda k: 300.0 + 10.0 * k  # noqa: E731 - a new c2 every block
+    late = _feed(_stream(), samples, c2, states_first=False)
+    early = _feed(_stream(), samples, c2, states_first=True)
+    assert [s.damping for s in late] == [s.damping for s in early]
+    # window 1 (samples 500..2499 = blocks 10..49) used the states of blocks 9..48
+    assert late[1].damping == pytest.approx(np.mean([c2(k - 1) for k in range(10, 50)]))
+
+
+def test_state_stamp_rounding_is_tolerated_and_time_going_back_starts_over():
+    stream = _stream()
+    stream.damper_state(_stamp(50) + 1, 500.0)  # 1 ns late: still this block's state
+    assert stream.damping_at(_stamp(50), FS) == 500.0
+    assert math.isnan(stream.damping_at(_stamp(0), FS))  # no state stamped that early
+    stream.damper_state(_stamp(0), 700.0)  # a new run (replay loop): history restarts
+    assert stream.latest_damping == 700.0 and stream.damping_at(_stamp(0), FS) == 700.0
+    assert not stream.damper_state(_stamp(100), float("nan"))
+    assert stream.counts["damper_states"] == 2
+
+
+def test_bad_blocks_are_reported_not_raised():
+    stream = _stream()
+    spectra, events = stream.block(T0, 0, 0.0, np.zeros((2, BLOCK)))
+    assert not spectra and events[0].event == "bad_sample_rate"
+    spectra, events = stream.block(T0, 0, 333.0, np.zeros((2, BLOCK)))
+    assert events[0].event == "unusable_sample_rate" and events[0].level == "error"
+    assert stream.problem and stream.counts["rejected"] == 2
+    stream.block(T0, 0, FS, np.ones((2, BLOCK)))
+    _, events = stream.block(T0, 100, FS, np.ones((2, BLOCK)))  # 50..99 lost
+    assert events[0].event == "reset_gap" and events[0].values["expected_index"] == 50
