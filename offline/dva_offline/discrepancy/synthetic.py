@@ -4,7 +4,7 @@ Separate from the loop on purpose: the effects are coded here from their physics
 foundation as a 2-DOF chain solved directly, amplitude dependence as a Kraus/Payne law,
 time-temperature superposition with universal WLF constants referred to a glass transition,
 a Duffing oscillator by harmonic balance), not with the loop's candidate formulas, and the
-engine never sees the labels.
+loop never sees the labels.
 
 Base systems: the M-M-V systems of the seed's Table 4.1 (m = 1 kg) and the identified mounts
 of Table 5.6 (m = 1.041 kg), each parameter perturbed by a random factor exp(N(0, 0.05^2)).
