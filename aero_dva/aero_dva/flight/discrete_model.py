@@ -339,7 +339,8 @@ class DiscreteWing:
         if missing:
             missing = list(dict.fromkeys(missing))
             if len(cache) + len(missing) > self.max_conditions:
-                cache.clear()
+                cache.clear()  # then every key of this call is missing, not only the new ones
+                missing = list(dict.fromkeys(keys))
             for key, condition in zip(missing, self._maps(missing)):
                 cache[key] = condition
         return [cache[k] for k in keys]
