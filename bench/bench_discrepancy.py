@@ -1,4 +1,4 @@
-"""Detection rates and run time of the discrepancy engine on generated FRF data sets.
+"""Detection rates and run time of the discrepancy loop on generated FRF data sets.
 
 Usage: ``PYTHONPATH=offline python bench/bench_discrepancy.py [CASES_PER_EFFECT] [EFFECT ...]``
 
@@ -15,7 +15,7 @@ from collections import Counter
 
 import numpy as np
 
-from dva_offline.discrepancy import engine, synthetic
+from dva_offline.discrepancy import loop, synthetic
 from dva_offline.discrepancy.frf_domain import FrfDomain
 from dva_offline.isolator.frf_data import split_conditions
 
@@ -30,7 +30,7 @@ def run_case(effect, seed, quantity="receptance", clean_covariate=None):
     fixed = case.n_elements if effect == "maxwell_element" else None
     domain = FrfDomain(conditions, mass=case.mass, static_stiffness=case.static_stiffness,
                        elements=fixed)
-    return case, engine.run(domain)
+    return case, loop.run(domain)
 
 
 def main(argv):

@@ -1,4 +1,4 @@
-"""Acceptance rates of the discrepancy engine (FRF domain) on fresh seeds.
+"""Acceptance rates of the discrepancy loop (FRF domain) on fresh seeds.
 
 Usage::
 
@@ -28,7 +28,7 @@ from collections import Counter
 
 import numpy as np
 
-from dva_offline.discrepancy import engine, synthetic
+from dva_offline.discrepancy import loop, synthetic
 from dva_offline.discrepancy.frf_domain import FrfDomain
 from dva_offline.isolator.frf_data import split_conditions
 
@@ -44,7 +44,7 @@ def run_case(effect: str | None, seed: int, clean_covariate: str | None = None):
     fixed = case.n_elements if effect == "maxwell_element" else None
     domain = FrfDomain(conditions, mass=case.mass, static_stiffness=case.static_stiffness,
                        elements=fixed)
-    return case, domain, engine.run(domain)
+    return case, domain, loop.run(domain)
 
 
 def accepted(effect: str | None, res) -> bool:

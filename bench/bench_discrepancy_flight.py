@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dva_offline.discrepancy import engine
+from dva_offline.discrepancy import loop
 from dva_offline.discrepancy.flight_domain import FlightDomain, arrays_from_log
 from dva_offline.discrepancy.flight_synthetic import (
     LIBRARY_EFFECTS,
@@ -45,7 +45,7 @@ def main(argv) -> int:
                 case = generate_flight(hidden, seed, Path(tmp) / f"{effect}_{seed}")
                 domain = FlightDomain(arrays_from_log(load_flight_log(case.path)), wing)
                 t1 = time.perf_counter()
-                res = engine.run(domain, rule=domain.decision_rule)
+                res = loop.run(domain, rule=domain.decision_rule)
                 t2 = time.perf_counter()
                 v = res.verdict
                 ratio = (res.augmented.error / res.baseline.error
@@ -58,7 +58,7 @@ def main(argv) -> int:
           "  s/analysis")
     for effect in effects:
         sel = [r for r in rows if r[0] == effect]
-        counts = {s: sum(r[2] == s for r in sel) for s in engine.STATUSES}
+        counts = {s: sum(r[2] == s for r in sel) for s in loop.STATUSES}
         named = sum(r[3] == effect for r in sel)
         halved = sum(r[3] == effect and r[4] <= 0.5 for r in sel)
         ratios = [r[4] for r in sel if r[3] == effect]

@@ -54,7 +54,7 @@ def main() -> None:
     speeds = np.linspace(0.8, 1.2, args.airspeeds) * u_cr
     grid = np.linspace(0.0, 2500.0, args.c2)
     pairs = speeds.size * grid.size
-    print(f"reference wing, U_cr = {u_cr:.3f} m/s, {model.n_states} states; "
+    print(f"default (chapter-6) wing, U_cr = {u_cr:.3f} m/s, {model.n_states} states; "
           f"{os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f}")
 
     optimal_damping(model, speeds[:4], grid, rho)  # warm-up (imports, caches)

@@ -24,7 +24,7 @@ import sys
 import time
 from pathlib import Path
 
-from aero_dva.wing.wing_io import WingConfig, load_wing, save_wing
+from aero_dva.wing.wing_io import WingConfig, load_wing, reference_wing_path, save_wing
 from dva_offline import wing_calibration as wc
 
 
@@ -93,7 +93,7 @@ def main(argv=None) -> int:
                         help="skip re-evaluating the best with the exact design settings")
     args = parser.parse_args(argv)
 
-    reference = load_wing()
+    reference = load_wing(reference_wing_path())  # the calibration starts from the first wing
     history = read_checkpoint(args.checkpoint)
     args.checkpoint.parent.mkdir(parents=True, exist_ok=True)
     print(f"checkpoint {args.checkpoint}: {len(history)} earlier evaluations", flush=True)

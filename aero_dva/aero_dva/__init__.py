@@ -9,5 +9,6 @@ Layers, each a folder that imports only the ones below it::
     wing/     the pitch-plunge wing, aerodynamics, absorbers, flutter, modal analysis, wing files
 
 ``bag`` and ``control`` stand side by side above ``flight`` and do not import each other.
-``data_files`` and ``atomic_io`` serve every layer. Nothing here imports rclpy or dva_msgs.
+``data_files``, ``atomic_io`` and ``text_input`` serve every layer. Nothing here imports rclpy
+or dva_msgs.
 """

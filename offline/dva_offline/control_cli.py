@@ -75,7 +75,7 @@ def _range2(option: str, text: str):
 
 def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--wing", metavar="FILE", help="wing YAML with a Maxwell absorber "
-                   "(default: the reference wing)")
+                   "(default: the chapter-6 wing)")
     p.add_argument("--density", type=float, default=None,
                    help="air density [kg/m^3] (default: the wing file's)")
     p.add_argument("--objective", choices=("leading_edge", "plunge", "rotation"),
@@ -166,7 +166,7 @@ def _setup(args):
 
     cfg = load_wing(args.wing)
     if not isinstance(cfg.absorber, MaxwellAbsorber):
-        raise ValueError(f"--wing {args.wing or 'reference'}: the file needs a Maxwell absorber "
+        raise ValueError(f"--wing {args.wing or 'chapter6'}: the file needs a Maxwell absorber "
                          "(absorber: type: maxwell) whose c2 is tuned")
     if isinstance(cfg.aero, TheodorsenAero):
         raise ValueError("the wing file's aero must be quasi-steady or wagner (time domain)")
@@ -221,7 +221,7 @@ def _rms_unit(objective: str) -> str:
 def _base_payload(args, res, u_cr, elapsed) -> dict:
     limit = res.stable_airspeed_limit()
     return {
-        "wing": args.wing or "reference",
+        "wing": args.wing or "chapter6",
         "density": res.density,
         "objective": res.objective,
         "method": res.method,
@@ -434,7 +434,7 @@ def _schedule(args) -> int:
     description = (
         f"least-squares fit of eq. 7.1 to the optimal c2 minimising the exact stationary "
         f"{res.objective} RMS ({res.method}, {res.force_std:g} N per sample at "
-        f"{res.sample_rate:g} Hz) of wing {args.wing or 'reference'} at rho = {rho:g} kg/m^3; "
+        f"{res.sample_rate:g} Hz) of wing {args.wing or 'chapter6'} at rho = {rho:g} kg/m^3; "
         f"U = {low:.4g} .. {high:.4g} m/s ({low / u_cr:.4f} .. {high / u_cr:.4f} U_cr, "
         f"{source}); {fit.n_points} points, RMSE {fit.rmse:.4g} N s/m, R^2 {fit.r_squared:.5f}"
     )

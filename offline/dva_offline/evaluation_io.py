@@ -22,6 +22,7 @@ import yaml
 
 from aero_dva.atomic_io import atomic_output
 from aero_dva.flight.scenario_io import scenario_from_dict
+from aero_dva.text_input import read_text_input
 from dva_offline.evaluation import CONTROLLER_LABELS, CONTROLLERS, CaseStats, FlightCase
 
 __all__ = ["flight_bag", "flight_record_path", "load_base_scenario", "load_records",
@@ -38,13 +39,16 @@ def save_json(path, payload) -> Path:
 def load_base_scenario(path) -> dict:
     """The base scenario YAML as a mapping, checked as the simulator will check it."""
     path = Path(path)
+    text = read_text_input(path, "--scenario")
     try:
-        raw = yaml.safe_load(path.read_text())
-    except FileNotFoundError:
-        raise FileNotFoundError(f"--scenario: no file {path}") from None
+        raw = yaml.safe_load(text)
     except yaml.YAMLError as exc:
-        raise ValueError(f"--scenario {path}: not valid YAML ({exc})") from None
-    scenario = scenario_from_dict(raw, default_name=path.stem)  # raises naming the bad key
+        detail = " ".join(str(exc).split())  # the parser's message spans several lines
+        raise ValueError(f"--scenario {path}: not valid YAML ({detail})") from None
+    try:
+        scenario = scenario_from_dict(raw, default_name=path.stem)  # names the bad key
+    except ValueError as exc:
+        raise ValueError(f"--scenario {path}: {exc}") from None
     if scenario.airspeed.kind != "ramp":
         raise ValueError(f"--scenario {path}: the evaluation flies a ramp, got airspeed kind "
                          f"{scenario.airspeed.kind!r}")

@@ -7,7 +7,7 @@ Subcommands::
     dva wing design    the chapter-6 DVA studies (tables 6.1-6.3, Maxwell designs)
     dva wing simulate  ramp flight 0.8 -> 1.2 U_cr with random aileron force (fig. 6.4)
 
-The wing comes from ``--wing FILE`` (default: the packaged reference wing) or, for ``modal``
+The wing comes from ``--wing FILE`` (default: the packaged chapter-6 wing) or, for ``modal``
 and ``flutter``, from a textbook typical section ``--section FILE``. Absorbers are given in SI
 units; ``--tune`` gives the tunable parameters their damping-optimal value at every airspeed.
 """
@@ -45,7 +45,7 @@ def _absorber_options(p: argparse.ArgumentParser) -> None:
 
 def _common(p: argparse.ArgumentParser, section: bool = True) -> None:
     src = p.add_mutually_exclusive_group()
-    src.add_argument("--wing", metavar="FILE", help="wing YAML (default: reference wing)")
+    src.add_argument("--wing", metavar="FILE", help="wing YAML (default: the chapter-6 wing)")
     if section:
         src.add_argument("--section", metavar="FILE",
                          help="textbook typical section YAML (semichord, mass_ratio, ...)")
@@ -80,7 +80,7 @@ def register(subparsers) -> None:
     f.set_defaults(func=_flutter)
 
     d = sub.add_parser("design", help="the chapter-6 DVA studies (tables 6.1-6.3, 6.3.2)")
-    d.add_argument("--wing", metavar="FILE", help="wing YAML (default: reference wing)")
+    d.add_argument("--wing", metavar="FILE", help="wing YAML (default: the chapter-6 wing)")
     d.add_argument("--density", type=float, default=None, help="air density [kg/m^3]")
     d.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     d.add_argument("--plot", metavar="PNG", help="write the tuned-DVA figure (fig. 6.12/6.20)")
@@ -120,7 +120,7 @@ def _setup(args, allow_section=True):
     else:
         cfg = load_wing(args.wing)
         wing, aero, rho, file_absorber = cfg.wing, cfg.aero, cfg.air_density, cfg.absorber
-        source = {"wing": args.wing or "reference"}
+        source = {"wing": args.wing or "chapter6"}
     if args.aero is not None:
         aero = aero_from_name(args.aero)
     if aero is None:
@@ -313,7 +313,7 @@ def _design(args) -> int:
             aero)
         u = np.linspace(0.5, 1.25, 31) * u_cr
         plot_tuned(dd.best_damping_curve(model, u, rho), u_cr, args.plot)
-    payload = {"wing": args.wing or "reference", "density": rho, "aero": aero.name,
+    payload = {"wing": args.wing or "chapter6", "density": rho, "aero": aero.name,
                "bare_critical_airspeed": u_cr, **tables}
     lines = [f"bare wing critical airspeed: {u_cr:.4f} m/s"]
     for name, rows in tables.items():

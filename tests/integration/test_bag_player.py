@@ -14,7 +14,8 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
 
-from aero_dva.bag.mcap_io import BagWriter, bag_topics, qos_profile_yaml, read_messages
+from aero_dva.bag.bag_reader import bag_topics, read_messages
+from aero_dva.bag.bag_writer import BagWriter, qos_profile_yaml
 from aero_dva.control.rbf_io import save_rbf_network
 from aero_dva.control.rbf_network import spectrum_input_names, train_rbf_ols
 from aero_dva_sim.bag_player_node import BagPlayer

@@ -26,6 +26,7 @@ from pathlib import Path
 
 from aero_dva.atomic_io import atomic_output
 from aero_dva.control.airspeed_schedule import AirspeedSchedule
+from aero_dva.text_input import read_text_input
 
 __all__ = [
     "FILE_FORMAT",
@@ -123,10 +124,7 @@ def load_schedule(path) -> AirspeedSchedule:
         out of range.
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ScheduleFileError(f"airspeed schedule {str(path)!r}: cannot read ({exc})") from None
+    text = read_text_input(path, "airspeed schedule", error=ScheduleFileError)
     try:
         data = json.loads(text)
     except json.JSONDecodeError as exc:

@@ -43,6 +43,7 @@ from aero_dva.flight.scenario import (
     ScenarioError,
     sweep_duration,
 )
+from aero_dva.text_input import read_text_input
 
 _TOP_KEYS = {"name", "duration", "sample_rate", "block_size", "airspeed", "density", "excitation",
              "sweep", "plant"}
@@ -183,12 +184,12 @@ def scenario_from_dict(raw: Any, default_name: str = "scenario") -> Scenario:
 def load_scenario(path: str | Path) -> Scenario:
     """Read a scenario YAML file; :class:`ScenarioError` names the file and the problem."""
     path = Path(path)
+    text = read_text_input(path, "scenario", error=ScenarioError)
     try:
-        raw = yaml.safe_load(path.read_text())
-    except FileNotFoundError:
-        raise ScenarioError(f"scenario file not found: {path}") from None
+        raw = yaml.safe_load(text)
     except yaml.YAMLError as exc:
-        raise ScenarioError(f"{path}: not valid YAML ({exc})") from None
+        detail = " ".join(str(exc).split())  # the parser's message spans several lines
+        raise ScenarioError(f"{path}: not valid YAML ({detail})") from None
     try:
         return scenario_from_dict(raw, default_name=path.stem)
     except ScenarioError as exc:

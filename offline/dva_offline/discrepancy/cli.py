@@ -1,13 +1,17 @@
-"""``dva discrepancy``: residual -> named missing effect -> augmented model -> error before/after.
+"""``dva discrepancy``: residual -> named missing effects -> augmented model -> error before/after.
 
-``dva discrepancy frf FILE --quantity receptance|accelerance|stiffness [--mass KG]
-[--static-stiffness N_PER_M] [--elements N] [--covariates COL[,COL...]] [--plot-dir DIR] --json``
-prints one JSON object (baseline, verdict, augmented, candidates, residual evidence).
-``dva discrepancy synth`` writes a test CSV that hides one effect (the generator of the tests).
-``dva discrepancy flight RUN.mcap [--wing FILE] [--plot-dir DIR] --json`` does the same for a
-flight log (MCAP bag of the simulator node or the batch recorder) against the wing + Maxwell
-DVA model; ``dva discrepancy synth-flight --effect E --seed S OUT`` records a test flight that
-hides one plant effect. SI units throughout (kg, N/m, Hz).
+``dva discrepancy frf FILE --quantity receptance|accelerance|stiffness|modulus [--mass KG]
+[--static-stiffness N_PER_M] [--elements N] [--covariates COL[,COL...]] [--columns
+f=COL,real=COL,imag=COL,NAME=COL] [--frequency-unit U] [--value-unit U] [--group-by COL |
+--covariate-tolerance TOL] [--max-steps N] [--plot-dir DIR] [--json]`` analyses isolator or
+material FRFs (an instrument's export read as written); ``dva discrepancy modal FILE --quantity
+receptance|mobility|accelerance [--modes N]`` (same table flags) a vibration test of a
+structure. Both print the first step's verdict, the effects the loop added in turn (``steps``)
+and where it ended (``final``). ``dva discrepancy synth`` / ``synth-structure`` write test CSVs
+hiding effects (the generators of the tests). ``dva discrepancy flight RUN.mcap [--wing FILE]
+[--plot-dir DIR] --json`` does the same for a flight log (MCAP bag of the simulator node or the
+batch recorder) against the wing + Maxwell DVA model; ``dva discrepancy synth-flight --effect E
+--seed S OUT`` records a test flight that hides one plant effect. SI units inside (kg, N/m, Hz).
 """
 from __future__ import annotations
 
@@ -35,20 +39,34 @@ def _progress():
 
 
 def _conditions(args):
+    """Sweeps of the input file in SI units, how they were grouped, and the units used."""
+    from dva_offline.discrepancy import table_io
+
     path = Path(args.file)
     columns = None
     if args.covariates:
         columns = [c.strip() for c in args.covariates.split(",") if c.strip()]
+    quantity = args.quantity
     if path.suffix.lower() in (".uff", ".unv"):
-        data = isolator_io.read_uff58(path, args.quantity)
-        if columns:
-            raise ValueError("--covariates needs a CSV file (UFF 58 carries no covariates)")
-        return [data], columns
-    return isolator_io.read_frf_csv_conditions(path, args.quantity, columns), columns
+        if columns or args.group_by or args.covariate_tolerance is not None:
+            raise ValueError("--covariates/--group-by/--covariate-tolerance need a CSV file "
+                             "(UFF 58 carries no covariates)")
+        data = isolator_io.read_uff58(path, quantity)
+        grouping = table_io.Grouping("a single sweep (UFF 58)", (), 1, ())
+        return [data], columns, grouping, {}
+    table = table_io.read_table(path)
+    conditions, grouping, info = table_io.conditions_from_table(
+        table, quantity, table_io.ColumnMap.parse(args.columns), args.frequency_unit,
+        args.value_unit, args.group_by, args.covariate_tolerance, columns)
+    if columns is None:
+        # every covariate whose condition levels differ, except the set column itself
+        skip = set(grouping.columns) if args.group_by else set()
+        columns = [n for n in conditions[0].covariates if n not in skip]
+    return conditions, columns, grouping, info
 
 
 def _cmd_frf(args) -> int:
-    from dva_offline.discrepancy import engine
+    from dva_offline.discrepancy import loop
     from dva_offline.discrepancy.frf_domain import FrfDomain
     from dva_offline.discrepancy.report import plot_result, result_to_dict
 
@@ -64,22 +82,31 @@ def _cmd_frf(args) -> int:
             raise ValueError(
                 f"--elements must be an integer >= 0 or 'auto', got {args.elements!r}"
             ) from None
-    conditions, columns = _conditions(args)
+    conditions, columns, grouping, info = _conditions(args)
     domain = FrfDomain(conditions, mass=args.mass, static_stiffness=args.static_stiffness,
                        elements=elements, max_elements=args.max_elements, covariates=columns)
     rng = None if args.holdout_seed is None else np.random.default_rng(args.holdout_seed)
-    split = engine.holdout_split(domain.observations.groups, args.holdout_every, rng)
+    split = loop.holdout_split(domain.observations.groups, args.holdout_every, rng)
     bar, step = _progress()
     try:
-        result = engine.run(domain, split=split, progress=step)
+        result = loop.run(domain, rule=loop.DecisionRule(max_steps=args.max_steps),
+                          split=split, progress=step)
     finally:
         bar.close()
     sel = domain.order_selection
     extra = {
         "file": str(args.file), "quantity": args.quantity, "n_points": int(domain.omega.size),
+        "grouping": {"method": grouping.method, "columns": list(grouping.columns),
+                     "n_conditions": grouping.n_conditions,
+                     "dropped": [{"condition": d, "n_points": n} for d, n in grouping.dropped],
+                     "covariate_values": grouping.covariate_values},
+        "input": info,
         "conditions": [
             {"n_points": int(c.frequency_hz.size),
-             "covariates": {n: float(c.covariates[n][0]) for n in domain.observations.covariates}}
+             "covariates": {n: float(np.mean(c.covariates[n]))
+                            for n in domain.observations.covariates},
+             "covariate_spread": {n: float(np.ptp(c.covariates[n]))
+                                  for n in domain.observations.covariates}}
             for c in conditions
         ],
         "mass_kg": args.mass, "static_stiffness_n_per_m": args.static_stiffness,
@@ -98,19 +125,102 @@ def _cmd_frf(args) -> int:
     if args.json:
         print(json.dumps(payload))
     else:
+        print(f"read {domain.omega.size} points: {grouping.describe()}")
         print("\n".join(_summary_lines(result)))
     return EXIT_OK
 
 
+def _cmd_modal(args) -> int:
+    from dva_offline.discrepancy import loop, table_io
+    from dva_offline.discrepancy.modal_domain import ModalDomain, to_receptance
+    from dva_offline.discrepancy.report import plot_result, result_to_dict
+    from dva_offline.isolator.frf_data import FrfData
+
+    modes = None
+    if args.modes != "auto":
+        try:
+            modes = int(args.modes)
+        except ValueError:
+            raise ValueError(f"--modes must be an integer >= 1 or 'auto', got {args.modes!r}"
+                             ) from None
+    columns = ([c.strip() for c in args.covariates.split(",") if c.strip()]
+               if args.covariates else None)
+    table = table_io.read_table(args.file)
+    raw, grouping, info = table_io.conditions_from_table(
+        table, args.quantity, table_io.ColumnMap.parse(args.columns), args.frequency_unit,
+        args.value_unit, args.group_by, args.covariate_tolerance, columns,
+        internal_quantity="receptance")
+    conditions = [FrfData(c.frequency_hz, to_receptance(c.frequency_hz, c.values, args.quantity),
+                          "receptance", c.covariates) for c in raw]
+    if columns is None:
+        skip = set(grouping.columns) if args.group_by else set()
+        columns = [n for n in conditions[0].covariates if n not in skip]
+    domain = ModalDomain(conditions, modes=modes, max_modes=args.max_modes, covariates=columns,
+                         quantity=args.quantity)
+    rng = None if args.holdout_seed is None else np.random.default_rng(args.holdout_seed)
+    split = loop.holdout_split(domain.observations.groups, args.holdout_every, rng)
+    bar, step = _progress()
+    try:
+        result = loop.run(domain, rule=loop.DecisionRule(max_steps=args.max_steps),
+                          split=split, progress=step)
+    finally:
+        bar.close()
+    extra = {
+        "file": str(args.file), "quantity": args.quantity, "model_quantity": "receptance",
+        "n_points": int(domain.omega.size),
+        "grouping": {"method": grouping.method, "columns": list(grouping.columns),
+                     "n_conditions": grouping.n_conditions,
+                     "dropped": [{"condition": d, "n_points": n} for d, n in grouping.dropped],
+                     "covariate_values": grouping.covariate_values},
+        "input": info,
+        "order_selection": {"refined_holdout_errors": {str(k): v for k, v in
+                                                       domain.order_errors.items()},
+                            "modes": domain.baseline_order},
+    }
+    payload = result_to_dict(result, extra)
+    if args.plot_dir:
+        paths = plot_result(result, domain.observations, args.plot_dir, "receptance",
+                            Path(args.file).name)
+        payload["plots"] = [str(p) for p in paths]
+    if args.json:
+        print(json.dumps(payload))
+    else:
+        print(f"read {domain.omega.size} points: {grouping.describe()}")
+        print("\n".join(_summary_lines(result)))
+    return EXIT_OK
+
+
+def _cmd_synth_structure(args) -> int:
+    from dva_offline.discrepancy import structure_synthetic, table_io
+    from dva_offline.discrepancy.report import _clean
+
+    effect = None if args.effect == "none" else args.effect
+    case = structure_synthetic.generate_structure(
+        effect, np.random.default_rng(args.seed), quantity=args.quantity, sigma=args.sigma,
+        jitter=args.jitter)
+    table_io.write_table(args.out, case.frequency_hz, case.values, case.covariates)
+    payload = {"out": str(args.out), "seed": args.seed, "quantity": case.quantity,
+               "hidden_effect": case.effect, "hidden_parameters": case.parameters,
+               "modes_hz": list(case.modes_hz), "noise_sigma": case.sigma,
+               "effect_size": case.effect_size, "covariates": list(case.covariates),
+               "n_points": int(case.frequency_hz.size)}
+    if args.json:
+        print(json.dumps(_clean(payload)))
+    else:
+        print(f"wrote {payload['n_points']} points to {args.out} (modes "
+              f"{', '.join(f'{f:.4g}' for f in case.modes_hz)} Hz; hidden: {case.effect})")
+    return EXIT_OK
+
+
 def _cmd_synth(args) -> int:
-    from dva_offline.discrepancy import synthetic
+    from dva_offline.discrepancy import synthetic, table_io
 
     effect = None if args.effect == "none" else args.effect
     case = synthetic.generate_case(
         effect, np.random.default_rng(args.seed), quantity=args.quantity, sigma=args.sigma,
         n_points=args.points, system=args.system, clean_covariate=args.clean_covariate,
     )
-    isolator_io.write_frf_csv(args.out, case.frequency_hz, case.values, case.covariates)
+    table_io.write_table(args.out, case.frequency_hz, case.values, case.covariates)
     payload = {
         "out": str(args.out), "seed": args.seed, "quantity": case.quantity,
         "hidden_effect": case.effect, "hidden_parameters": case.parameters,
@@ -149,6 +259,19 @@ def _summary_lines(result, baseline_detail: str = "") -> list[str]:
         lines.append(f"augmented {a.name}: held-out error {a.error:.4f} "
                      f"({100 * (1 - a.error / result.baseline.error):.0f} % lower)")
         lines += [f"  {e.name} = {e.value:.6g} +- {e.std:.2g} {e.unit}" for e in a.added]
+    for i, st in enumerate(result.steps):
+        label = f" ({st.label})" if st.label else ""
+        lines.append(f"step {i + 1}: + {st.effect}{label}: held-out error {st.error_before:.4f} "
+                     f"-> {st.error_after:.4f} (noise floor {st.noise_before:.4f}, dBIC "
+                     f"{st.delta_bic:.1f}, explains {100 * st.explained_fraction:.0f} % of the "
+                     "excess)")
+        lines += [f"    {e.name} = {e.value:.6g} +- {e.std:.2g} {e.unit}" for e in st.fit.added]
+        lines += [f"    caveat: {c}" for c in st.caveats]
+    if result.final is not None:
+        fin = result.final
+        lines.append(f"final: {fin.status}: {fin.model}: held-out error {fin.error:.4f} = "
+                     f"{fin.error / fin.noise:.2f} x the noise floor {fin.noise:.4f}; "
+                     f"{fin.reason}")
     lines.append(f"evidence: {v.evidence}")
     lines.append("candidates (held-out error, dBIC):")
     for c in result.candidates:
@@ -163,7 +286,7 @@ def _summary_lines(result, baseline_detail: str = "") -> list[str]:
 def _cmd_flight(args) -> int:
     from aero_dva.bag.flight_log_io import load_flight_log
     from aero_dva.wing.wing_io import load_wing
-    from dva_offline.discrepancy import engine
+    from dva_offline.discrepancy import loop
     from dva_offline.discrepancy.flight_domain import (
         FlightDomain,
         FlightSettings,
@@ -183,14 +306,14 @@ def _cmd_flight(args) -> int:
     settings = FlightSettings(band=band, window_s=args.window,
                               segment_windows=args.segment_windows, settle_s=args.settle)
     print(f"reading {path} ...", file=sys.stderr, flush=True)
-    log = load_flight_log(path, namespace=args.namespace)
+    log = load_flight_log(path, namespace=args.namespace, allow_truncated=args.allow_truncated)
     wing = load_wing(args.wing)
     domain = FlightDomain(arrays_from_log(log), wing, settings)
     rng = None if args.holdout_seed is None else np.random.default_rng(args.holdout_seed)
-    split = engine.holdout_split(domain.observations.groups, args.holdout_every, rng)
+    split = loop.holdout_split(domain.observations.groups, args.holdout_every, rng)
     bar, step = _progress()
     try:
-        result = engine.run(domain, rule=domain.decision_rule, split=split, progress=step)
+        result = loop.run(domain, rule=domain.decision_rule, split=split, progress=step)
     finally:
         bar.close()
     fs = domain.data.sample_rate
@@ -251,6 +374,24 @@ def _cmd_synth_flight(args) -> int:
     return EXIT_OK
 
 
+def _add_table_arguments(p) -> None:
+    """Flags that read an instrument's export as it is (columns, units, sweeps)."""
+    p.add_argument("--columns", default=None, metavar="ROLE=COL[,...]",
+                   help="file columns: frequency=COL,real=COL,imag=COL, and NAME=COL to rename "
+                        "a covariate (e.g. temperature_c=T); default frequency_hz,real,imag")
+    p.add_argument("--frequency-unit", default=None, choices=("Hz", "kHz", "rad/s"),
+                   help="unit of the frequency column (default: the file's units row, else Hz)")
+    p.add_argument("--value-unit", default=None, metavar="UNIT",
+                   help="unit of the real/imag columns, e.g. MPa, N/mm, mm/N, g/N (default: "
+                        "the file's units row, else SI)")
+    p.add_argument("--group-by", default=None, metavar="COL",
+                   help="split the rows into sweeps by this set column (e.g. the instrument's "
+                        "step number)")
+    p.add_argument("--covariate-tolerance", type=float, default=None, metavar="TOL",
+                   help="split the rows into sweeps by covariate levels closer than TOL (a "
+                        "measured temperature that drifts within a sweep)")
+
+
 def register(subparsers) -> None:
     """Add the ``discrepancy`` subcommand to the ``dva`` parser."""
     from dva_offline.discrepancy import synthetic
@@ -265,8 +406,11 @@ def register(subparsers) -> None:
     p = sub.add_parser("frf", help="isolator / viscoelastic FRF data against the Maxwell model")
     p.add_argument("file", help="CSV frequency_hz,real,imag[,covariates] (sweeps may be "
                                "stacked by covariate) or UFF 58")
-    p.add_argument("--quantity", choices=("receptance", "accelerance", "stiffness"),
-                   default="receptance", help="what the file holds (SI units)")
+    p.add_argument("--quantity", choices=("receptance", "accelerance", "stiffness", "modulus"),
+                   default="receptance",
+                   help="what the file holds (modulus: E' + j E'' or G' + j G'', analysed as "
+                        "a stiffness per unit geometry factor)")
+    _add_table_arguments(p)
     p.add_argument("--mass", type=float, default=None,
                    help="isolated mass [kg] (default: fitted; fixture_mass then not tested)")
     p.add_argument("--static-stiffness", type=float, default=None,
@@ -276,15 +420,53 @@ def register(subparsers) -> None:
                         "selection); a fixed order makes maxwell_element a candidate")
     p.add_argument("--max-elements", type=int, default=3, help="largest order for 'auto'")
     p.add_argument("--covariates", default=None, metavar="COL[,COL...]",
-                   help="condition columns (temperature, excitation level); default: every "
-                        "extra column with few distinct values")
+                   help="covariates to analyse (temperature, excitation level); default: every "
+                        "extra column whose level differs between sweeps")
     p.add_argument("--holdout-every", type=int, default=4,
                    help="hold out every Nth point of each condition (default 4)")
     p.add_argument("--holdout-seed", type=int, default=None,
                    help="hold out a seeded random 1/N of the points instead")
+    p.add_argument("--max-steps", type=int, default=12,
+                   help="most effects the loop adds one after another (default 12)")
     p.add_argument("--plot-dir", default=None, help="write PNG plots into this directory")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(func=_cmd_frf)
+
+    p = sub.add_parser("modal", help="vibration-test FRFs of a structure against N modes")
+    p.add_argument("file", help="CSV frequency_hz,real,imag[,covariates] (sweeps stacked)")
+    p.add_argument("--quantity", choices=("receptance", "mobility", "accelerance"),
+                   default="accelerance", help="what the file holds (SI units)")
+    _add_table_arguments(p)
+    p.add_argument("--modes", default="auto",
+                   help="number of modes of the baseline, or 'auto' (order rule)")
+    p.add_argument("--max-modes", type=int, default=8, help="largest order for 'auto'")
+    p.add_argument("--covariates", default=None, metavar="COL[,COL...]",
+                   help="covariates to analyse (excitation level, temperature); default: every "
+                        "extra column whose level differs between sweeps")
+    p.add_argument("--holdout-every", type=int, default=4,
+                   help="hold out every Nth point of each condition (default 4)")
+    p.add_argument("--holdout-seed", type=int, default=None,
+                   help="hold out a seeded random 1/N of the points instead")
+    p.add_argument("--max-steps", type=int, default=12,
+                   help="most effects the loop adds one after another (default 12)")
+    p.add_argument("--plot-dir", default=None, help="write PNG plots into this directory")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.set_defaults(func=_cmd_modal)
+
+    from dva_offline.discrepancy import structure_synthetic
+
+    p = sub.add_parser("synth-structure",
+                       help="write a synthetic vibration test (several modes) hiding one effect")
+    p.add_argument("--effect", required=True, choices=("none", *structure_synthetic.EFFECTS))
+    p.add_argument("--seed", type=int, required=True, help="random seed")
+    p.add_argument("--out", required=True, help="output CSV")
+    p.add_argument("--quantity", choices=("receptance", "mobility", "accelerance"),
+                   default="accelerance")
+    p.add_argument("--sigma", type=float, default=None, help="noise RMS (default 0.005-0.02)")
+    p.add_argument("--jitter", action="store_true",
+                   help="record the covariates with measurement jitter and a set column")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.set_defaults(func=_cmd_synth_structure)
 
     p = sub.add_parser("synth", help="write a synthetic FRF CSV that hides one effect")
     p.add_argument("--effect", required=True,
@@ -308,7 +490,7 @@ def register(subparsers) -> None:
     p = sub.add_parser("flight", help="flight log (MCAP) against the wing + Maxwell DVA model")
     p.add_argument("file", help="rosbag2 directory or .mcap file of a flight (simulator node "
                                "or batch recorder)")
-    p.add_argument("--wing", default=None, help="wing file (default: the reference wing)")
+    p.add_argument("--wing", default=None, help="wing file (default: the chapter-6 wing)")
     p.add_argument("--namespace", default="", help="topic namespace of the flight")
     p.add_argument("--band", default="2,20", help="frequency band LOW,HIGH [Hz] (default 2,20)")
     p.add_argument("--window", type=float, default=1.0,
@@ -325,6 +507,9 @@ def register(subparsers) -> None:
     p.add_argument("--plot-dir", "--plot", dest="plot_dir", default=None,
                    help="write PNG plots into this directory")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.add_argument("--allow-truncated", action="store_true",
+                   help="read a bag that was not closed or is cut up to the damage (warns); "
+                        "`dva bag recover` makes a complete copy instead")
     p.set_defaults(func=_cmd_flight)
 
     p = sub.add_parser("synth-flight",

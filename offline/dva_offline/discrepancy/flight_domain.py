@@ -20,7 +20,7 @@ coherent with the force well above the modes), so the residual w_j (H_model,j - 
 relative error scaled to the median point's noise and a correct model leaves residuals of about
 equal size everywhere (the loop's noise floor and consistency test assume that).
 
-Baseline: :class:`~aero_dva.wing.model.AeroelasticModel` of the wing file (reference wing
+Baseline: :class:`~aero_dva.wing.model.AeroelasticModel` of the wing file (chapter-6 wing
 by default) with its Maxwell DVA and aerodynamics, calibrated by three parameters: pitch
 stiffness k_alpha, plunge stiffness k and the structural damping factor beta (each within a
 factor 1.5 of the file's value).
@@ -44,12 +44,12 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import lfilter
 
+from aero_dva.bag import channels
 from aero_dva.flight.discrete_model import DiscreteWing, pitch_moment_input
 from aero_dva.flight.modal_simulator import ModalBlocks, simulate
 from aero_dva.wing.aerodynamics import QuasiSteadyAero, TheodorsenAero, WagnerAero
 from aero_dva.wing.model import AeroelasticModel
-from dva_offline.discrepancy.engine import (
-    DecisionRule,
+from dva_offline.discrepancy.fitting import (
     ModelSpec,
     NotApplicable,
     Observations,
@@ -60,6 +60,7 @@ from dva_offline.discrepancy.flight_frf import (
     hann,
     runs_of_constant_condition,
 )
+from dva_offline.discrepancy.loop import DecisionRule
 
 CHANNELS = ("plunge", "pitch")  # accelerometer channels used (leading edge = their combination)
 OUTPUTS = tuple(f"{channel}_acceleration" for channel in CHANNELS)  # the discrete wing's names
@@ -156,11 +157,11 @@ def arrays_from_log(log) -> FlightArrays:
     """
     missing = []
     if np.all(np.isnan(log.accelerations)):
-        missing.append("/wing/acceleration (accelerations)")
+        missing.append(f"{channels.ACCELERATION.absolute()} (accelerations)")
     if np.all(np.isnan(log.force)):
-        missing.append("/wing/excitation (aileron force)")
+        missing.append(f"{channels.EXCITATION.absolute()} (aileron force)")
     if np.all(np.isnan(log.applied_damping)):
-        missing.append("/dva/damper_state (c2)")
+        missing.append(f"{channels.DAMPER_STATE.absolute()} (c2)")
     if missing:
         raise FlightDataError("the log lacks " + ", ".join(missing)
                               + "; a flight log needs force, accelerations, flight condition "
@@ -175,7 +176,7 @@ def arrays_from_log(log) -> FlightArrays:
 
 
 class FlightDomain:
-    """The flight-log domain (module docstring) for :func:`.engine.run`.
+    """The flight-log domain (module docstring) for :func:`.loop.run`.
 
     Parameters
     ----------
@@ -188,7 +189,7 @@ class FlightDomain:
     name = "flight"
     # H1 estimates of neighbouring segments share windows and the noise floor from second
     # differences is only approximate here: a clearly significant candidate is not hidden by
-    # a high noise floor estimate (engine.DecisionRule.strict_consistency).
+    # a high noise floor estimate (loop.DecisionRule.strict_consistency).
     decision_rule = DecisionRule(strict_consistency=True)
     error_definition = (
         "RMS over held-out points j (not used in any fit) of w_j |H_model_j - H_j|, "

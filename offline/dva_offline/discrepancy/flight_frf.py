@@ -8,8 +8,8 @@ Per window and accelerometer channel the DFTs X (aileron force) and Y (accelerat
     H1_seg(f_k) = sum_w conj(X_w) Y_w / sum_w |X_w|^2.
 
 The flight domain applies the same estimator, on the same windows of the same force, to the
-model's simulated response (:mod:`.flight_simulation`), so leakage and transients are common
-to both and cancel in the residual. Pure numerics.
+model's simulated response (:mod:`aero_dva.flight.modal_simulator`), so leakage and transients
+are common to both and cancel in the residual. Pure numerics.
 """
 from __future__ import annotations
 

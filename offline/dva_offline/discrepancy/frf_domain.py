@@ -7,7 +7,7 @@ order comes from the isolator's own order selection
 (:func:`dva_offline.isolator.order_selection.select_model_order`, Voigt -> M-V -> M-M-V -> ...,
 on the training points only), or is fixed by the user (``elements``). The isolator fit imposes
 the natural frequency and damping ratio estimated from the data (eq. 4.12); since those are
-estimates, the engine then refits all parameters of that model by weighted least squares
+estimates, the loop then refits all parameters of that model by weighted least squares
 without the constraint (weights 1/|H_j|, the maximum-likelihood choice for multiplicative
 noise). Mass m and static stiffness k are fixed when given, fitted otherwise.
 
@@ -26,12 +26,18 @@ fixture_mass           K - dm w^2 (receptance: 1 / (K - (m + dm) w^2))        dm
 foundation_mode        K K_f / (K + K_f), K_f = m_f (w_f^2 - w^2 + 2j z_f w_f w)  f_f, z_f, m_f
 amplitude_dependence   Re K (1 + s_k L) + j Im K (1 + s_d L), L = ln(a / a_0)   s_k, s_d
 covariate_shift        K0(w a_T), log10 a_T = -b C2 (T - T0) / (C2 + T - T0)   b, C2
+  (temperatures also)  log10 a_T = E_a / (R ln 10) (1/T - 1/T0), T in kelvin    E_a
 =====================  =====================================================  ================
 
 ``maxwell_element`` is a candidate only when the order is fixed (or the automatic order hit
-its maximum); otherwise extra elements are already part of the baseline. ``a`` and ``T`` are
-condition covariates (any column with several levels; a_0, T0 = the median level).
-covariate_shift is the WLF form of time-temperature superposition with C1 = b C2.
+its maximum, or the loop has added an effect); otherwise extra elements are already part of
+the baseline. ``a`` and ``T`` are covariates whose sweep levels differ (values per point as
+measured; a_0, T0 = the reference sweep's mean, the sweep at the median level).
+covariate_shift is the WLF form of time-temperature superposition with C1 = b C2, and for a
+temperature also its Arrhenius form (a candidate of its own, label ``NAME, Arrhenius``); a
+temperature gets no level law. The effects are terms of one model (:mod:`.frf_terms`), so the
+loop can take a chosen effect into the baseline (:meth:`FrfDomain.augment`) and offer the
+library again on top of it (the library itself is in :mod:`.frf_library`).
 
 Starting values that do not inherit the baseline's distortion (the baseline bends its elements
 to imitate the missing effect): :func:`maxwell_from_stiffness` fits the Maxwell model globally
@@ -42,20 +48,28 @@ covariate candidates.
 """
 from __future__ import annotations
 
-import itertools
 import warnings
 from collections.abc import Sequence
 
 import numpy as np
 
-from dva_offline.discrepancy.engine import (
+from dva_offline.discrepancy.fitting import (
     HoldoutSplit,
     ModelFit,
     ModelSpec,
-    NotApplicable,
     Observations,
     ParamSpec,
     fit_model,
+)
+from dva_offline.discrepancy.frf_library import FrfLibrary
+from dva_offline.discrepancy.frf_terms import (
+    SIGNATURES,
+    Term,
+    compose,
+    log_shift,
+)
+from dva_offline.discrepancy.maxwell_starts import (
+    positive,
 )
 from dva_offline.discrepancy.residual import ResidualFeatures, ljung_box, noise_floor
 from dva_offline.isolator.frf_data import FrfData, estimate_modal, to_receptance
@@ -63,157 +77,9 @@ from dva_offline.isolator.maxwell_fit import FitWarning, fit_maxwell_model
 from dva_offline.isolator.maxwell_model import MaxwellModel, maxwell_element_stiffness
 from dva_offline.isolator.order_selection import select_model_order
 
-SIGNATURES = {
-    "maxwell_element": "smooth, broad residual in magnitude and phase around the element's "
-                       "corner frequency 1/(2 pi tau_e); no resonance",
-    "sensor_delay": "phase of H_meas / H_model falls linearly with frequency (slope "
-                    "-2 pi tau per Hz), magnitude unchanged; largest at high frequency",
-    "fixture_mass": "resonance shifted by about -dm/(2m); above resonance the magnitude is off "
-                    "by a constant factor m/(m + dm) (receptance ~ 1/((m+dm) w^2))",
-    "foundation_mode": "narrow resonance/anti-resonance pair at the foundation frequency, above "
-                       "the mount resonance; residual localised in one band",
-    "amplitude_dependence": "residual changes with the excitation-level covariate: stiffness "
-                            "and damping scale with ln(level), at all frequencies",
-    "covariate_shift": "residual changes with the covariate as a shift along log frequency: "
-                       "the relaxation (Maxwell) frequencies move by a_T(T)",
-}
 
-
-def _residual_peaks(f, residual, groups, count: int) -> list[float]:
-    """Frequencies [Hz] of the ``count`` largest local maxima of the residual power
-    (3-point moving average within each condition)."""
-    found = []
-    for g in np.unique(groups):
-        sel = groups == g
-        p = np.convolve(np.abs(residual[sel]) ** 2, np.ones(3) / 3, mode="same")
-        inner = np.nonzero((p[1:-1] >= p[:-2]) & (p[1:-1] >= p[2:]))[0] + 1
-        found += [(p[i], f[sel][i]) for i in inner]
-    found.sort(reverse=True)
-    return [freq for _, freq in found[:count]]
-
-
-def _positive(x, floor):
-    return max(float(x), floor)
-
-
-def _batched_least_squares(columns, rhs, subsets):
-    """Weighted linear least squares for many column subsets at once.
-
-    ``columns`` (M, P) real, ``rhs`` (M,), ``subsets`` (S, Q) column indices. Normal equations
-    on unit-norm columns (one Gram matrix for all subsets). Returns solutions (S, Q) and
-    residual sums of squares (S,); singular subsets get NaN.
-    """
-    norm = np.linalg.norm(columns, axis=0)
-    norm[norm == 0] = 1.0
-    a = columns / norm
-    gram, proj = a.T @ a, a.T @ rhs
-    g = gram[subsets[:, :, None], subsets[:, None, :]]
-    r = proj[subsets]
-    x = np.full(r.shape, np.nan)
-    ok = np.linalg.cond(g) < 1e12
-    if np.any(ok):
-        x[ok] = np.linalg.solve(g[ok], r[ok][..., None])[..., 0]
-    rss = float(rhs @ rhs) - np.einsum("sq,sq->s", x, r)
-    return x / norm[subsets], rss
-
-
-def maxwell_from_stiffness(omega, stiffness, weights, n, k_fixed=None, corners_hz=None):
-    """Maxwell model of order n closest to a complex stiffness, over a grid of time constants.
-
-    For fixed relaxation times tau_i, K(w) = k + j w c + sum_i k_i j w tau_i / (1 + j w tau_i)
-    is linear in (k, c, k_i): every combination of n grid values is solved by weighted linear
-    least squares (weights u_j on |K_model - K_j|) and the best one with all k_i > 0 wins. A
-    global search over the element corners, so it does not depend on a start (the nonlinear
-    fit that follows only polishes).
-
-    Parameters
-    ----------
-    omega : numpy.ndarray
-        Shape (N,) [rad/s].
-    stiffness : numpy.ndarray
-        Target K(w_j), shape (N,), complex [N/m].
-    weights : numpy.ndarray
-        u_j >= 0, shape (N,).
-    n : int
-        Number of Maxwell elements (>= 0).
-    k_fixed : float, optional
-        Static stiffness [N/m] (fitted when omitted).
-    corners_hz : numpy.ndarray, optional
-        Grid of element corner frequencies 1/(2 pi tau) [Hz]; default 16 log-spaced values
-        from a third of the lowest to three times the highest frequency.
-
-    Returns
-    -------
-    (k, c, k_i, c_i, cost) or None when no combination gives positive k_i.
-    """
-    w = np.asarray(omega, float)
-    target = np.asarray(stiffness, complex)
-    u = np.asarray(weights, float)
-    if w.ndim != 1 or target.shape != w.shape or u.shape != w.shape:
-        raise ValueError(f"omega, stiffness and weights must have one shape (N,), got "
-                         f"{w.shape}, {target.shape}, {u.shape}")
-    if not isinstance(n, (int, np.integer)) or n < 0:
-        raise ValueError(f"n must be an integer >= 0, got {n!r}")
-    if corners_hz is None:
-        f = w / (2 * np.pi)
-        corners_hz = np.geomspace(f.min() / 3, f.max() * 3, 16)
-    taus = 1.0 / (2 * np.pi * np.asarray(corners_hz, float))
-    s = 1j * w[:, None]
-    head = [s[:, 0]] if k_fixed is not None else [np.ones_like(target), s[:, 0]]
-    cols = np.column_stack(head + list((s * taus / (1.0 + s * taus)).T)) * u[:, None]
-    rhs = u * (target - (k_fixed or 0.0))
-    nh = len(head)
-    combos = list(itertools.combinations(range(taus.size), n))
-    combos = np.array(combos, dtype=int).reshape(len(combos), n)
-    subsets = np.column_stack([np.tile(np.arange(nh), (combos.shape[0], 1)), combos + nh])
-    x, rss = _batched_least_squares(np.vstack([cols.real, cols.imag]),
-                                    np.concatenate([rhs.real, rhs.imag]), subsets)
-    good = np.all(x[:, nh:] > 0, axis=1) & np.all(np.isfinite(x), axis=1)
-    if not np.any(good):
-        return None
-    i = int(np.flatnonzero(good)[np.argmin(rss[good])])
-    ks = x[i, nh:]
-    k = float(k_fixed) if k_fixed is not None else float(x[i, 0])
-    return k, float(x[i, nh - 1]), ks, ks * taus[combos[i]], float(max(rss[i], 0.0))
-
-
-def modal_term_scan(omega, compliance, weights, f_grid_hz, zetas, background=0):
-    """Best single-mode compliance a / (w_f^2 - w^2 + 2 j z w_f w) for each grid (f_f, z).
-
-    A foundation on its spring is such a term in the compliance of the mount path. For each
-    (f_f, z) the modal constant a (real) and, with ``background`` = B > 0, a smooth complex
-    polynomial of degree B - 1 in ln(w) (it absorbs what a mis-fitted mount model leaves,
-    like the residual terms of modal analysis) are fitted by weighted linear least squares.
-
-    Returns rows (cost, f_f, z, a) with a > 0, sorted by cost.
-    """
-    w = np.asarray(omega, float)
-    u = np.asarray(weights, float)
-    d = np.asarray(compliance, complex)
-    if w.ndim != 1 or d.shape != w.shape or u.shape != w.shape:
-        raise ValueError(f"omega, compliance and weights must have one shape (N,), got "
-                         f"{w.shape}, {d.shape}, {u.shape}")
-    x = np.log(w / np.sqrt(w.min() * w.max()))
-    smooth = [u * x**i for i in range(background)]
-    # background columns: real and imaginary coefficients of each polynomial term
-    cols = [*smooth, *(1j * t for t in smooth)]
-    pairs = [(float(ff), float(z)) for ff in np.asarray(f_grid_hz, float) for z in zetas]
-    for ff, z in pairs:
-        wf = 2 * np.pi * ff
-        cols.append(u / (wf**2 - w**2 + 2j * z * wf * w))
-    cols = np.column_stack(cols)
-    nb = 2 * background
-    subsets = np.column_stack([np.arange(len(pairs)) + nb,
-                               np.tile(np.arange(nb), (len(pairs), 1))]).astype(int)
-    sol, rss = _batched_least_squares(np.vstack([cols.real, cols.imag]),
-                                      np.concatenate([(u * d).real, (u * d).imag]), subsets)
-    rows = [(float(rss[i]), ff, z, float(sol[i, 0])) for i, (ff, z) in enumerate(pairs)
-            if sol[i, 0] > 0]
-    return sorted(rows)
-
-
-class FrfDomain:
-    """Isolator FRF data for :func:`dva_offline.discrepancy.engine.run`.
+class FrfDomain(FrfLibrary):
+    """Isolator FRF data for :func:`dva_offline.discrepancy.loop.run`.
 
     Parameters
     ----------
@@ -237,7 +103,7 @@ class FrfDomain:
         any of these orders has a white residual (Ljung-Box p >= ``whiteness_alpha``), whose
         residual is white.
     whiteness_alpha : float
-        Ljung-Box level of the order choice (the engine's default whiteness level).
+        Ljung-Box level of the order choice (the loop's default whiteness level).
     """
 
     name = "frf"
@@ -297,10 +163,21 @@ class FrfDomain:
         self.observations = Observations(y, 1.0 / np.abs(y), f, groups, cov)
         self.reference = self._reference_condition()
         self._setup = None
+        self._stack: list[Term] = []  # effects added by the loop's earlier steps
+        self._stack_params: list[ParamSpec] = []
+        self._term_of: dict = {}
 
     # --- data helpers ----------------------------------------------------------------------
     def _varying(self) -> dict:
-        return {n: c for n, c in self.observations.covariates.items() if np.unique(c).size > 1}
+        """Covariates whose condition levels differ (a drift within one sweep is not a
+        level change)."""
+        g = self.observations.groups
+        out = {}
+        for n, c in self.observations.covariates.items():
+            means = np.array([c[g == label].mean() for label in np.unique(g)])
+            if np.ptp(means) > 0:
+                out[n] = c
+        return out
 
     def _reference_condition(self) -> int:
         """The condition at the median level of the first varying covariate (else the first)."""
@@ -308,7 +185,7 @@ class FrfDomain:
         if not varying:
             return 0
         col = next(iter(varying.values()))
-        per = np.array([col[self.observations.groups == g][0]
+        per = np.array([col[self.observations.groups == g].mean()
                         for g in range(len(self.conditions))])
         return int(np.argmin(np.abs(per - np.median(per))))
 
@@ -330,7 +207,7 @@ class FrfDomain:
             stiff = 1.0 / rec + m_guess * w**2
         k = self.static_stiffness
         if k is None:
-            k = _positive(np.real(stiff[0]), 1e-12)
+            k = positive(np.real(stiff[0]), 1e-12)
         if self.quantity == "stiffness":
             if self.mass is not None:
                 m = self.mass
@@ -391,7 +268,7 @@ class FrfDomain:
         for n in orders:  # a failed fit: the seed's initial-guess rule (section 4.3.2)
             if n not in models:
                 taus = np.logspace(-0.5, 1.0, n) / wn
-                ks = np.full(n, _positive(m * wn**2 - k, 0.1 * k) / n)
+                ks = np.full(n, positive(m * wn**2 - k, 0.1 * k) / n)
                 models[n] = MaxwellModel(m, k, c0, tuple(ks), tuple(taus * ks))
         return {n: MaxwellModel(m, k, mod.c, mod.maxwell_k, mod.maxwell_c)
                 for n, mod in models.items()}, sel
@@ -431,9 +308,24 @@ class FrfDomain:
             return 1.0 / d
         return -(self.omega**2) / d
 
+    def _evaluate(self, v, n, terms):
+        """Model values of parameter vector v: Maxwell order n with ``terms`` (in stack order,
+        their parameters after the Maxwell ones), see :mod:`.frf_terms`."""
+        m, k, c, ks, cs, rest = self._unpack(v, n)
+        vals, i = [], 0
+        for t in terms:
+            vals.append(rest[i:i + t.size])
+            i += t.size
+        return compose(lambda wm: self._stiffness(k, c, ks, cs, wm), terms, vals, self.omega,
+                       m, self.quantity)
+
     def _base_predict(self, v, n=None):
-        m, k, c, ks, cs, _ = self._unpack(v, n)
-        return self._response(self._stiffness(k, c, ks, cs), m)
+        """The current baseline: Maxwell order n with the effects added so far."""
+        n = self._setup["n"] if n is None else n
+        if not self._stack:
+            m, k, c, ks, cs, _ = self._unpack(v, n)
+            return self._response(self._stiffness(k, c, ks, cs), m)
+        return self._evaluate(v, n, self._stack)
 
     def _maxwell_params(self, model: MaxwellModel) -> tuple[ParamSpec, ...]:
         s = self._setup
@@ -446,12 +338,32 @@ class FrfDomain:
             params.append(ParamSpec("k", "N/m", model.k, model.k * 1e-3, model.k * 1e3,
                                     log=True))
         params.append(ParamSpec("c", "N s/m", model.c, -100 * c_ref, 100 * c_ref, scale=c_ref))
+        dormant = "a dormant element (the data do not need it in the band)"
         for i, ki in enumerate(model.maxwell_k):
-            params.append(ParamSpec(f"k_{i + 1}", "N/m", ki, k_ref * 1e-3, k_ref * 1e3, log=True))
+            params.append(ParamSpec(f"k_{i + 1}", "N/m", ki, k_ref * 1e-3, k_ref * 1e3, log=True,
+                                    at_lower=dormant, at_upper=dormant))
+        below, above = self._reduced_span()
         for i, ci in enumerate(model.maxwell_c):
-            params.append(ParamSpec(f"c_{i + 1}", "N s/m", ci, c_ref * 1e-3, c_ref * 1e3,
-                                    log=True))
+            params.append(ParamSpec(f"c_{i + 1}", "N s/m", ci, c_ref * 1e-3 / 10**above,
+                                    c_ref * 1e3 * 10**below, log=True, at_lower=dormant,
+                                    at_upper=dormant))
         return tuple(params)
+
+    def _reduced_span(self) -> tuple[float, float]:
+        """Decades by which the material's reduced frequency w a_T reaches below the lowest
+        and above the highest measured frequency, under the shifts added so far (the element
+        time constants must be free to cover it; 0, 0 without a shift)."""
+        shifts = [(t, i) for t, i in zip(self._stack, self._stack_offsets()) if t.stage == "shift"]
+        if not shifts or getattr(self, "_base_values", None) is None:
+            return 0.0, 0.0
+        start = len(self._base_values) - self._stack_size()
+        total = np.zeros(self.omega.size)
+        for t, i in shifts:
+            total = total + log_shift(t, self._base_values[start + i: start + i + t.size])
+        return float(max(0.0, -total.min())), float(max(0.0, total.max()))
+
+    def _stack_offsets(self) -> list[int]:
+        return list(np.cumsum([0] + [t.size for t in self._stack])[:-1])
 
     def _order_spec(self, model: MaxwellModel, previous: np.ndarray | None,
                     extra_starts=()) -> ModelSpec:
@@ -492,6 +404,7 @@ class FrfDomain:
         """
         train = np.asarray(train, dtype=bool)
         self._train = train
+        self._stack, self._stack_params, self._term_of = [], [], {}
         m, k, free_m, free_k = self._mass_and_stiffness()
         wn, zeta = self._modal_estimate(m)
         self._setup = dict(m=m, k=k, free_m=free_m, free_k=free_k, n=0, k_ref=m * wn**2,
@@ -550,103 +463,47 @@ class FrfDomain:
             raise ValueError("baseline() has not been called")
         return self._setup["n"]
 
-    def _spec(self, effect, added, predict, bases, n, starts=(), label="", extra=0,
+    def _spec(self, effect, added, term, bases, n, starts=(), label="", extra=0,
               priority=()):
         """Spec of baseline order n + effect; starts = every base vector x every effect start
         (the first base with the effect's initial values is the initial point); ``priority``:
         informed starts, effect values on the first base or full parameter vectors."""
         m, k, c, ks, cs, _ = self._unpack(bases[0], n)
         model = MaxwellModel(float(m), float(k), float(c), tuple(ks), tuple(cs))
-        params = self._maxwell_params(model) + tuple(added)
+        params = self._maxwell_params(model) + tuple(self._stack_params) + tuple(added)
+        terms = [*self._stack, term]
+
+        def predict(v, n=n, terms=terms):
+            return self._evaluate(v, n, terms)
+
         effect_starts = [np.array([a.initial for a in added]), *starts]
         full_starts = tuple(np.concatenate([b, e]) for b in bases for e in effect_starts)[1:]
         informed = tuple(e if e.size == bases[0].size + len(added)
                          else np.concatenate([bases[0], e]) for e in priority)
         full_starts = informed + full_starts
-        name = ("voigt" if n == 0 else f"maxwell(n={n})") + f" + {effect}" + (
-            f"({label})" if label else "")
-        return ModelSpec(name, effect, params, len(added) + extra, predict, full_starts,
+        name = self._model_name(n) + f" + {effect}" + (f"({label})" if label else "")
+        spec = ModelSpec(name, effect, params, len(added) + extra, predict, full_starts,
                          SIGNATURES[effect], label, len(informed))
+        self._term_of[name] = (term, n, tuple(added))
+        return spec
 
-    def _apparent_stiffness(self, m, points=None):
-        """Mount stiffness seen in the data (default: the training points), K_app =
-        1 / H_rec + m w^2 (the data for stiffness), and d_j = |dH_j / H_j| per unit |dK_app|:
-        the factor turning a stiffness error into the relative error the fits minimise."""
-        tr = self._train if points is None else points
-        w, y = self.omega[tr], self.observations.values[tr]
-        if self.quantity == "stiffness":
-            return w, y, 1.0 / np.abs(y)
-        rec = y if self.quantity == "receptance" else -y / w**2
-        return w, 1.0 / rec + m * w**2, np.abs(rec)
+    def _stack_size(self) -> int:
+        return sum(t.size for t in self._stack)
 
-    def _grid_start(self, points, n, m):
-        """Parameter vector of an order-n Maxwell model fitted to ``points`` by the global
-        corner-grid search (:func:`maxwell_from_stiffness`), or None."""
-        s = self._setup
-        w, kapp, d = self._apparent_stiffness(m, points)
-        fit = maxwell_from_stiffness(w, kapp, d, n, None if s["free_k"] else s["k"])
-        if fit is None:
-            return None
-        k, c, ks, cs, _ = fit
-        return np.array([*[m] * s["free_m"], *[k] * s["free_k"], c, *ks, *cs])
+    def _model_name(self, n):
+        head = "voigt" if n == 0 else f"maxwell(n={n})"
+        return head + "".join(f" + {t.effect}" + (f"({t.label})" if t.label else "")
+                              for t in self._stack)
 
-    def _foundation_informed(self, base, n, count=3):
-        """Full starts for ``foundation_mode`` that do not inherit the baseline's distortion.
-
-        A baseline fitted without the foundation bends its Maxwell elements to imitate it;
-        refitting from there ends in a local minimum (elements at a bound, zeta_f at its
-        lower bound). Instead: (1) the foundation is a single-mode term in the compliance,
-        1/K_app = 1/K + 1/K_f, so scan (f_f, zeta_f) for the term that best fits
-        1/K_app - 1/K_base (m_f linear); (2) remove that foundation from the data,
-        K = 1/(1/K_app - 1/K_f), and refit the Maxwell model of order n by the global
-        corner-grid search of :func:`maxwell_from_stiffness`; (3) repeat once with that
-        mount. Each of the ``count`` best distinct foundation frequencies gives one start.
-        """
-        s = self._setup
-        m, k, c, ks, cs, _ = self._unpack(base, n)
-        w, kapp, d = self._apparent_stiffness(m)
-        f = self.observations.axis
-        f_n = s["wn"] / (2 * np.pi)
-        grid = np.geomspace(max(float(f.min()), 1.2 * f_n), float(f.max()), 60)
-        zetas = (0.003, 0.01, 0.02, 0.04, 0.08, 0.15)
-        k_fixed = None if s["free_k"] else s["k"]
-        with np.errstate(all="ignore"):
-            u_c = np.abs(kapp) ** 2 * d  # relative error per unit compliance error
-            comp = 1.0 / kapp
-            rows = modal_term_scan(w, comp - 1.0 / self._stiffness(k, c, ks, cs, w), u_c,
-                                   grid, zetas, background=3)
-        picked = []
-        for _, ff, zf, a in rows:
-            if len(picked) == count:
-                break
-            if all(abs(np.log(ff / p[0])) > 0.1 for p in picked):
-                picked.append((ff, zf, a))
-        out = []
-        for ff, zf, a in picked:
-            vec = None
-            for _ in range(2):
-                wf = 2 * np.pi * ff
-                with np.errstate(all="ignore"):
-                    kf = (wf**2 - w**2 + 2j * zf * wf * w) / a
-                    mount = 1.0 / (comp - 1.0 / kf)
-                    u_k = np.abs(kapp / mount) ** 2 * d
-                ok = np.isfinite(mount) & np.isfinite(u_k)
-                fit = maxwell_from_stiffness(w[ok], mount[ok], u_k[ok], n, k_fixed)
-                if fit is None:
-                    break
-                k1, c1, ks1, cs1, _ = fit
-                # (3) the foundation again, against this mount, near the last estimate
-                with np.errstate(all="ignore"):
-                    again = modal_term_scan(
-                        w, comp - 1.0 / self._stiffness(k1, c1, ks1, cs1, w), u_c,
-                        np.geomspace(ff / 1.15, ff * 1.15, 9), zetas)
-                if again:
-                    _, ff, zf, a = again[0]
-                head = [m] * s["free_m"] + [k1] * s["free_k"]
-                vec = np.array([*head, c1, *ks1, *cs1, ff, zf, 1.0 / a])
-            if vec is not None:
-                out.append(vec)
-        return out
+    def augment(self, spec: ModelSpec, fit: ModelFit) -> None:
+        """Make the chosen candidate the baseline of the next step (the loop's iteration):
+        its effect joins the stack, its fitted values start the next candidates."""
+        term, n, added = self._term_of[spec.name]
+        extra = spec.n_added - len(added)
+        if extra:  # the one-more-element variant: the order grows
+            self._setup["n"] = n
+        self._stack.append(term)
+        self._stack_params.extend(added)
 
     def candidates(self, baseline: ModelFit, features: ResidualFeatures):
         """The candidate library (module docstring), started from the fitted baseline."""
@@ -654,7 +511,7 @@ class FrfDomain:
         self._base_residual = baseline.residual
         self._base_values = np.array([e.value for e in baseline.estimates])
         self._reference_values = None
-        if self._varying():
+        if self._varying() and not self._stack:
             # The covariate candidates' baseline is the model at the reference condition:
             # start them also from a fit to that condition's training points alone. The
             # pooled baseline is bent by the covariate's effect; from it alone, this fit can
@@ -669,209 +526,3 @@ class FrfDomain:
             fit = fit_model(spec, self.observations, split, n_screen=4)
             self._reference_values = np.array([e.value for e in fit.estimates])
         return self._library([self._base_values], self._setup["n"])
-
-    def variants(self, spec: ModelSpec) -> list[ModelSpec]:
-        """The same effect on a baseline with one more Maxwell element (automatic order only).
-
-        The baseline order is chosen without the effect; an effect can hide the benefit of an
-        element that the augmented model needs. The variant's extra element counts as two
-        added parameters in the score.
-        """
-        s = self._setup
-        n = s["n"]
-        if (self.elements is not None or spec.effect == "maxwell_element"
-                or n + 1 not in s["refined"]):
-            return []
-        # bases: the refined order n + 1, and the baseline plus a fresh element on a grid of
-        # corner frequencies and stiffnesses (the refined n + 1 may have a dormant element)
-        base = self._base_values
-        head = 2 - [s["free_m"], s["free_k"]].count(False)
-        f = self.observations.axis
-        bases = [s["refined"][n + 1]]
-        wn = s["wn"]
-        for fc in np.geomspace(f.min(), f.max(), 8):
-            for r in (0.3, 1.0, 3.0):
-                ke = r * s["k"]
-                ce = ke / (2 * np.pi * fc)
-                # the primary damper gives up the damping the new element adds at w_n
-                c_new = base[head] - float(np.imag(
-                    maxwell_element_stiffness([ke], [ce], [1j * wn])[0, 0])) / wn
-                bases.append(np.concatenate([base[:head], [c_new], base[head + 1: head + 1 + n],
-                                             [ke], base[head + 1 + n:], [ce]]))
-        return [item for item in self._library(bases, n + 1, extra=2,
-                                               only=(spec.effect, spec.label))
-                if isinstance(item, ModelSpec)]
-
-    def _library(self, bases, n, extra=0, only=None):
-        s = self._setup
-        obs = self.observations
-        features = self._features
-        f = obs.axis
-        f_min, f_max = float(f.min()), float(f.max())
-        w = self.omega
-        m_b, k_b, *_ = self._unpack(bases[0], n)
-        out: list[ModelSpec | NotApplicable] = []
-
-        def wanted(effect, label=""):
-            return only is None or only == (effect, label)
-
-        def spec(effect, added, predict, starts=(), label="", more_bases=(), priority=()):
-            return self._spec(effect, added, predict, [*bases, *more_bases], n, starts, label,
-                              extra, priority)
-
-        ref_bases = ([self._reference_values] if extra == 0
-                     and self._reference_values is not None else [])
-
-        # maxwell_element
-        if only is None and (self.elements is not None or n >= self.max_elements):
-            def p_elem(v):
-                m, k, c, ks, cs, (ke, ce) = self._unpack(v, n)
-                stiff = self._stiffness(k, c, ks, cs)
-                stiff = stiff + ke * ce * 1j * w / (ke + ce * 1j * w)
-                return self._response(stiff, m)
-
-            ke0 = 0.3 * k_b
-            tau0 = 1.0 / (2 * np.pi * np.sqrt(f_min * f_max))  # corner in mid-band
-            out.append(spec(
-                "maxwell_element",
-                (ParamSpec("k_e", "N/m", ke0, s["k_ref"] * 1e-3, s["k_ref"] * 1e3, log=True),
-                 ParamSpec("c_e", "N s/m", ke0 * tau0, s["c_ref"] * 1e-3,
-                           s["c_ref"] * 1e3, log=True)),
-                p_elem,
-                starts=[np.array([r * k_b, r * k_b * t]) for t in
-                        1.0 / (2 * np.pi * np.geomspace(f_min, f_max, 12))
-                        for r in (0.1, 0.3, 1.0, 3.0)],
-            ))
-        elif only is None:
-            out.append(NotApplicable(
-                "maxwell_element",
-                f"the order was selected automatically ({n} elements of at most "
-                f"{self.max_elements}); extra elements are part of the baseline (fix the order "
-                "with elements/--elements to test for a missing one)"))
-
-        # sensor_delay
-        sign = 1.0 if self.quantity == "stiffness" else -1.0
-        if wanted("sensor_delay"):
-            def p_delay(v):
-                return self._base_predict(v, n) * np.exp(sign * 1j * w * v[-1])
-
-            tau_eq = features.phase.equivalent_delay_s if features.phase is not None else 0.0
-            tau_eq = -tau_eq if self.quantity == "stiffness" else tau_eq
-            lo_t, hi_t = -0.5 / f_max, 2.0 / f_max
-            starts = [np.array([t]) for t in (tau_eq, *np.linspace(lo_t, hi_t, 41)[1:-1])
-                      if lo_t < t < hi_t]
-            out.append(spec(
-                "sensor_delay", (ParamSpec("tau", "s", 0.0, lo_t, hi_t, scale=0.1 / f_max),),
-                p_delay, starts))
-
-        # fixture_mass
-        m_ref = s["m"]
-        if wanted("fixture_mass") and s["free_m"]:
-            out.append(NotApplicable(
-                "fixture_mass", "the mass is a fitted baseline parameter (give --mass)"))
-        elif wanted("fixture_mass"):
-            def p_mass(v):
-                m, k, c, ks, cs, (dm,) = self._unpack(v, n)
-                stiff = self._stiffness(k, c, ks, cs) - dm * w**2
-                return self._response(stiff, m)
-
-            lower = -0.9 * m_ref if self.quantity != "stiffness" else -100 * m_ref
-            out.append(spec(
-                "fixture_mass",
-                (ParamSpec("dm", "kg", 0.0, lower, 100 * m_ref, scale=0.01 * m_ref),),
-                p_mass, starts=[np.array([r * m_ref]) for r in np.linspace(-0.3, 0.5, 17)]))
-
-        # foundation_mode
-        if wanted("foundation_mode"):
-            def p_found(v):
-                m, k, c, ks, cs, (ff, zf, mf) = self._unpack(v, n)
-                wf = 2 * np.pi * ff
-                stiff = self._stiffness(k, c, ks, cs)
-                kf = mf * (wf**2 - w**2 + 2j * zf * wf * w)
-                return self._response(stiff * kf / (stiff + kf), m)
-
-            # Starts: the residual's strongest peaks, then a grid over the band, each taken
-            # as the coupled resonance f_p of mount + foundation (K + K_f = 0), for several
-            # foundation-to-mount stiffness ratios r = m_f w_p^2 / |K(w_p)|; then
-            # f_f = f_p sqrt(1 - 1/r).
-            _, k_c, c_c, ks_c, cs_c, _ = self._unpack(bases[0], n)
-            f_n = s["wn"] / (2 * np.pi)
-            f_lo = max(f_min, 1.2 * f_n)  # a foundation mode above the mount resonance
-            peaks = [pk for pk in _residual_peaks(f, self._base_residual, obs.groups, 5)
-                     if pk > f_lo][:3]
-            grid = np.geomspace(f_lo, f_max, 40)
-            found_starts = []
-            for fp, zetas in [(pk, (0.005, 0.01, 0.02, 0.05)) for pk in peaks] + [
-                    (g, (0.02, 0.1)) for g in grid]:
-                wp = 2 * np.pi * fp
-                kp = float(np.abs(self._stiffness(k_c, c_c, ks_c, cs_c, np.array([wp]))[0]))
-                for zf in zetas:
-                    for ratio in (1.5, 3.0, 8.0, 30.0):
-                        found_starts.append(np.array([fp * np.sqrt(1.0 - 1.0 / ratio), zf,
-                                                      ratio * kp / wp**2]))
-            informed = []
-            for fp in peaks:
-                wp = 2 * np.pi * fp
-                kp = float(np.abs(self._stiffness(k_c, c_c, ks_c, cs_c, np.array([wp]))[0]))
-                informed += [np.array([fp * np.sqrt(1.0 - 1.0 / r), zf, r * kp / wp**2])
-                             for zf in (0.01, 0.03) for r in (1.5, 3.0, 8.0, 30.0)]
-            informed += self._foundation_informed(bases[0], n)
-            first = found_starts[0]
-            out.append(spec(
-                "foundation_mode",
-                (ParamSpec("f_f", "Hz", first[0], max(0.5 * f_n, 0.5 * f_min), 2.0 * f_max,
-                           log=True),
-                 ParamSpec("zeta_f", "-", first[1], 1e-3, 0.15, log=True),
-                 ParamSpec("m_f", "kg", first[2], 1e-5 * m_ref, 1e4 * m_ref, log=True)),
-                p_found, found_starts[1:], priority=informed))
-
-        # covariate candidates
-        varying = self._varying()
-        if not varying and only is None:
-            reason = ("needs sweeps at >= 2 levels of a covariate (e.g. --covariates "
-                      "excitation_n or temperature_c)")
-            out.append(NotApplicable("amplitude_dependence", reason))
-            out.append(NotApplicable("covariate_shift", reason))
-        for name, col in varying.items():
-            ref = float(col[obs.groups == self.reference][0])
-            if wanted("amplitude_dependence", name) and np.all(col > 0):
-                log_level = np.log(col / ref)
-                bound = 0.95 / float(np.max(np.abs(log_level)))
-
-                def p_amp(v, log_level=log_level):
-                    m, k, c, ks, cs, (sk, sd) = self._unpack(v, n)
-                    stiff = self._stiffness(k, c, ks, cs)
-                    stiff = (stiff.real * (1 + sk * log_level)
-                             + 1j * stiff.imag * (1 + sd * log_level))
-                    return self._response(stiff, m)
-
-                out.append(spec(
-                    "amplitude_dependence",
-                    (ParamSpec("s_k", "-", 0.0, -bound, bound, scale=0.05),
-                     ParamSpec("s_d", "-", 0.0, -bound, bound, scale=0.05)),
-                    p_amp, label=name, more_bases=ref_bases,
-                    starts=[np.array([a * bound, b * bound]) for a in np.linspace(-0.8, 0.8, 5)
-                            for b in np.linspace(-0.8, 0.8, 5)]))
-            elif wanted("amplitude_dependence", name):
-                out.append(NotApplicable("amplitude_dependence",
-                                         f"covariate {name!r} has values <= 0 (not a level)",
-                                         name))
-            if wanted("covariate_shift", name):
-                dt = col - ref
-                c2_min = float(max(-dt.min(), 0.0)) + 1.0
-
-                def p_shift(v, dt=dt):
-                    m, k, c, ks, cs, (b, c2) = self._unpack(v, n)
-                    log_at = -b * c2 * dt / (c2 + dt)
-                    stiff = self._stiffness(k, c, ks, cs, w * 10.0**log_at)
-                    return self._response(stiff, m)
-
-                c2_0 = max(100.0, 2 * c2_min)
-                out.append(spec(
-                    "covariate_shift",
-                    (ParamSpec("b", "1/K", 0.02, -1.0, 1.0, scale=0.02),
-                     ParamSpec("C2", "K", c2_0, c2_min, 1e4, log=True)),
-                    p_shift, label=name, more_bases=ref_bases,
-                    starts=[np.array([b, c2]) for b in np.linspace(-0.1, 0.1, 21)
-                            for c2 in (c2_0, 3 * c2_0)]))
-        return out

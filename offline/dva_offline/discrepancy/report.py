@@ -11,7 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from dva_offline.discrepancy.engine import CandidateScore, DiscrepancyResult, ModelFit
+from dva_offline.discrepancy.fitting import ModelFit
+from dva_offline.discrepancy.loop import CandidateScore, DiscrepancyResult
 from dva_offline.discrepancy.residual import ResidualFeatures
 
 
@@ -37,11 +38,17 @@ def _params(estimates) -> list[dict]:
     return [{"name": e.name, "value": e.value, "std": e.std, "unit": e.unit} for e in estimates]
 
 
+def _hits(fit: ModelFit) -> list[dict]:
+    return [{"parameter": h.name, "value": h.value, "bound": h.bound, "side": h.side,
+             "unit": h.unit, "effect_parameter": h.added, "meaning": h.meaning}
+            for h in fit.bound_hits]
+
+
 def _fit(fit: ModelFit) -> dict:
     return {
         "model": fit.name, "error": fit.error, "error_l2": fit.error_l2,
         "train_error": fit.train_error, "n_parameters": fit.n_params,
-        "parameters": _params(fit.estimates),
+        "parameters": _params(fit.estimates), "bound_hits": _hits(fit),
     }
 
 
@@ -72,7 +79,9 @@ def _features(f: ResidualFeatures) -> dict:
 
 
 def _candidate(c: CandidateScore) -> dict:
-    item = {"effect": c.effect, "covariate": c.label or None, "applicable": c.applicable}
+    covariate, _, form = (c.label or "").partition(", ")
+    item = {"effect": c.effect, "covariate": covariate or None, "form": form or None,
+            "applicable": c.applicable}
     if not c.applicable:
         item.update(error=None, reason=c.reason)
         return item
@@ -80,9 +89,20 @@ def _candidate(c: CandidateScore) -> dict:
         model=c.fit.name, error=c.fit.error, error_l2=c.fit.error_l2,
         train_error=c.fit.train_error, delta_bic=c.delta_bic, p_value=c.p_value,
         explained_fraction=c.explained_fraction, n_added=c.fit.n_added,
-        parameters=_params(c.fit.added), signature=c.signature,
+        parameters=_params(c.fit.added), signature=c.signature, bound_hits=_hits(c.fit),
     )
     return item
+
+
+def _step(number: int, st) -> dict:
+    return {"step": number, "effect": st.effect,
+            "covariate": st.label.partition(", ")[0] or None,
+            "form": st.label.partition(", ")[2] or None, "model": st.model,
+            "error_before": st.error_before, "error_after": st.error_after,
+            "noise_floor_before": st.noise_before, "delta_bic": st.delta_bic,
+            "p_value": st.p_value, "explained_fraction": st.explained_fraction,
+            "parameters": _params(st.fit.added), "bound_hits": _hits(st.fit),
+            "caveats": list(st.caveats)}
 
 
 def result_to_dict(result: DiscrepancyResult, extra: dict | None = None) -> dict:
@@ -91,7 +111,9 @@ def result_to_dict(result: DiscrepancyResult, extra: dict | None = None) -> dict
     aug = None
     if result.augmented is not None:
         a = result.augmented
-        aug = {"model": a.name, "effect": a.effect, "covariate": a.label or None,
+        aug = {"model": a.name, "effect": a.effect,
+               "covariate": (a.label or "").partition(", ")[0] or None,
+               "form": (a.label or "").partition(", ")[2] or None, "bound_hits": _hits(a),
                "error": a.error, "error_l2": a.error_l2, "train_error": a.train_error,
                "error_ratio": a.error / result.baseline.error,
                "parameters": _params(a.added), "all_parameters": _params(a.estimates),
@@ -105,11 +127,26 @@ def result_to_dict(result: DiscrepancyResult, extra: dict | None = None) -> dict
         "noise_floor": {"sigma": result.noise.sigma, "method": result.noise.method},
         "baseline": _fit(result.baseline),
         "residual": _features(result.residual),
-        "verdict": {"status": v.status, "effect": v.effect, "covariate": v.label or None,
-                    "evidence": v.evidence},
+        "verdict": {"status": v.status, "effect": v.effect,
+                    "covariate": (v.label or "").partition(", ")[0] or None,
+                    "form": (v.label or "").partition(", ")[2] or None,
+                    "evidence": v.evidence, "caveats": list(v.caveats)},
         "augmented": aug,
         "candidates": [_candidate(c) for c in result.candidates],
         "decision_rule": {k: getattr(result.rule, k) for k in result.rule.__dataclass_fields__},
+        "steps": [_step(i + 1, st) for i, st in enumerate(result.steps)],
+        "final": None if result.final is None else {
+            "status": result.final.status, "reason": result.final.reason,
+            "model": result.final.model, "error": result.final.error,
+            "noise_floor": result.final.noise,
+            "error_over_noise": result.final.error / result.final.noise
+            if result.final.noise > 0 else None,
+            "effects": [{"effect": e, "covariate": lab.partition(", ")[0] or None,
+                         "form": lab.partition(", ")[2] or None}
+                        for e, lab in result.final.effects],
+            "parameters": _params(result.final.fit.estimates),
+            "bound_hits": _hits(result.final.fit),
+        },
     })
     return _clean(out)
 
@@ -131,6 +168,8 @@ def plot_result(result: DiscrepancyResult, observations, plot_dir, quantity: str
     fits = [("baseline", result.baseline, "b-")]
     if result.augmented is not None:
         fits.append((f"+ {result.augmented.effect}", result.augmented, "r-"))
+    if result.final is not None and len(result.steps) > 1:
+        fits.append((f"final ({len(result.steps)} effects)", result.final.fit, "g-"))
     written = []
 
     fig, (ax_m, ax_p) = plt.subplots(2, 1, sharex=True, figsize=(8, 6.5))

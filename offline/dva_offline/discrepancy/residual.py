@@ -360,7 +360,7 @@ def covariate_dependence(name: str, covariate, axis, residual, n_bands: int = 8,
 
 @dataclass(frozen=True)
 class ResidualFeatures:
-    """Everything the engine reports about a residual.
+    """Everything the loop reports about a residual.
 
     Attributes
     ----------

@@ -1,10 +1,10 @@
 """Test-data generator for the FRF domain: isolator FRFs hiding exactly one effect.
 
-Separate from the engine on purpose: the effects are coded here from their physics (the
+Separate from the loop on purpose: the effects are coded here from their physics (the
 foundation as a 2-DOF chain solved directly, amplitude dependence as a Kraus/Payne law,
 time-temperature superposition with universal WLF constants referred to a glass transition,
-a Duffing oscillator by harmonic balance), not with the engine's candidate formulas, and the
-engine never sees the labels.
+a Duffing oscillator by harmonic balance), not with the loop's candidate formulas, and the
+loop never sees the labels.
 
 Base systems: the M-M-V systems of the seed's Table 4.1 (m = 1 kg) and the identified mounts
 of Table 5.6 (m = 1.041 kg), each parameter perturbed by a random factor exp(N(0, 0.05^2)).
@@ -21,12 +21,12 @@ Detectability thresholds (the magnitude of the hidden effect is drawn at random 
   one element more can absorb part of the change, so there the part left after the isolator
   tool's unconstrained fit of such a model to the noise-free data must also be >= 3 sigma.
 * ``maxwell_element``: a Type B + Type C system (Table 4.1 F or a Table 5.6 mount) whose
-  model keeps one of the two elements (the engine is told ``elements=1``); the data have both.
+  model keeps one of the two elements (the loop is told ``elements=1``); the data have both.
   The seed's section 4.2 shows no single element matches such a pair.
 * ``sensor_delay``: tau in 0.1..1 ms.
 * ``fixture_mass`` and ``foundation_mode`` use base systems resonating below f_max / 5 (not
   the 5.6 stud at 89 Hz): with only half a decade above resonance an extra mass and a series
-  compliance look alike (on the stud the engine can name ``foundation_mode`` for a mass error).
+  compliance look alike (on the stud the loop can name ``foundation_mode`` for a mass error).
 * ``fixture_mass``: an unmodelled extra mass dm (fixture, accelerometer) of 3..15 % of m.
   (A mass *over*-estimate, dm < 0, is largely absorbed by a stiff Type C element of the
   automatically sized baseline, K ~ |dm| w^2 over the band, and is not a fair test.)
@@ -41,7 +41,7 @@ Detectability thresholds (the magnitude of the hidden effect is drawn at random 
   2 dT in 20..30 K, WLF C1 = 17.44, C2 = 51.6 K referred to a glass transition 80..110 K
   below T0 = 23 C (a shift of about 0.8..1.6 decades over the temperatures).
 
-Effects outside the engine's library (for the "never a confident wrong name" tests):
+Effects outside the loop's library (for the "never a confident wrong name" tests):
 
 * ``rocking_mode``: a second mode seen by an off-axis accelerometer: a parallel modal term with
   negative residue, f_r in [1.5 f_n, 200 Hz], zeta_r 0.01..0.05.
@@ -102,7 +102,7 @@ WLF_C1, WLF_C2 = 17.44, 51.6
 
 @dataclass(frozen=True)
 class SyntheticCase:
-    """A generated data set and the truth behind it (the engine gets only the data).
+    """A generated data set and the truth behind it (the loop gets only the data).
 
     Attributes
     ----------
@@ -158,7 +158,7 @@ class SyntheticCase:
 
     @property
     def n_elements(self) -> int:
-        """Maxwell elements of the model the engine should be given (the base system's; one
+        """Maxwell elements of the model the loop should be given (the base system's; one
         fewer than the data's for ``maxwell_element``)."""
         return int(self.parameters.get("base_elements", self.model.n_elements))
 

@@ -1,6 +1,6 @@
 """File input/output for the isolator tools: FRF CSV, time-series CSV, load-deflection CSV, UFF 58.
 
-Formats (SI units, one header row, comma separated):
+Formats (SI units, UTF-8, one header row, comma separated, at most :data:`MAX_ROWS` data rows):
 
 * FRF CSV: ``frequency_hz,real,imag`` plus any extra columns, kept by name as covariates
   (e.g. ``excitation_n``, ``temperature_c``). The quantity (receptance [m/N], accelerance
@@ -25,6 +25,7 @@ by :func:`~dva_offline.isolator.frf_data.modulus_to_stiffness`.
 from __future__ import annotations
 
 import csv
+from array import array
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -38,6 +39,9 @@ from dva_offline.isolator.frf_data import (
 )
 
 FRF_COLUMNS = ("frequency_hz", "real", "imag")
+#: Most data rows read from one CSV file (16 min of a time series at 1 kHz; an FRF has a few
+#: thousand points); a larger file is refused after this many rows, not read to its end.
+MAX_ROWS = 1_000_000
 STEP_AMPLITUDES = ("force_amplitude_n", "response_amplitude")
 STEP_PHASES = ("force_phase", "response_phase")
 
@@ -46,27 +50,43 @@ def _read_table(path) -> tuple[list[str], np.ndarray]:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such file")
-    with path.open(newline="") as fh:
-        rows = [row for row in csv.reader(fh) if row and not row[0].lstrip().startswith("#")]
-    if not rows:
+    header: list[str] | None = None
+    values = array("d")  # flat, row after row: 8 bytes a value, not a Python list of rows
+    rows = 0
+    reader = None
+    try:
+        with path.open(encoding="utf-8", newline="") as fh:
+            reader = csv.reader(fh)
+            for row in reader:
+                if not row or row[0].lstrip().startswith("#"):
+                    continue
+                if header is None:
+                    header = [name.strip() for name in row]
+                    if len(set(header)) != len(header):
+                        raise ValueError(f"{path}: duplicate column names in header {header}")
+                    continue
+                if len(row) != len(header):
+                    raise ValueError(f"{path}: line {reader.line_num} has {len(row)} values, "
+                                     f"header has {len(header)}")
+                if rows == MAX_ROWS:  # stop here: never read a runaway file to its end
+                    raise ValueError(f"{path}: more than {MAX_ROWS} data rows; the isolator "
+                                     "tools read at most that many (decimate or split the file)")
+                for name, cell in zip(header, row):
+                    try:
+                        values.append(float(cell))
+                    except ValueError:
+                        raise ValueError(f"{path}: line {reader.line_num}, column {name!r}: "
+                                         f"{cell[:40]!r} is not a number") from None
+                rows += 1
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{path}: not UTF-8 text (byte at offset {exc.start}); a CSV file "
+                         "is expected") from None
+    except csv.Error as exc:  # e.g. NUL bytes: a binary file
+        line = reader.line_num if reader is not None else 0
+        raise ValueError(f"{path}: line {line} is not CSV text ({exc})") from None
+    if header is None:
         raise ValueError(f"{path}: file is empty")
-    header = [name.strip() for name in rows[0]]
-    if len(set(header)) != len(header):
-        raise ValueError(f"{path}: duplicate column names in header {header}")
-    data = np.empty((len(rows) - 1, len(header)))
-    for i, row in enumerate(rows[1:]):
-        if len(row) != len(header):
-            raise ValueError(
-                f"{path}: line {i + 2} has {len(row)} values, header has {len(header)}"
-            )
-        for j, cell in enumerate(row):
-            try:
-                data[i, j] = float(cell)
-            except ValueError:
-                raise ValueError(
-                    f"{path}: line {i + 2}, column {header[j]!r}: {cell!r} is not a number"
-                ) from None
-    return header, data
+    return header, np.frombuffer(values, dtype=float).reshape(rows, len(header)).copy()
 
 
 def _require(path, header, names):

@@ -5,7 +5,7 @@ elements (spring ``k_i`` in series with damper ``c_i``) in parallel. ``n = 0`` i
 ``n = 1`` the Maxwell-Voigt (M-V) model, ``n = 2`` the M-M-V model.
 
 Everything here is a pure function of the parameters and the frequency, so other tools (the
-model-discrepancy engine) can wrap :func:`dynamic_stiffness` / :func:`frf` directly. SI units:
+model-discrepancy loop) can wrap :func:`dynamic_stiffness` / :func:`frf` directly. SI units:
 kg, N/m, N s/m, rad/s.
 """
 from __future__ import annotations

@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from aero_dva.bag.mcap_io import BagWriter
+from aero_dva.bag.bag_writer import BagWriter
 from aero_dva.control.command_laws import RBFLaw
 from aero_dva.control.rbf_io import save_rbf_network
 from aero_dva.control.rbf_network import spectrum_input_names, train_rbf_ols

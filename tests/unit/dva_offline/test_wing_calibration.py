@@ -11,10 +11,10 @@ import pytest
 
 from aero_dva.wing.flutter import flutter_speed
 from aero_dva.wing.model import AeroelasticModel
-from aero_dva.wing.wing_io import load_wing
+from aero_dva.wing.wing_io import load_wing, reference_wing_path
 from dva_offline import wing_calibration as wc
 
-REFERENCE = load_wing()
+REFERENCE = load_wing(reference_wing_path())
 SCRIPT = Path(__file__).resolve().parents[3] / "scripts" / "calibrate_reference_wing.py"
 
 # The reference wing's ratios as `dva wing design` computes them (docs/wing.md table).

@@ -39,6 +39,7 @@ from rclpy.qos import (
 from rclpy.task import Future
 from rosgraph_msgs.msg import Clock
 
+from aero_dva.bag import channels as ch
 from aero_dva_sim.bag_source import BagSource, BagTopic
 from dva_ros_common import conversions
 from dva_ros_common.conversions import message_class
@@ -142,8 +143,9 @@ class BagPlayer(Node):
                                  f"{topic.type_name!r}, which is not installed ({exc})") from None
             self._pub[name] = self.create_publisher(
                 msg_type, name, qos_profile(topic, int(values["qos_depth"])))
-        self._clock_pub = self.create_publisher(Clock, "/clock", 10) if self._play_clock else None
-        self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self._clock_pub = self.create_publisher(Clock, ch.CLOCK.name, 10) \
+            if self._play_clock else None
+        self._diag_pub = self.create_publisher(DiagnosticArray, ch.DIAGNOSTICS.name, 10)
 
         self.counts = dict.fromkeys(self.played, 0)
         self.clock_published = 0
@@ -179,7 +181,7 @@ class BagPlayer(Node):
                              "player's own /clock): set clock:=false to play the recorded one")
         chosen = names or sorted(available)
         if self._play_clock and not names:
-            chosen = [n for n in chosen if n != "/clock"]  # the player's own clock replaces it
+            chosen = [n for n in chosen if n != ch.CLOCK.name]  # the player's clock replaces it
         if not chosen:
             raise ValueError("nothing to play: the bag has no topics")
         return chosen

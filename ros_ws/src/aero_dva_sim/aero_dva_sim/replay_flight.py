@@ -20,10 +20,11 @@ import sys
 import time
 from pathlib import Path
 
+from aero_dva.bag import channels as ch
 from aero_dva_sim.run_flight import die_with_parent, executable, ros_params, stop_process
 
 CONTROLLERS = ("rbf", "schedule", "fixed")
-INPUTS = ("/wing/acceleration", "/dva/damper_state", "/flight/condition")
+INPUTS = tuple(c.absolute() for c in (ch.ACCELERATION, ch.DAMPER_STATE, ch.FLIGHT_CONDITION))
 DEFAULT_RATE = 10.0  # x recorded speed; docs/replay.md: what the graph keeps up with here
 
 
@@ -66,7 +67,7 @@ def build_commands(args, inputs: list[str]) -> dict[str, list[str]]:
 
 def run(args) -> dict:
     """Run the replay graph; return a summary (raises SystemExit on failure)."""
-    from aero_dva.bag.mcap_io import bag_topics
+    from aero_dva.bag.bag_reader import bag_topics
 
     present = bag_topics(args.bag)
     inputs = [t for t in INPUTS if t in present]

@@ -199,7 +199,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--scenario", default="",
                         help="scenario YAML (default: the package's scenario_ramp.yaml, "
                              "0.8 -> 1.2 U_cr in 30 s)")
-    parser.add_argument("--wing", default="", help="wing YAML (default: the reference wing)")
+    parser.add_argument("--wing", default="", help="wing YAML (default: the chapter-6 wing)")
     parser.add_argument("--absorber", choices=("maxwell", "none"), default="maxwell")
     parser.add_argument("--controller", choices=CONTROLLERS, default="fixed",
                         help="who commands c2 (default: fixed)")

@@ -15,9 +15,9 @@ from aero_dva.wing.absorbers import MaxwellAbsorber, PassiveAbsorber
 from aero_dva.wing.flutter import flutter_speed
 from aero_dva.wing.modal import min_damping_ratio
 from aero_dva.wing.model import AeroelasticModel
-from aero_dva.wing.wing_io import load_wing
+from aero_dva.wing.wing_io import load_wing, reference_wing_path
 
-CFG = load_wing()
+CFG = load_wing(reference_wing_path())
 WING, RHO = CFG.wing, CFG.air_density
 
 # Tolerances reached by the reference wing (absolute, on U / U_cr).

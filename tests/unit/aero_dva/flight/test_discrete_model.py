@@ -120,6 +120,8 @@ def test_the_hold_rule_keeps_values_within_the_quantum():
             held = dm.next_held(tuple(raw[f, p]), held, (2e-3,) * 3)
             assert tuple(got[f, p]) == held
     assert len(np.unique(got[0, :, 0])) < 50  # values were kept
+    wing = dm.DiscreteWing(MODEL, 1000.0, quantum=2e-3)
+    assert wing.held_sequence(map(tuple, raw[0]), (nan, nan, nan)) == [tuple(r) for r in got[0]]
 
 
 def test_every_simulator_flies_a_discrete_wing():

@@ -20,7 +20,7 @@ import pytest
 
 from aero_dva.bag.flight_log_io import load_flight_log
 from aero_dva.wing.wing_io import load_wing
-from dva_offline.discrepancy import engine
+from dva_offline.discrepancy import loop
 from dva_offline.discrepancy.flight_domain import FlightDomain, arrays_from_log
 from dva_offline.discrepancy.flight_synthetic import LIBRARY_EFFECTS, generate_flight
 
@@ -34,7 +34,7 @@ WING = load_wing(None)
 def _analyse(effect, seed, tmp_path):
     case = generate_flight(effect, seed, tmp_path / f"{effect}_{seed}")
     domain = FlightDomain(arrays_from_log(load_flight_log(case.path)), WING)
-    return case, engine.run(domain, rule=domain.decision_rule)
+    return case, loop.run(domain, rule=domain.decision_rule)
 
 
 def _enough(hits: int) -> bool:

@@ -6,12 +6,9 @@ import numpy as np
 import pytest
 
 from dva_offline import cli
-from dva_offline.discrepancy import engine, synthetic
-from dva_offline.discrepancy.frf_domain import (
-    FrfDomain,
-    maxwell_from_stiffness,
-    modal_term_scan,
-)
+from dva_offline.discrepancy import loop, synthetic
+from dva_offline.discrepancy.frf_domain import FrfDomain
+from dva_offline.discrepancy.maxwell_starts import maxwell_from_stiffness, modal_term_scan
 from dva_offline.isolator import isolator_io
 from dva_offline.isolator.frf_data import FrfData, split_conditions
 from dva_offline.isolator.maxwell_model import dynamic_stiffness
@@ -31,7 +28,7 @@ def run_case(effect, seed, **kw):
                                                                           "clean_covariate")})
     fixed = case.n_elements if effect == "maxwell_element" else None
     dom = domain_for(case, elements=fixed)
-    return case, dom, engine.run(dom)
+    return case, dom, loop.run(dom)
 
 
 def test_fast_stiffness_equals_isolator_dynamic_stiffness():
@@ -44,25 +41,31 @@ def test_fast_stiffness_equals_isolator_dynamic_stiffness():
                                rtol=1e-13)
 
 
-@pytest.mark.parametrize("quantity", ["receptance", "accelerance", "stiffness"])
-def test_every_candidate_reduces_to_the_baseline_at_its_null_value(quantity):
+@pytest.mark.parametrize("quantity,covariate", [("receptance", "temperature_c"),
+                                                ("accelerance", "excitation_n"),
+                                                ("stiffness", "temperature_c")])
+def test_every_candidate_reduces_to_the_baseline_at_its_null_value(quantity, covariate):
     case = synthetic.generate_case(None, np.random.default_rng(1), quantity=quantity,
-                                   clean_covariate="temperature_c")
+                                   clean_covariate=covariate)
     dom = domain_for(case, elements=2)
-    split = engine.holdout_split(dom.observations.groups)
-    base = engine.fit_model(dom.baseline(split.train), dom.observations, split)
-    feats = engine._features(dom.observations, base)
+    split = loop.holdout_split(dom.observations.groups)
+    base = loop.fit_model(dom.baseline(split.train), dom.observations, split)
+    feats = loop._features(dom.observations, base)
     nulls = {"maxwell_element": [1e-9, 1e-9], "sensor_delay": [0.0], "fixture_mass": [0.0],
              "foundation_mode": [50.0, 0.05, 1e8], "amplitude_dependence": [0.0, 0.0],
              "covariate_shift": [0.0, 100.0]}
     seen = set()
     for spec in dom.candidates(base, feats):
-        if isinstance(spec, engine.NotApplicable):
+        if isinstance(spec, loop.NotApplicable):
             continue
-        v = np.concatenate([[e.value for e in base.estimates], nulls[spec.effect]])
+        null = [0.0] if spec.label.endswith("Arrhenius") else nulls[spec.effect]
+        v = np.concatenate([[e.value for e in base.estimates], null])
         np.testing.assert_allclose(spec.predict(v), base.prediction, rtol=1e-6)
-        seen.add(spec.effect)
-    assert seen == set(nulls)
+        seen.add(spec.effect + (" arrhenius" if spec.label.endswith("Arrhenius") else ""))
+    if covariate == "temperature_c":  # a temperature gets the shift forms, no level law
+        assert seen == set(nulls) - {"amplitude_dependence"} | {"covariate_shift arrhenius"}
+    else:
+        assert seen == set(nulls)
 
 
 def test_maxwell_from_stiffness_finds_the_elements_without_a_start():
@@ -104,7 +107,7 @@ def test_modal_term_scan_finds_a_mode_on_a_smooth_background():
 
 
 def test_generator_foundation_chain_matches_series_formula():
-    """The generator solves the 2-DOF chain; the engine uses K K_f / (K + K_f): same FRF."""
+    """The generator solves the 2-DOF chain; the loop uses K K_f / (K + K_f): same FRF."""
     case = synthetic.generate_case("foundation_mode", np.random.default_rng(3), sigma=0.0)
     p, m = case.parameters, case.model
     w = 2 * np.pi * case.frequency_hz
@@ -160,14 +163,15 @@ def test_two_covariates_the_one_that_matters_is_named():
     assert case.condition_columns == ("temperature_c", "excitation_n")
     dom = domain_for(case)
     assert len(dom.conditions) == 9
-    res = engine.run(dom)
-    assert (res.verdict.status, res.verdict.effect, res.verdict.label) == (
-        "explained", "covariate_shift", "temperature_c")
+    res = loop.run(dom)
+    # the WLF data: the WLF form (label temperature_c) or its Arrhenius limit
+    assert (res.verdict.status, res.verdict.effect) == ("explained", "covariate_shift")
+    assert res.verdict.label.partition(", ")[0] == "temperature_c"
     assert res.augmented.error <= 0.5 * res.baseline.error
     assert res.augmented.error < 1.5 * case.sigma
     tried = {(c.effect, c.label) for c in res.candidates if c.applicable}
     assert {("amplitude_dependence", "excitation_n"), ("covariate_shift", "excitation_n"),
-            ("amplitude_dependence", "temperature_c")} <= tried
+            ("covariate_shift", "temperature_c, Arrhenius")} <= tried
     with pytest.raises(ValueError, match="depends on"):
         synthetic.generate_case("covariate_shift", np.random.default_rng(1),
                                 clean_covariate="temperature_c")

@@ -1,0 +1,131 @@
+"""The controller process killed (SIGKILL) mid-flight: how the damper falls back.
+
+One trial: a probe, the ``fixed_controller`` (commanding ``damping``) and the ``simulator`` as
+processes on a reserved domain, on sim time. Once the probe has seen the controller's c2
+applied, the controller is killed ``kill_after`` seconds of wall time later. The trial then
+watches ``dva/damper_state`` until the damper reports the stale fallback, and ``/diagnostics``
+for the simulator's warning about it.
+
+Two modes: ``lockstep`` flies as ``run_flight`` does (``max_command_lag`` 0.1 s: the simulator
+waits for the controller, up to ``command_wait_timeout`` = 2 s of wall time, before flying on),
+``free`` flies without waiting (``max_command_lag`` 0).
+"""
+from __future__ import annotations
+
+import math
+import signal
+import time
+from collections import Counter
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+from bench.faults.recorder_faults import TrialError
+from bench.faults.ros_processes import ros_session, wait_until, write_scenario
+
+MODES = {"lockstep": 0.1, "free": 0.0}  # mode -> max_command_lag [s sim]
+STATUS_OK, STATUS_FALLBACK = 0, 2  # dva_msgs/DamperState.STATUS_*
+STATUS_NAMES = {0: "ok", 1: "saturated", 2: "fallback", 3: "rejected", 4: "no command"}
+
+
+@dataclass(frozen=True)
+class ControllerTrial:
+    """How the damper went from the dead controller's c2 to the fallback.
+
+    Attributes
+    ----------
+    mode : str
+    kill_after : float
+        [s] wall time from the controller's c2 being applied to the kill.
+    commanded, fallback : float
+        [N s/m] the controller's c2, and the c2 of the first fallback state.
+    fallback_sim_delay : float
+        [s] sim time from the newest state before the kill to the first fallback state.
+    fallback_wall_delay : float
+        [s] wall time from the kill to the first fallback state reaching the probe.
+    command_age : float
+        [s] sim time since the last accepted command, in the first fallback state.
+    diagnostic_wall_delay : float or None
+        [s] wall time from the kill to the simulator's fallback warning on /diagnostics.
+    diagnostic : str
+        That warning.
+    applied_min, applied_max : float
+        [N s/m] c2 applied in the states between the kill and the fallback.
+    statuses_between : dict
+        Status name -> number of states between the kill and the fallback.
+    longest_stall : float
+        [s] longest wall time between two damper states after the kill (the simulator waiting
+        for the controller).
+    """
+
+    mode: str
+    kill_after: float
+    commanded: float
+    fallback: float
+    fallback_sim_delay: float
+    fallback_wall_delay: float
+    command_age: float
+    diagnostic_wall_delay: float | None
+    diagnostic: str
+    applied_min: float
+    applied_max: float
+    statuses_between: dict
+    longest_stall: float
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def run_controller_trial(mode: str, kill_after: float, work: Path, *, damping: float = 1500.0,
+                         real_time_factor: float = 10.0, damper_timeout: float = 0.5,
+                         start_timeout: float = 60.0) -> ControllerTrial:
+    """One trial in the empty directory ``work`` (scenario and node logs go there)."""
+    flight = (kill_after + 10.0) * real_time_factor
+    scenario = write_scenario(work / "scenario.yaml", duration=round(flight, 1))
+    with ros_session(work / "logs") as session:
+        probe = session.start_probe()
+        controller = session.start("dva_controller", "fixed_controller", damping=damping,
+                                   rate=20.0, use_sim_time=True)
+        simulator = session.start(
+            "aero_dva_sim", "simulator", scenario=str(scenario),
+            real_time_factor=real_time_factor, max_command_lag=MODES[mode],
+            damper_timeout=damper_timeout, exit_on_end=False,
+            wait_for_nodes=["fixed_controller", "fault_probe"])
+
+        def applied() -> bool:
+            return any(s.status == STATUS_OK and s.source == "fixed" for s in probe.states)
+
+        if not wait_until(applied, start_timeout):
+            raise TrialError(f"the controller's c2 was not applied within {start_timeout:g} s"
+                             f":\n{controller.output()}\n{simulator.output()}")
+        ok_at = next(s.wall for s in probe.states if s.status == STATUS_OK)
+        wait_until(lambda: time.monotonic() >= ok_at + kill_after, kill_after + 1.0)
+        killed = controller.signal(signal.SIGKILL)
+
+        def fallback_seen() -> bool:
+            return any(s.wall > killed and s.status == STATUS_FALLBACK
+                       for s in list(probe.states))
+
+        seen = wait_until(fallback_seen, 20.0)
+        wait_until(lambda: any(d.wall > killed and "fallback" in d.message
+                               for d in list(probe.diagnostics)), 2.0)
+        simulator.stop()
+    if not seen:
+        raise TrialError(f"no fallback within 20 s of the kill:\n{simulator.output()}")
+    states = list(probe.states)
+    before = [s for s in states if s.wall <= killed]
+    after = [s for s in states if s.wall > killed]
+    first = next(s for s in after if s.status == STATUS_FALLBACK)
+    between = [s for s in after if s.wall < first.wall]
+    walls = [before[-1].wall] + [s.wall for s in after if s.wall <= first.wall]
+    warning = next((d for d in probe.diagnostics if d.wall > killed and "fallback" in d.message),
+                   None)
+    values = [s.applied for s in between] or [math.nan]
+    return ControllerTrial(
+        mode=mode, kill_after=kill_after, commanded=damping, fallback=first.applied,
+        fallback_sim_delay=first.stamp - before[-1].stamp,
+        fallback_wall_delay=first.wall - killed, command_age=first.command_age,
+        diagnostic_wall_delay=None if warning is None else warning.wall - killed,
+        diagnostic="" if warning is None else warning.message,
+        applied_min=min(values), applied_max=max(values),
+        statuses_between=dict(Counter(STATUS_NAMES[s.status] for s in between)),
+        longest_stall=max(b - a for a, b in zip(walls, walls[1:])) if len(walls) > 1 else 0.0)

@@ -1,0 +1,411 @@
+"""Structures: frequency responses of a vibration test (force in, response out, several modes).
+
+Baseline: N modes with real modal constants and residual terms (the usual modal model of a
+driving-point or transfer FRF of a lightly, proportionally damped structure), in receptance:
+
+    H(w) = sum_r A_r / (w_r^2 - w^2 + 2 j z_r w_r w) + U - L / w^2
+
+(U: modes above the band, L: modes below it / rigid-body mass line). Mobility and accelerance
+data are converted to receptance on input (H_rec = H_mob / (j w) = -H_acc / w^2): the relative
+residual of every point is the same in each form. N comes from the same order rule as the
+isolator baseline (:class:`~dva_offline.discrepancy.frf_domain.FrfDomain`): 1..N_max modes
+started at the strongest peaks of |H|, each refined on 3/4 of the training points and scored
+on the other 1/4; the smallest N within 0.15 sigma_hat^2 of the best, preferring a white
+residual.
+
+Candidate library (each reduces to the baseline at a null value; added effects stack, the
+loop's later steps build on the model with the effects found so far):
+
+====================  ===============================================================  ======
+effect                model                                                            params
+====================  ===============================================================  ======
+amplitude_dependence  mode r: f_r (1 + s_f L), z_r (1 + s_z L), L = ln(a / a_0)          2
+covariate_shift       every f_r x 10^(-b (c - c_0)) (stiffness changing with the         1
+                      covariate, e.g. temperature)
+sensor_delay          H exp(-j w tau)                                                    1
+====================  ===============================================================  ======
+
+``amplitude_dependence`` is offered per mode (label ``COVARIATE, mode r (f Hz)``): a joint or
+a rubber part softens one mode, not all. The isolator effects (Maxwell element, fixture mass,
+foundation) are not applicable: the modal model has no mount.
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from dva_offline.discrepancy.fitting import (
+    HoldoutSplit,
+    ModelFit,
+    ModelSpec,
+    NotApplicable,
+    Observations,
+    ParamSpec,
+    fit_model,
+)
+from dva_offline.discrepancy.residual import ResidualFeatures, ljung_box, noise_floor
+from dva_offline.isolator.frf_data import FrfData
+
+MODAL_QUANTITIES = ("receptance", "mobility", "accelerance")
+SIGNATURES = {
+    "amplitude_dependence": "one resonance moves (and its damping changes) with the excitation "
+                            "level; the residual grows with the level near that mode",
+    "covariate_shift": "every resonance moves by the same factor with the covariate",
+    "sensor_delay": "phase of H_meas / H_model falls linearly with frequency, magnitude "
+                    "unchanged",
+}
+
+
+@dataclass(frozen=True)
+class ModalTerm:
+    """An effect in the modal model: ``kind`` level (one mode), shift (all modes) or delay."""
+
+    effect: str
+    label: str
+    kind: str
+    size: int
+    mode: int = -1
+    data: dict = field(default_factory=dict)
+
+
+def to_receptance(frequency_hz, values, quantity: str) -> np.ndarray:
+    """Receptance from receptance, mobility or accelerance values (frequencies > 0)."""
+    w = 2 * np.pi * np.asarray(frequency_hz, float)
+    y = np.asarray(values, complex)
+    if quantity == "receptance":
+        return y
+    if np.any(w <= 0):
+        raise ValueError(f"{quantity} needs frequencies > 0 Hz (drop the 0 Hz point)")
+    if quantity == "mobility":
+        return y / (1j * w)
+    if quantity == "accelerance":
+        return -y / w**2
+    raise ValueError(f"quantity must be one of {MODAL_QUANTITIES}, got {quantity!r}")
+
+
+def find_peaks(f, h, count: int) -> list[float]:
+    """Frequencies [Hz] of the ``count`` most prominent local maxima of |h| (3-point smoothed,
+    prominence in log magnitude over the neighbouring minima)."""
+    mag = np.log(np.convolve(np.abs(h), np.ones(3) / 3, mode="same") + 1e-300)
+    mag[0], mag[-1] = np.log(abs(h[0])), np.log(abs(h[-1]))
+    peaks = []
+    for i in range(1, mag.size - 1):
+        if mag[i] >= mag[i - 1] and mag[i] > mag[i + 1]:
+            left = mag[:i + 1][::-1]
+            right = mag[i:]
+            # prominence: drop to the lowest point before a higher value on each side
+            lmin = left[:np.argmax(left > mag[i]) or left.size].min()
+            rmin = right[:np.argmax(right > mag[i]) or right.size].min()
+            peaks.append((mag[i] - max(lmin, rmin), f[i]))
+    peaks.sort(reverse=True)
+    return [freq for _, freq in peaks[:count]]
+
+
+class ModalDomain:
+    """Vibration-test FRFs of a structure for :func:`dva_offline.discrepancy.loop.run`.
+
+    Parameters
+    ----------
+    conditions : sequence of FrfData
+        Receptance sweeps (convert mobility / accelerance with :func:`to_receptance`), one
+        per excitation level / temperature; covariate values per point.
+    modes : int, optional
+        Fixed number of modes (default: the order rule, 1..``max_modes``).
+    max_modes : int
+    covariates : sequence of str, optional
+        Covariates to analyse (default: every covariate whose level differs between sweeps).
+    quantity : str
+        What the input was (reported; the model works in receptance).
+    order_tolerance, whiteness_alpha : float
+        The order rule (as :class:`~dva_offline.discrepancy.frf_domain.FrfDomain`).
+    """
+
+    name = "modal"
+
+    def __init__(self, conditions: Sequence[FrfData], modes: int | None = None,
+                 max_modes: int = 8, covariates: Sequence[str] | None = None,
+                 quantity: str = "receptance", order_tolerance: float = 0.15,
+                 whiteness_alpha: float = 1e-3) -> None:
+        conditions = list(conditions)
+        if not conditions or not all(isinstance(c, FrfData) for c in conditions):
+            raise TypeError("conditions must be a non-empty sequence of FrfData")
+        if any(c.quantity != "receptance" for c in conditions):
+            raise ValueError("the modal domain takes receptance (convert with to_receptance)")
+        if modes is not None and (not isinstance(modes, (int, np.integer)) or modes < 1):
+            raise ValueError(f"modes must be an integer >= 1 or None, got {modes!r}")
+        if not isinstance(max_modes, (int, np.integer)) or max_modes < 1:
+            raise ValueError(f"max_modes must be an integer >= 1, got {max_modes!r}")
+        if quantity not in MODAL_QUANTITIES:
+            raise ValueError(f"quantity must be one of {MODAL_QUANTITIES}, got {quantity!r}")
+        self.conditions, self.modes, self.max_modes = conditions, modes, int(max_modes)
+        self.quantity = quantity
+        self.order_tolerance, self.whiteness_alpha = float(order_tolerance), whiteness_alpha
+        f = np.concatenate([c.frequency_hz for c in conditions])
+        if np.any(f <= 0):
+            raise ValueError("frequency_hz must be > 0 Hz (drop the 0 Hz point)")
+        y = np.concatenate([c.values for c in conditions])
+        if np.any(y == 0):
+            raise ValueError("FRF values must be nonzero (relative errors divide by |H|)")
+        groups = np.concatenate([np.full(c.frequency_hz.size, i)
+                                 for i, c in enumerate(conditions)])
+        names = covariates
+        if names is None:
+            common = set.intersection(*(set(c.covariates) for c in conditions))
+            names = [n for n in conditions[0].covariates if n in common]
+        cov = {}
+        for name in names:
+            if not all(name in c.covariates for c in conditions):
+                raise ValueError(f"covariate {name!r} is missing from a condition")
+            col = np.concatenate([np.asarray(c.covariates[name], float) for c in conditions])
+            if not np.all(np.isfinite(col)):
+                raise ValueError(f"covariate {name!r} has NaN values")
+            means = np.array([col[groups == g].mean() for g in range(len(conditions))])
+            if covariates is not None or np.ptp(means) > 0:
+                cov[name] = col
+        self.omega = 2 * np.pi * f
+        self.observations = Observations(y, 1.0 / np.abs(y), f, groups, cov)
+        self.reference = self._reference_condition()
+        self._stack: list[ModalTerm] = []
+        self._n = None
+        self._term_of: dict = {}
+        self._order_errors = {}
+
+    # --- helpers ---------------------------------------------------------------------------
+    def _varying(self) -> dict:
+        g = self.observations.groups
+        return {n: c for n, c in self.observations.covariates.items()
+                if np.ptp([c[g == lab].mean() for lab in np.unique(g)]) > 0}
+
+    def _reference_condition(self) -> int:
+        varying = self._varying()
+        if not varying:
+            return 0
+        col = next(iter(varying.values()))
+        g = self.observations.groups
+        per = np.array([col[g == lab].mean() for lab in range(len(self.conditions))])
+        return int(np.argmin(np.abs(per - np.median(per))))
+
+    def _level(self, name: str) -> float:
+        col = self.observations.covariates[name]
+        return float(col[self.observations.groups == self.reference].mean())
+
+    def _evaluate(self, v, n, terms):
+        """Receptance of parameter vector v = [f_1, z_1, A_1, ..., U, L, term params...]."""
+        w = self.omega
+        fr = np.array(v[0:3 * n:3], float)
+        zr = np.array(v[1:3 * n:3], float)
+        ar = np.array(v[2:3 * n:3], float)
+        u, low = v[3 * n], v[3 * n + 1]
+        rest = v[3 * n + 2:]
+        f_fac = np.ones((n, w.size))
+        z_fac = np.ones((n, w.size))
+        delay = np.zeros(w.size)
+        i = 0
+        for t in terms:
+            p = rest[i:i + t.size]
+            i += t.size
+            if t.kind == "level":
+                f_fac[t.mode] = f_fac[t.mode] * (1 + p[0] * t.data["log_level"])
+                z_fac[t.mode] = z_fac[t.mode] * (1 + p[1] * t.data["log_level"])
+            elif t.kind == "shift":
+                f_fac = f_fac * 10.0 ** (-p[0] * t.data["dc"])
+            elif t.kind == "delay":
+                delay = delay + p[0]
+        wr = 2 * np.pi * fr[:, None] * f_fac
+        z = zr[:, None] * z_fac
+        h = np.sum(ar[:, None] / (wr**2 - w**2 + 2j * z * wr * w), axis=0) + u - low / w**2
+        return h * np.exp(-1j * w * delay)
+
+    def _params(self, n, values) -> tuple[ParamSpec, ...]:
+        f = self.observations.axis
+        f_lo, f_hi = float(f.min()), float(f.max())
+        h_scale = float(np.median(np.abs(self.observations.values)))
+        w_mid = 2 * np.pi * np.sqrt(f_lo * f_hi)
+        out = []
+        for r in range(n):
+            fr, zr, ar = values[3 * r: 3 * r + 3]
+            # a modal constant's size: |A| ~ |H| 2 z w_r^2 near its resonance (a start of ~0
+            # must not set a vanishing scale)
+            a_scale = max(abs(ar), h_scale * 0.02 * (2 * np.pi * fr) ** 2)
+            out += [ParamSpec(f"f_{r + 1}", "Hz", fr, 0.5 * f_lo, 2.0 * f_hi, log=True,
+                              at_lower="a mode below the band", at_upper="a mode above the band"),
+                    ParamSpec(f"zeta_{r + 1}", "-", zr, 1e-4, 0.5, log=True,
+                              at_lower="damping below 0.01 %: a resolution limit",
+                              at_upper="damping above 50 %: not a mode"),
+                    ParamSpec(f"A_{r + 1}", "1/kg", ar, -np.inf, np.inf, scale=a_scale)]
+        out += [ParamSpec("U", "m/N", values[3 * n], -np.inf, np.inf, scale=h_scale),
+                ParamSpec("L", "m/N rad^2/s^2", values[3 * n + 1], -np.inf, np.inf,
+                          scale=h_scale * w_mid**2)]
+        return tuple(out)
+
+    def _start(self, freqs, zetas, points) -> np.ndarray:
+        """Modal constants and residuals by linear least squares for given (f_r, z_r)."""
+        w = self.omega[points]
+        y = self.observations.values[points]
+        u = 1.0 / np.abs(y)
+        cols = [1.0 / ((2 * np.pi * fr) ** 2 - w**2 + 2j * zr * 2 * np.pi * fr * w)
+                for fr, zr in zip(freqs, zetas)]
+        cols += [np.ones_like(w, dtype=complex), -1.0 / w**2 + 0j]
+        a = np.column_stack(cols) * u[:, None]
+        rhs = y * u
+        sol, *_ = np.linalg.lstsq(np.vstack([a.real, a.imag]),
+                                  np.concatenate([rhs.real, rhs.imag]), rcond=None)
+        out = []
+        for r, (fr, zr) in enumerate(zip(freqs, zetas)):
+            out += [fr, zr, sol[r]]
+        return np.array(out + [sol[-2], sol[-1]])
+
+    def _order_spec(self, n, peaks, points, name=None) -> ModelSpec:
+        ref = points & (self.observations.groups == self.reference)
+        ref = ref if ref.sum() >= 10 else points
+        chosen = sorted(peaks[:n])
+        starts = [self._start(chosen, [z] * n, ref) for z in (0.005, 0.02, 0.06)]
+        params = self._params(n, starts[1])
+
+        def predict(v, n=n):
+            return self._evaluate(v, n, [])
+
+        return ModelSpec(name or f"modal(N={n})", None, params, 0, predict,
+                         tuple([starts[0], starts[2]]))
+
+    # --- Domain protocol -------------------------------------------------------------------
+    def baseline(self, train: np.ndarray) -> ModelSpec:
+        """N modes by the order rule (module docstring), started at the strongest peaks."""
+        train = np.asarray(train, dtype=bool)
+        self._train, self._stack, self._term_of = train, [], {}
+        self._stack_params = []
+        obs = self.observations
+        ref = obs.groups == self.reference
+        peaks = find_peaks(obs.axis[ref], obs.values[ref], self.max_modes)
+        if not peaks:
+            peaks = [float(np.sqrt(obs.axis.min() * obs.axis.max()))]
+        self._peaks = peaks
+        orders = [self.modes] if self.modes is not None else list(
+            range(1, min(self.max_modes, len(peaks)) + 1))
+        idx = np.nonzero(train)[0]
+        inner_held = np.zeros_like(train)
+        inner_held[idx[2::4]] = True
+        inner = HoldoutSplit(train & ~inner_held, inner_held, "every 4th training point")
+        fits = {}
+        for n in orders:
+            fits[n] = fit_model(self._order_spec(n, peaks, train & ~inner_held), obs, inner,
+                                n_screen=3)
+        errors = {n: fit.error for n, fit in fits.items()}
+        best = min(errors, key=errors.get)
+        sigma = noise_floor(fits[best].residual, obs.groups).sigma
+        limit = errors[best] ** 2 + self.order_tolerance * sigma**2
+        within = sorted(n for n, e in errors.items() if e**2 <= limit)
+        counts = np.bincount(obs.groups)[np.unique(obs.groups)]
+        lags = max(1, min(10, int(counts.min()) // 4))
+        white = [n for n in within if ljung_box(fits[n].residual, obs.groups, lags).p_value
+                 >= self.whiteness_alpha]
+        n = (white or within)[0]
+        self._n, self._order_errors = n, errors
+        values = np.array([e.value for e in fits[n].estimates])
+        spec = self._order_spec(n, peaks, train)
+        return ModelSpec(spec.name, None, self._params(n, values), 0, spec.predict,
+                         (values, *spec.starts))
+
+    @property
+    def baseline_order(self) -> int:
+        """Number of modes of the baseline (after :meth:`baseline`)."""
+        if self._n is None:
+            raise ValueError("baseline() has not been called")
+        return self._n
+
+    @property
+    def order_errors(self) -> dict:
+        """Modes -> held-out error of the refined model on the training split."""
+        return dict(self._order_errors)
+
+    def _model_name(self) -> str:
+        return f"modal(N={self._n})" + "".join(
+            f" + {t.effect}" + (f"({t.label})" if t.label else "") for t in self._stack)
+
+    def _spec(self, base_values, stack_params, term, added, starts, label):
+        terms = [*self._stack, term]
+        n = self._n
+
+        def predict(v, terms=terms):
+            return self._evaluate(v, n, terms)
+
+        params = self._params(n, base_values) + tuple(stack_params) + tuple(added)
+        init = np.array([p.initial for p in added])
+        full = tuple(np.concatenate([base_values[:len(params) - len(added)], s])
+                     for s in [init, *starts])
+        name = self._model_name() + f" + {term.effect}" + (f"({label})" if label else "")
+        spec = ModelSpec(name, term.effect, params, len(added), predict, full[1:],
+                         SIGNATURES[term.effect], label)
+        self._term_of[name] = (term, tuple(added))
+        return spec
+
+    def candidates(self, baseline: ModelFit, features: ResidualFeatures):
+        """The candidate library (module docstring), started from the fitted baseline."""
+        n = self._n
+        values = np.array([e.value for e in baseline.estimates])
+        stack_params = list(self._params_of_stack)
+        present = {(t.effect, t.label) for t in self._stack}
+        levelled = {(t.label.partition(", ")[0], t.mode) for t in self._stack
+                    if t.kind == "level"}
+        out: list[ModelSpec | NotApplicable] = []
+        f_max = float(self.observations.axis.max())
+        if ("sensor_delay", "") not in present:
+            tau_eq = features.phase.equivalent_delay_s if features.phase is not None else 0.0
+            lo_t, hi_t = -0.5 / f_max, 2.0 / f_max
+            starts = [np.array([t]) for t in (tau_eq, *np.linspace(lo_t, hi_t, 21)[1:-1])
+                      if lo_t < t < hi_t]
+            out.append(self._spec(values, stack_params,
+                                  ModalTerm("sensor_delay", "", "delay", 1),
+                                  (ParamSpec("tau", "s", 0.0, lo_t, hi_t, scale=0.1 / f_max),),
+                                  starts, ""))
+        varying = self._varying()
+        if not varying:
+            reason = "needs sweeps at >= 2 levels of a covariate (excitation level, temperature)"
+            out += [NotApplicable("amplitude_dependence", reason),
+                    NotApplicable("covariate_shift", reason)]
+        for name, col in varying.items():
+            ref = self._level(name)
+            if np.all(col > 0):
+                lev = np.log(col / ref)
+                bound = 0.5 / float(np.max(np.abs(lev)))
+                for r in range(n):
+                    label = f"{name}, mode {r + 1} ({values[3 * r]:.4g} Hz)"
+                    if (name, r) in levelled:
+                        continue
+                    out.append(self._spec(
+                        values, stack_params,
+                        ModalTerm("amplitude_dependence", label, "level", 2, r,
+                                  {"log_level": lev}),
+                        (ParamSpec("s_f", "-", 0.0, -bound, bound, scale=0.01),
+                         ParamSpec("s_z", "-", 0.0, -1.5 * bound, 1.5 * bound, scale=0.1)),
+                        [np.array([a, b]) for a in (-0.03, -0.01, 0.01, 0.03)
+                         for b in (-0.3, 0.0, 0.3)], label))
+            else:
+                out.append(NotApplicable("amplitude_dependence",
+                                         f"covariate {name!r} has values <= 0 (not a level)",
+                                         name))
+            if ("covariate_shift", name) not in present:
+                dc = col - ref
+                span = float(np.max(np.abs(dc))) or 1.0
+                out.append(self._spec(
+                    values, stack_params,
+                    ModalTerm("covariate_shift", name, "shift", 1, data={"dc": dc}),
+                    (ParamSpec("b", f"1/({name})", 0.0, -0.5 / span, 0.5 / span,
+                               scale=0.01 / span),),
+                    [np.array([s / span]) for s in (-0.03, -0.01, 0.01, 0.03)], name))
+        for effect in ("maxwell_element", "fixture_mass", "foundation_mode"):
+            out.append(NotApplicable(effect, "an isolator effect; the modal baseline of a "
+                                             "structure has no mount"))
+        return out
+
+    @property
+    def _params_of_stack(self):
+        return getattr(self, "_stack_params", [])
+
+    def augment(self, spec: ModelSpec, fit: ModelFit) -> None:
+        """The chosen candidate becomes the next step's baseline (effects stack)."""
+        term, added = self._term_of[spec.name]
+        self._stack.append(term)
+        self._stack_params = [*self._params_of_stack, *added]

@@ -1,0 +1,77 @@
+"""The discrepancy loop on measured data shipped in tests/data/discrepancy (see its README).
+
+Two dynamic mechanical analyses from the pyvisco package (BSD-3): a tensile test of a polymer
+exported as the instrument wrote it (its own column names, a units row, the temperature as
+measured at each point, a set column) and a shear test of a second material. Each goes through
+the CLI as a user would call it; the JSON is checked.
+"""
+import json
+from pathlib import Path
+
+import pytest
+
+from dva_offline import cli
+
+DATA = Path(__file__).resolve().parents[3] / "data" / "discrepancy"
+TENSION = ["discrepancy", "frf", str(DATA / "dma_tension_raw.csv"), "--quantity", "modulus",
+           "--columns", "f=f,real=E_stor,imag=E_loss,temperature_c=T", "--json"]
+SHEAR = ["discrepancy", "frf", str(DATA / "dma_shear_eplexor.csv"), "--quantity", "modulus",
+         "--columns", "f=f,real=G',imag=G'',temperature_c=T", "--covariates", "temperature_c",
+         "--json"]
+
+
+def run_cli(args, capsys):
+    assert cli.main(args) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def check_loop(out):
+    """Steps each lower the held-out error; the loop ends consistent or says why it stopped."""
+    steps = out["steps"]
+    assert steps[0]["error_before"] == pytest.approx(out["baseline"]["error"])
+    for a, b in zip(steps, steps[1:]):
+        assert b["error_before"] == pytest.approx(a["error_after"])
+    assert all(s["error_after"] < s["error_before"] for s in steps)
+    final = out["final"]
+    assert final["error"] == pytest.approx(steps[-1]["error_after"])
+    assert final["status"] in ("consistent", "stopped") and final["reason"]
+    if final["status"] == "stopped":
+        assert final["error_over_noise"] > 1.25  # the reason is then the library, not noise
+
+
+def test_tension_dma_as_written_is_a_temperature_shift(capsys):
+    out = run_cli([*TENSION, "--group-by", "Set"], capsys)
+    assert out["grouping"]["n_conditions"] == 21
+    assert out["input"]["units"]["real"].startswith("MPa")
+    assert max(c["covariate_spread"]["temperature_c"] for c in out["conditions"]) > 0.1
+    v = out["verdict"]
+    assert v["status"] == "explained" and v["effect"] == "covariate_shift"
+    assert out["augmented"]["error"] <= 0.5 * out["baseline"]["error"]
+    # the WLF form runs to its C2 bound: reported as such, with what it means
+    wlf = next(c for c in out["candidates"] if c["effect"] == "covariate_shift"
+               and c["form"] is None)
+    hits = {h["parameter"]: h for h in wlf["bound_hits"] if h["effect_parameter"]}
+    assert hits["C2"]["side"] == "upper" and "Arrhenius" in hits["C2"]["meaning"]
+    assert v["form"] == "Arrhenius"  # the form that stays inside its bounds is named
+    check_loop(out)
+    assert len(out["steps"]) >= 3  # the loop goes on after the shift (more elements)
+    assert out["final"]["error"] < 0.5 * out["augmented"]["error"]
+
+
+def test_tension_dma_grouped_by_tolerance_gives_the_same_answer(capsys):
+    by_set = run_cli([*TENSION, "--group-by", "Set", "--max-steps", "1"], capsys)
+    by_tol = run_cli([*TENSION, "--covariate-tolerance", "1", "--covariates",
+                      "temperature_c", "--max-steps", "1"], capsys)
+    assert len(by_tol["steps"]) == 1 and "limit of 1 steps" in by_tol["final"]["reason"]
+    assert "within 1" in by_tol["grouping"]["method"]
+    assert by_tol["baseline"]["error"] == pytest.approx(by_set["baseline"]["error"], rel=1e-9)
+    assert by_tol["verdict"]["effect"] == by_set["verdict"]["effect"]
+
+
+def test_shear_dma_of_a_second_material(capsys):
+    out = run_cli([*SHEAR, "--max-steps", "2"], capsys)
+    dropped = out["grouping"]["dropped"]
+    assert [d["n_points"] for d in dropped] == [4, 9]  # -30 C and -25 C: too few points
+    assert out["steps"][0]["effect"] == "covariate_shift"
+    assert out["steps"][0]["error_after"] <= 0.5 * out["baseline"]["error"]
+    check_loop(out)
