@@ -153,6 +153,7 @@ class BagPlayer(Node):
         self.finished = Future()
         self.done = self.finished if bool(values["exit_on_end"]) else None
         self.summary: dict = {}
+        self._played_span_ns = 0  # [ns] log time from the first to the last message played
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="bag_player", daemon=True)
         described = ", ".join(f"{n} ({self.source.topics[n].message_count})" for n in self.played)
@@ -245,7 +246,7 @@ class BagPlayer(Node):
         origin = self.source.start_ns  # None: a damaged bag; its first message's time then
         first_ns = None
         wall0 = 0.0
-        last_clock = None
+        last_clock = last_ns = None
         for log_ns, topic, data in self.source.messages(self.played):
             if self._stop.is_set():
                 return
@@ -266,10 +267,11 @@ class BagPlayer(Node):
                 self._clock_pub.publish(Clock(clock=conversions.ns_to_time(log_ns)))
                 self.clock_published += 1
                 last_clock = log_ns
+            last_ns = log_ns
             pub = self._pub[topic]
             pub.publish(data)
             self.counts[topic] += 1
-        self._played_span_ns = 0 if first_ns is None else (last_clock or first_ns) - first_ns
+        self._played_span_ns = 0 if first_ns is None else last_ns - first_ns
         if self.source.read_problems:
             self.get_logger().warning(
                 f"bag ends early: played up to the damage ({self.source.read_problems[-1]})")
@@ -292,7 +294,7 @@ class BagPlayer(Node):
             time.sleep(min(left, SLICE))
 
     def _report(self, outcome: str, wall: float, rounds: int) -> None:
-        span = getattr(self, "_played_span_ns", 0) / 1e9
+        span = self._played_span_ns / 1e9
         total = sum(self.counts.values())
         values = {"outcome": outcome, "messages": total, "wall_time_s": wall,
                   "bag_time_played_s": span, "rounds": rounds,
