@@ -115,26 +115,27 @@ def run_controller(root: Path, trials: int, rng: np.random.Generator) -> tuple[l
             records.append(trial)
             print(f"  controller {mode} {i + 1}/{trials}: fallback after "
                   f"{trial.fallback_wall_delay:.3f} s wall", file=sys.stderr, flush=True)
-    rows = ["| simulator | trials | to fallback, wall [s]: median / max | to fallback, sim [s]: "
-            "median / max (/ damper timeout) | command age at fallback [s] | warning on "
-            "/diagnostics after [s wall]: median / max | c2 applied until then [N s/m] "
-            "| fallback c2 [N s/m] | longest wait for the controller [s wall] |",
+    rows = ["| simulator | trials | kill to fallback state [s wall]: median / max | last "
+            "command to fallback [s sim]: min-max (/ damper timeout) | warning on /diagnostics "
+            "after the kill [s wall]: median / max | c2 applied until then [N s/m] | fallback "
+            "c2 [N s/m] | longest wait for the controller [s wall]: median / max | trials "
+            "waiting more than once |",
             "|---|---|---|---|---|---|---|---|---|"]
     for mode in MODES:
         group = [t for t in records if t.mode == mode]
         wall = [t.fallback_wall_delay for t in group]
-        sim = [t.fallback_sim_delay for t in group]
+        age = [t.command_age for t in group]
         diag = [t.diagnostic_wall_delay for t in group if t.diagnostic_wall_delay is not None]
         rows.append(
             f"| {mode} | {len(group)} | {_median(wall):.3f} / {max(wall):.3f} "
-            f"| {_median(sim):.3f} / {max(sim):.3f} ({max(sim) / DAMPER_TIMEOUT:.2f}) "
-            f"| {min(t.command_age for t in group):.3f}-{max(t.command_age for t in group):.3f} "
+            f"| {min(age):.3f}-{max(age):.3f} ({max(age) / DAMPER_TIMEOUT:.2f}) "
             f"| {_fmt(_median(diag), '.3f')} / {_fmt(max(diag) if diag else None, '.3f')} "
             f"({len(diag)} of {len(group)}) "
             f"| {min(t.applied_min for t in group):g}-{max(t.applied_max for t in group):g} "
             f"| {', '.join(f'{v:g}' for v in sorted({t.fallback for t in group}))} "
             f"| {_median([t.longest_stall for t in group]):.3f} / "
-            f"{max(t.longest_stall for t in group):.3f} |")
+            f"{max(t.longest_stall for t in group):.3f} "
+            f"| {sum(len([g for g in t.stalls if g > 1.0]) > 1 for t in group)} |")
     return records, "\n".join(rows)
 
 
