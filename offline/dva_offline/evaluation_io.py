@@ -137,7 +137,7 @@ def plot_traces(path, mu: float, runs: Mapping[str, object], u_cr: float) -> Pat
 
 
 def plot_summary(path, stats: Sequence[CaseStats]) -> Path:
-    """Divergence airspeed ratio versus mu per controller: mean, std, min..max, the study's flight."""
+    """U_div / U_cr versus mu per controller: mean, std, min..max, the study's flight."""
     plt = _plt()
     fig, ax = plt.subplots(figsize=(7, 4.5))
     for k, controller in enumerate(c for c in CONTROLLERS if any(s.controller == c
