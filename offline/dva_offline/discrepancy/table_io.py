@@ -114,9 +114,16 @@ def read_table(path) -> Table:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such file")
-    with path.open(newline="", encoding="utf-8-sig") as fh:
-        lines = [ln for ln in fh.read().splitlines()
-                 if ln.strip() and not ln.lstrip().startswith("#")]
+    try:
+        with path.open(newline="", encoding="utf-8-sig") as fh:
+            text = fh.read()
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{path}: not UTF-8 text (byte at offset {exc.start}); a CSV export "
+                         f"is expected") from None
+    if "\x00" in text:
+        raise ValueError(f"{path}: binary data (a NUL byte at offset {text.index(chr(0))}), "
+                         f"not a CSV text file")
+    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:
         raise ValueError(f"{path}: file is empty")
     delim = _sniff_delimiter(lines[0])
