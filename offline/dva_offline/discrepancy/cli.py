@@ -1,13 +1,17 @@
-"""``dva discrepancy``: residual -> named missing effect -> augmented model -> error before/after.
+"""``dva discrepancy``: residual -> named missing effects -> augmented model -> error before/after.
 
-``dva discrepancy frf FILE --quantity receptance|accelerance|stiffness [--mass KG]
-[--static-stiffness N_PER_M] [--elements N] [--covariates COL[,COL...]] [--plot-dir DIR] --json``
-prints one JSON object (baseline, verdict, augmented, candidates, residual evidence).
-``dva discrepancy synth`` writes a test CSV that hides one effect (the generator of the tests).
-``dva discrepancy flight RUN.mcap [--wing FILE] [--plot-dir DIR] --json`` does the same for a
-flight log (MCAP bag of the simulator node or the batch recorder) against the wing + Maxwell
-DVA model; ``dva discrepancy synth-flight --effect E --seed S OUT`` records a test flight that
-hides one plant effect. SI units throughout (kg, N/m, Hz).
+``dva discrepancy frf FILE --quantity receptance|accelerance|stiffness|modulus [--mass KG]
+[--static-stiffness N_PER_M] [--elements N] [--covariates COL[,COL...]] [--columns
+f=COL,real=COL,imag=COL,NAME=COL] [--frequency-unit U] [--value-unit U] [--group-by COL |
+--covariate-tolerance TOL] [--max-steps N] [--plot-dir DIR] [--json]`` analyses isolator or
+material FRFs (an instrument's export read as written); ``dva discrepancy modal FILE --quantity
+receptance|mobility|accelerance [--modes N]`` (same table flags) a vibration test of a
+structure. Both print the first step's verdict, the effects the loop added in turn (``steps``)
+and where it ended (``final``). ``dva discrepancy synth`` / ``synth-structure`` write test CSVs
+hiding effects (the generators of the tests). ``dva discrepancy flight RUN.mcap [--wing FILE]
+[--plot-dir DIR] --json`` does the same for a flight log (MCAP bag of the simulator node or the
+batch recorder) against the wing + Maxwell DVA model; ``dva discrepancy synth-flight --effect E
+--seed S OUT`` records a test flight that hides one plant effect. SI units inside (kg, N/m, Hz).
 """
 from __future__ import annotations
 
@@ -486,7 +490,7 @@ def register(subparsers) -> None:
     p = sub.add_parser("flight", help="flight log (MCAP) against the wing + Maxwell DVA model")
     p.add_argument("file", help="rosbag2 directory or .mcap file of a flight (simulator node "
                                "or batch recorder)")
-    p.add_argument("--wing", default=None, help="wing file (default: the reference wing)")
+    p.add_argument("--wing", default=None, help="wing file (default: the chapter-6 wing)")
     p.add_argument("--namespace", default="", help="topic namespace of the flight")
     p.add_argument("--band", default="2,20", help="frequency band LOW,HIGH [Hz] (default 2,20)")
     p.add_argument("--window", type=float, default=1.0,

@@ -20,7 +20,7 @@ coherent with the force well above the modes), so the residual w_j (H_model,j - 
 relative error scaled to the median point's noise and a correct model leaves residuals of about
 equal size everywhere (the loop's noise floor and consistency test assume that).
 
-Baseline: :class:`~aero_dva.wing.model.AeroelasticModel` of the wing file (reference wing
+Baseline: :class:`~aero_dva.wing.model.AeroelasticModel` of the wing file (chapter-6 wing
 by default) with its Maxwell DVA and aerodynamics, calibrated by three parameters: pitch
 stiffness k_alpha, plunge stiffness k and the structural damping factor beta (each within a
 factor 1.5 of the file's value).

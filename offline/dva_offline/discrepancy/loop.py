@@ -104,6 +104,11 @@ class DecisionRule:
         does not explain min_explained alone (:func:`choose_step`).
     max_steps : int
         Most effects the loop adds.
+    joint_ratio : float
+        When no single effect explains >= min_explained, the effects the loop added in turn
+        count as the explanation if the final held-out error is within this x the noise floor
+        (whiteness not required: with hundreds of points Ljung-Box flags the smallest
+        difference between the data's law and the library's, e.g. Kraus vs logarithmic).
     """
 
     consistency_ratio: float = 1.25
@@ -115,6 +120,7 @@ class DecisionRule:
     strict_consistency: bool = False
     min_step_explained: float = 0.1
     max_steps: int = 12
+    joint_ratio: float = 1.5
 
     def __post_init__(self) -> None:
         if not isinstance(self.max_steps, (int, np.integer)) or self.max_steps < 1:
@@ -482,7 +488,7 @@ def run(domain: Domain, rule: DecisionRule | None = None, split: HoldoutSplit | 
     if hasattr(domain, "augment"):
         steps, final = _iterate(domain, obs, split, base, features, noise, scores, specs, rule,
                                 progress, n_variants)
-        verdict = _loop_verdict(verdict, steps, final)
+        verdict = _loop_verdict(verdict, steps, final, rule.joint_ratio)
     augmented = aug_features = None
     if verdict.status == "explained":
         chosen = (steps[0].fit if steps else
@@ -523,8 +529,13 @@ def _iterate(domain, obs, split, base, features, noise, scores, specs, rule, pro
         if progress:
             progress(f"step {len(steps) + 1}")
         base = choice.fit
-        features = _features(obs, base)
-        noise = features.noise
+        # The noise floor is a property of the data; its second-difference estimate can only
+        # be inflated by model error that is not smooth at the sampling (sparse sweeps), so
+        # each step keeps the lowest estimate so far.
+        fresh = _features(obs, base).noise
+        if fresh.sigma < noise.sigma:
+            noise = fresh
+        features = _features(obs, base, noise.sigma)
         scores, specs = _candidates(domain, obs, split, base, features, noise, rule, progress,
                                     n_variants)
     final = LoopOutcome(status, reason, base.name, base.error, noise.sigma,
@@ -532,22 +543,23 @@ def _iterate(domain, obs, split, base, features, noise, scores, specs, rule, pro
     return steps, final
 
 
-def _loop_verdict(first: Verdict, steps, final) -> Verdict:
+def _loop_verdict(first: Verdict, steps, final, joint_ratio: float) -> Verdict:
     """The first step's verdict, unless no single effect explained enough but the effects
-    added in turn left a residual consistent with the noise (then explained, naming the
-    first; all are in ``steps``)."""
+    added in turn left a residual consistent with the noise or within ``joint_ratio`` x the
+    noise floor (then explained, naming the first; all are in ``steps``)."""
     names = ", ".join(s.effect + (f" ({s.label})" if s.label else "") for s in steps)
     if first.status == "explained" or not steps:
         tail = (f"; the loop then added {names} and stopped: {final.reason}"
                 if len(steps) > 1 else "")
         return Verdict(first.status, first.effect, first.label, first.evidence + tail,
                        first.caveats)
-    if final.status == "consistent":
+    if final.status == "consistent" or final.error <= joint_ratio * final.noise:
         caveats = tuple(c for s in steps for c in s.caveats)
         return Verdict("explained", steps[0].effect, steps[0].label,
                        f"{first.evidence}; no single effect explains the residual, but {names} "
-                       f"added in turn leave a residual consistent with the noise: "
-                       f"{final.reason}", caveats)
+                       f"added in turn leave a held-out error of {final.error:.4f} = "
+                       f"{final.error / final.noise:.2f} x the noise floor: {final.reason}",
+                       caveats)
     return Verdict(first.status, None, "",
                    f"{first.evidence}; the loop added {names} and stopped without reaching "
                    f"the noise: {final.reason}")

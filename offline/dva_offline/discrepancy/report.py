@@ -168,6 +168,8 @@ def plot_result(result: DiscrepancyResult, observations, plot_dir, quantity: str
     fits = [("baseline", result.baseline, "b-")]
     if result.augmented is not None:
         fits.append((f"+ {result.augmented.effect}", result.augmented, "r-"))
+    if result.final is not None and len(result.steps) > 1:
+        fits.append((f"final ({len(result.steps)} effects)", result.final.fit, "g-"))
     written = []
 
     fig, (ax_m, ax_p) = plt.subplots(2, 1, sharex=True, figsize=(8, 6.5))

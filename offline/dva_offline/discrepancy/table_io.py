@@ -334,9 +334,11 @@ def conditions_from_table(table: Table, quantity: str, column_map: ColumnMap | N
         conditions.append(FrfData(f[rows], y[rows], stored,
                                   {n: c[rows] for n, c in cov.items()}))
     if not conditions:
+        sizes = [n for _, n in dropped]
         raise ValueError(f"no condition has at least {MIN_POINTS} points ({grouping.method}: "
-                         f"{[n for _, n in dropped]} points); the covariate may vary within a "
-                         "sweep: group with --group-by COLUMN or --covariate-tolerance TOL")
+                         f"{len(sizes)} conditions of {min(sizes)}-{max(sizes)} points); the "
+                         "covariate may vary within a sweep: group with --group-by COLUMN or "
+                         "--covariate-tolerance TOL")
     grouping = Grouping(grouping.method, grouping.columns, len(conditions), tuple(dropped))
     info = {"units": units_used, "columns": dict(cmap.roles), "renamed": dict(cmap.renames),
             "units_row": dict(table.units)}

@@ -56,7 +56,7 @@ SPEC = NodeSpec(
     params=(
         Param("scenario", "", "scenario YAML", default_text="the package's scenario_ramp.yaml "
               "(0.8 -> 1.2 U_cr in 30 s)"),
-        Param("wing", "", "wing YAML", default_text="the package's reference wing"),
+        Param("wing", "", "wing YAML", default_text="the package's chapter-6 wing"),
         Param("absorber", "maxwell", "absorber on the wing", choices=("maxwell", "none")),
         Param("absorber_mass", _NAN, "DVA mass", "kg", 0.0, 1.0e5, nan_means=_DESIGN),
         Param("absorber_stiffness", _NAN, "DVA spring k1", "N/m", 0.0, 1.0e10,

@@ -97,3 +97,70 @@ def test_model_spec_validation():
         eg.ParamSpec("k", "N/m", 1.0, 0.0, 2.0, log=True)
     with pytest.raises(ValueError):
         eg.Observations(np.ones(20), -np.ones(20), np.arange(20.0), np.zeros(20, int))
+
+
+class StackingToyDomain(ToyDomain):
+    """The toy with effects that stack: the loop's later steps start from the model with the
+    effects added so far (delay and gain drift multiply)."""
+
+    def __init__(self, y):
+        super().__init__(y)
+        self.stack = []  # effects added, in order
+
+    def _predict(self, v, effects):
+        out = 1 / (1 + 1j * X * v[0])
+        for i, e in enumerate(effects):
+            out = out * (np.exp(-1j * X * v[1 + i]) if e == "sensor_delay" else 1 + v[1 + i] * X)
+        return out
+
+    def candidates(self, baseline, features):
+        values = [e.value for e in baseline.estimates]
+        params = [eg.ParamSpec("p", "s", values[0], 1e-3, 1e3, log=True)]
+        params += [eg.ParamSpec(f"x{i}", "-", values[1 + i], -1.0, 1.0, scale=0.01)
+                   for i in range(len(self.stack))]
+        out = []
+        for effect, spec in (("sensor_delay", eg.ParamSpec("tau", "s", 0.0, -1.0, 1.0,
+                                                            scale=0.01)),
+                             ("parameter_drift", eg.ParamSpec("g", "s", 0.0, -0.04, 1.0,
+                                                               scale=0.01))):
+            if effect in self.stack:
+                continue
+            effects = [*self.stack, effect]
+            out.append(eg.ModelSpec(
+                effect, effect, (*params, spec), 1,
+                lambda v, effects=effects: self._predict(v, effects),
+                starts=tuple(np.array([*values, t]) for t in (0.01, 0.05, 0.1, -0.02))))
+        return out
+
+    def augment(self, spec, fit):
+        self.stack.append(spec.effect)
+
+
+def test_loop_adds_two_effects_in_turn_until_the_noise():
+    rng = np.random.default_rng(4)
+    h = np.exp(-1j * X * 0.03) * (1 + 0.02 * X) / (1 + 1j * X * 0.2)
+    eps = 0.01 / np.sqrt(2) * (rng.standard_normal(X.size) + 1j * rng.standard_normal(X.size))
+    res = eg.run(StackingToyDomain(h * (1 + eps)))
+    assert [s.effect for s in res.steps] == ["sensor_delay", "parameter_drift"] or \
+        [s.effect for s in res.steps] == ["parameter_drift", "sensor_delay"]
+    assert res.final.status == "consistent"
+    assert res.final.error < 1.25 * res.final.noise
+    assert res.verdict.status == "explained" and res.verdict.effect == res.steps[0].effect
+    for a, b in zip(res.steps, res.steps[1:]):
+        assert b.error_before == pytest.approx(a.error_after)
+    assert res.steps[-1].error_after < 0.5 * res.baseline.error
+
+
+def test_a_fit_on_its_bound_is_reported_with_its_meaning():
+    rng = np.random.default_rng(5)
+    h = (1 - 0.045 * X) / (1 + 1j * X * 0.2)  # needs g = -0.045, below the bound -0.04
+    eps = 0.002 / np.sqrt(2) * (rng.standard_normal(X.size) + 1j * rng.standard_normal(X.size))
+    res = eg.run(ToyDomain(h * (1 + eps)))
+    drift = next(c for c in res.candidates if c.effect == "parameter_drift")
+    hits = [h for h in drift.fit.bound_hits if h.added]
+    assert len(hits) == 1 and hits[0].name == "g" and hits[0].side == "lower"
+    assert hits[0].bound == pytest.approx(-0.04)
+    assert "beyond its lower bound" in hits[0].meaning
+    assert np.isnan(drift.fit.added[0].std)  # no standard error at a bound
+    if res.verdict.effect == "parameter_drift":
+        assert res.verdict.caveats and "bound" in res.verdict.evidence
