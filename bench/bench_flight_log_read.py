@@ -2,8 +2,9 @@
 
 Writes a bag of ``--blocks`` 50-sample blocks (1 kHz, the simulator's six topics; random
 samples) with the batch recorder's ``write_samples`` (the same call in earlier revisions, so
-``compare_recording_rows.py --same-script`` can run this file on them), then times, in the same run and in CPU seconds (the figure a
-loaded machine does not inflate), best of ``--repeats``:
+``compare_recording_rows.py --same-script`` can run this file on them), then times, in the
+same run and in CPU seconds (the figure a loaded machine does not inflate), best of
+``--repeats``:
 
 1. ``rosbags Reader``: ``rosbags.rosbag2.Reader`` over the bag, every message decoded with
    ``Typestore.deserialize_cdr`` (the library's own path, the baseline);
