@@ -166,6 +166,13 @@ def main() -> None:
           f"{s.dwell:g} s = {s.duration:g} s of flight at {s.sample_rate:g} Hz "
           f"(blocks of {s.block_size}); bag in {directory}")
 
+    # Start-up: what the first recording of a process costs more than the next (imports done
+    # late, message definitions parsed, layouts built), on a one-airspeed flight.
+    small = sweep_config(args.as_is, 1)
+    first, again = (record(small, directory)[2] for _ in range(2))
+    print(f"start-up cost: {first - again:.3f} s CPU (first recording in the process "
+          f"{first:.3f} s, the same again {again:.3f} s)")
+
     rows = []
 
     def row(name, run):  # run() -> (sim seconds, wall, cpu, bytes or None)

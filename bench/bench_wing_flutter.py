@@ -2,9 +2,9 @@
 
 Run:  .venv/bin/python bench/bench_wing_flutter.py
 
-The reference wing with its Maxwell DVA (target: well under 10 ms per critical airspeed). The
-baseline assembles the state space anew at every airspeed and bisects the growth rate to the
-same 1e-10 relative tolerance, the straightforward way.
+The default (chapter-6) wing with its Maxwell DVA (target: well under 10 ms per critical
+airspeed). The baseline assembles the state space anew at every airspeed and bisects the
+growth rate to the same 1e-10 relative tolerance, the straightforward way.
 """
 from __future__ import annotations
 

@@ -22,9 +22,10 @@ from mcap.reader import breakup_chunk
 from mcap.records import Channel, Chunk, Message, Schema
 from mcap.stream_reader import StreamReader
 
-from aero_dva.bag.mcap_io import TopicNotFoundError, read_messages
+from aero_dva.bag import channels as ch
+from aero_dva.bag.bag_reader import TopicNotFoundError, read_messages
 
-TOPIC = "/wing/acceleration"
+TOPIC = ch.ACCELERATION.absolute()
 
 
 @dataclass(frozen=True)

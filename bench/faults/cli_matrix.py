@@ -15,13 +15,18 @@ topics the command needs.
 """
 from __future__ import annotations
 
+import contextlib
+import io
 import json
+import math
 import os
 import shutil
 import subprocess
 import sys
 import tempfile
 import time
+import traceback
+import warnings
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -172,7 +177,7 @@ def _write_network(path: Path, *, nan: bool = False, header: bool = True) -> Non
 
 def _write_bag_without_topics(path: Path) -> None:
     """A complete, valid bag directory holding only damper commands."""
-    from aero_dva.bag.mcap_io import BagWriter
+    from aero_dva.bag.bag_writer import BagWriter
 
     with BagWriter(path) as writer:
         writer.add_topic("/dva/damper_command", "dva_msgs/msg/DamperCommand")
@@ -330,7 +335,7 @@ class Command:
     odd_path_ok: bool = False
 
 
-_EVAL = ["--seeds", "1", "--mu", "0", "--reports", "none"]
+_EVAL = ["--graph", "--seeds", "1", "--mu", "0", "--reports", "none"]  # the graph's options
 
 COMMANDS: tuple[Command, ...] = (
     Command("wing modal", "--wing", "wing", lambda f, o: [
@@ -392,6 +397,14 @@ COMMANDS: tuple[Command, ...] = (
         "evaluate", "--controllers", "rbf", "--sweep-bag", f, "--out", str(o / "eval"),
         *_EVAL], ("eval",)),
 )
+
+
+def command(name: str, option: str) -> Command:
+    """The command of :data:`COMMANDS` with this name and input option."""
+    for found in COMMANDS:
+        if (found.name, found.option) == (name, option):
+            return found
+    raise KeyError(f"no command {name!r} {option!r} in the matrix")
 
 
 @dataclass(frozen=True)
@@ -562,6 +575,34 @@ def run_case(case: CliCase, timeout: float = 300.0, env: dict | None = None) -> 
         stderr = err.read().decode("utf-8", errors="replace")
     return CliOutcome(case, None if killed else process.returncode, stderr, seconds,
                       peak_kb / 1024.0, _left_behind(case))
+
+
+def run_case_in_process(case: CliCase) -> CliOutcome:
+    """:func:`run_case` with ``dva_offline.cli.main`` called in this process: no interpreter
+    start, for fast tests. Warnings go to the captured stderr as the interpreter would print
+    them, and an exception escaping ``main`` is printed there as a traceback. No memory figure.
+    """
+    from dva_offline import cli
+
+    err = io.StringIO()
+    started = time.monotonic()
+    with warnings.catch_warnings(record=True) as caught, \
+            contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        warnings.resetwarnings()  # the interpreter's defaults, not the test runner's
+        for hidden in (DeprecationWarning, PendingDeprecationWarning, ImportWarning,
+                       ResourceWarning):
+            warnings.simplefilter("ignore", hidden)
+        try:
+            code = cli.main(case.argv)
+        except SystemExit as exc:  # argparse's own errors
+            code = exc.code if isinstance(exc.code, int) else 1
+        except Exception:  # what would reach the user as a traceback
+            traceback.print_exc(file=err)
+            code = 1
+    printed = "".join(warnings.formatwarning(w.message, w.category, w.filename, w.lineno)
+                      for w in caught)
+    return CliOutcome(case, code, printed + err.getvalue(), time.monotonic() - started, math.nan,
+                      _left_behind(case))
 
 
 def _high_water_kb(pid: int) -> float:

@@ -122,13 +122,15 @@ def _publish_for(publisher, seconds: float, rate: float, value: Callable[[int], 
 
 def run_burst_session(kind: str, bursts: int, work: Path, *, rate: float = 10_000.0,
                       burst_seconds: float = 0.3, seed: int = 0,
-                      start_timeout: float = 60.0) -> list[BurstTrial]:
+                      start_timeout: float = 60.0) -> BurstSession:
     """``bursts`` bursts of one kind in one flight, in the empty directory ``work``."""
     rng = np.random.default_rng(seed)
     value_of = KINDS[kind]
     quiet = 0.8  # [s] after a burst: longer than the 0.5 s stale timeout
     cycle = 0.4 + burst_seconds + quiet
-    scenario = write_scenario(work / "scenario.yaml", duration=round(bursts * cycle + 20.0, 1))
+    # The flight ends soon after the last burst: its summary counts the rejected commands.
+    duration = round(bursts * cycle + 3.0, 1)
+    scenario = write_scenario(work / "scenario.yaml", duration=duration)
     trials = []
     with ros_session(work / "logs") as session:
         probe = session.start_probe(rosout=True)
@@ -136,7 +138,7 @@ def run_burst_session(kind: str, bursts: int, work: Path, *, rate: float = 10_00
         publisher = node.create_publisher(DamperCommand, "dva/damper_command", 10)
         simulator = session.start("aero_dva_sim", "simulator", scenario=str(scenario),
                                   real_time_factor=1.0, max_command_lag=0.0,
-                                  exit_on_end=False, wait_for_nodes=["fault_probe"])
+                                  wait_for_nodes=["fault_probe"])
         if not wait_until(lambda: bool(probe.states), start_timeout):
             raise TrialError(f"no damper state within {start_timeout:g} s:\n"
                              f"{simulator.output()}")
@@ -151,8 +153,27 @@ def run_burst_session(kind: str, bursts: int, work: Path, *, rate: float = 10_00
             time.sleep(quiet)
             trials.append(_burst_result(kind, probe, sent, begin, end))
         node.destroy_node()
+        wait_until(lambda: any(d.message == "flight completed" for d in list(probe.diagnostics)),
+                   duration + 30.0)
         simulator.stop()
-    return trials
+    summary = next((d.values for d in probe.diagnostics if d.message == "flight completed"), {})
+    rejected = sum(int(v) for k, v in summary.items() if k.startswith("rejected:"))
+    return BurstSession(kind, trials, sum(t.sent for t in trials), rejected, bool(summary))
+
+
+@dataclass(frozen=True)
+class BurstSession:
+    """The bursts of one kind, and the simulator's count of the commands it rejected.
+
+    ``rejected`` counts every rejected command the simulator took off the wire (its
+    end-of-flight summary); ``summary_seen`` is False if that summary did not arrive.
+    """
+
+    kind: str
+    trials: list[BurstTrial]
+    sent: int
+    rejected: int
+    summary_seen: bool
 
 
 def _publish_paced(publisher, seconds: float, rate: float, probe) -> None:

@@ -9,6 +9,7 @@ import argparse
 import importlib
 import os
 import sys
+import warnings
 
 from dva_offline import __version__
 
@@ -23,6 +24,7 @@ SUBCOMMAND_MODULES = {
     "evaluate": "dva_offline.evaluation_cli",
     "report": "dva_offline.run_report_cli",
     "replay": "dva_offline.replay_cli",
+    "bag": "dva_offline.bag_cli",
 }
 
 
@@ -51,18 +53,30 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
-    try:
-        return int(args.func(args) or 0)
-    except (CliError, ValueError, TypeError, FileNotFoundError) as exc:
-        # Input problems are reported in one line naming the bad input, never as a traceback
-        # (DVA_DEBUG=1 shows the traceback when hunting a bug).
-        if os.environ.get("DVA_DEBUG"):
-            raise
-        print(f"dva {args.command}: error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print(f"dva {args.command}: interrupted", file=sys.stderr)
-        return 130
+    # Runtime warnings (e.g. reading a cut bag with --allow-truncated) are said once each, in
+    # one line, before the command's result or error.
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", RuntimeWarning)
+        try:
+            code = int(args.func(args) or 0)
+        except (CliError, ValueError, TypeError, FileNotFoundError, FileExistsError) as exc:
+            # Input problems are reported in one line naming the bad input, never as a
+            # traceback (DVA_DEBUG=1 shows the traceback when hunting a bug).
+            if os.environ.get("DVA_DEBUG"):
+                raise
+            _say_warnings(args.command, caught)
+            print(f"dva {args.command}: error: {exc}", file=sys.stderr)
+            return 2
+        except KeyboardInterrupt:
+            print(f"dva {args.command}: interrupted", file=sys.stderr)
+            return 130
+    _say_warnings(args.command, caught)
+    return code
+
+
+def _say_warnings(command: str, caught: list) -> None:
+    for text in dict.fromkeys(str(w.message) for w in caught):
+        print(f"dva {command}: warning: {text}", file=sys.stderr)
 
 
 if __name__ == "__main__":

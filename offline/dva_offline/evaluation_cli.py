@@ -1,17 +1,20 @@
-"""``dva evaluate``: the seed's evaluation flights through the ROS 2 graph, over many seeds.
+"""``dva evaluate``: can the controllers be told apart? Paired flights, differences, boundaries.
 
-Flies the ramp 0.8 -> 1.2 U_cr in 30 s (1 kN white aileron force) with air density
-rho0 (1 + mu sin 2 pi t), for each controller (none = the wing without DVA, fixed = the best
-constant c2, schedule = eq. 7.1, rbf = the spectrum-based network) x mu x excitation seed. Each
-flight is one ``run_flight`` (simulator, controller and recorder as separate processes over DDS);
-its record is saved as soon as it ends, so an interrupted evaluation resumes where it stopped
-(run the same command again) and a failed flight is reported in the table, not fatal.
+Flies the study's ramp (0.8 -> 1.2 U_cr in 30 s, 1 kN white aileron force) for the controllers
+``fixed`` (the best constant c2), ``schedule`` (eq. 7.1), ``rbf`` (spectrum + network) and
+``oracle`` (c2*(U, rho) at the true airspeed and density: the upper bound) in six density cases
+(constant rho0, x0.9, x1.1; mu = 0.1 with a 20 s period, at 1 Hz, and near twice the flutter
+frequency), each with the same excitation seeds, so the controllers meet the same gusts. All
+in one process (the simulator node's engine with the nodes' arithmetic in the loop, command lag
+one block; docs/evaluation.md). Reports per (controller, case) the mean divergence airspeed
+U_div/U_cr and the leading-edge RMS below flutter (``--rms-range``) as a ratio to the best
+fixed c2 on the same seed, with paired 95 % intervals, and the eigenvalue and Floquet
+boundaries of each analysable control law beside them.
 
-What it needs and does not get, it makes:
-  schedule   ``dva control schedule`` (exact stationary RMS, eq. 7.1 fit)
-  fixed c2   the constant c2 with the highest flutter airspeed (eigenvalues, base density)
-  network    ``dva train rbf`` on --sweep-bag, or on a sweep recorded first by
-             ``dva train sweep`` (about 7 min)
+What it needs and is not given, it makes (into DIR/inputs, with the project's commands): the
+schedule (dva control schedule), the best fixed c2, the network (dva train sweep + dva train
+rbf, about two minutes). ``--graph`` flies the earlier evaluation through the ROS 2 graph
+instead (run_flight per flight; mu cases, resumable; its own options below).
 """
 from __future__ import annotations
 
@@ -19,35 +22,37 @@ import argparse
 import json
 import math
 import shutil
-import subprocess
 import sys
 import time
 from pathlib import Path
 
 __all__ = ["register"]
 
-RATIO_KEY = "divergence_ratio_sliding"  # what the table reports (1 s windows, 0.05 s hop)
+DEFAULT_SEEDS = 30
+DEFAULT_RMS_RANGE = "0.8:1.05"
 
 
 def register(subparsers) -> None:
     """Add the ``evaluate`` command."""
     p = subparsers.add_parser(
-        "evaluate", help="evaluation flights (no DVA, fixed c2, schedule, RBF) x mu x seeds "
-                         "through the ROS graph; table, plots, per-run reports",
+        "evaluate", help="paired evaluation flights: best fixed c2, schedule, RBF, oracle x "
+                         "density cases x seeds; differences with 95 % intervals",
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", metavar="DIR",
-                   help="evaluation directory (default runs/evaluation_<UTC time>); an existing "
-                        "one is resumed: flights with a saved record are not flown again")
-    p.add_argument("--seeds", type=int, default=10,
-                   help="excitation seeds per case (default 10)")
+                   help="evaluation directory (default runs/evaluation_<UTC time>)")
+    p.add_argument("--seeds", type=int, default=None,
+                   help=f"excitation seeds per case (default {DEFAULT_SEEDS}; --graph: 10)")
     p.add_argument("--first-seed", type=int, default=1, help="first excitation seed (1)")
-    p.add_argument("--mu", default="0,0.05,0.1",
-                   help="density variations, comma-separated (default 0,0.05,0.1)")
-    p.add_argument("--controllers", default="none,fixed,schedule,rbf",
-                   help="subset of none,fixed,schedule,rbf (default all)")
+    p.add_argument("--controllers", default=None,
+                   help="subset of fixed,schedule,rbf,oracle (default all; fixed is always "
+                        "flown, the reference); --graph: of none,fixed,schedule,rbf")
+    p.add_argument("--cases", default=None,
+                   help="subset of rho0,x0.9,x1.1,slow,1Hz,2f (default all)")
+    p.add_argument("--rms-range", metavar="LOW:HIGH", default=DEFAULT_RMS_RANGE,
+                   help=f"airspeeds U/U_cr of the leading-edge RMS (default "
+                        f"{DEFAULT_RMS_RANGE}; the first 2 s are left out)")
     p.add_argument("--scenario", metavar="FILE",
-                   help="base ramp scenario YAML (default the package's scenario_ramp.yaml); "
-                        "its density variation and seed are replaced per flight")
+                   help="base ramp scenario YAML (default the package's scenario_ramp.yaml)")
     p.add_argument("--schedule", metavar="FILE", help="airspeed schedule JSON (default: made "
                    "by dva control schedule into DIR/inputs)")
     p.add_argument("--fixed-c2", type=float, default=None,
@@ -57,372 +62,201 @@ def register(subparsers) -> None:
     p.add_argument("--sweep-bag", metavar="BAG",
                    help="recorded training sweep to train the network from (default: record "
                         "one with dva train sweep)")
-    p.add_argument("--timeout", type=float, default=300.0,
-                   help="[s] wall time allowed per flight (default 300; a 30 s flight takes "
-                        "10-20 s)")
-    p.add_argument("--retries", type=int, default=1,
-                   help="times a failed flight is flown again before it is reported as "
-                        "failed (default 1)")
-    p.add_argument("--real-time-factor", type=float, default=0.0,
-                   help="run_flight --real-time-factor (default 0: as fast as possible; the "
-                        "command lag bound keeps results independent of the machine's load)")
-    p.add_argument("--reports", choices=("first", "none"), default="first",
-                   help="per-run report of the first seed of each case (default) or none")
-    p.add_argument("--no-rrd", action="store_true", help="reports without the .rrd")
+    p.add_argument("--no-boundaries", action="store_true",
+                   help="skip the eigenvalue and Floquet boundaries")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.add_argument("--workers", type=int, default=1, metavar="N",
+                   help="flights in parallel: N local processes (default 1); with --graph, N "
+                        "flights at a time, each in its own ROS domain")
+    p.add_argument("--ray", metavar="ADDRESS", default=None,
+                   help="hand the flights to a Ray cluster: its address, 'auto' (the cluster "
+                        "this machine is part of) or 'local' (start one here with --workers "
+                        "CPUs); needs the 'ray' extra")
+    g = p.add_argument_group("--graph: the evaluation through the ROS 2 graph")
+    g.add_argument("--graph", action="store_true",
+                   help="fly every flight through run_flight (nodes over DDS) instead")
+    g.add_argument("--mu", default="0,0.05,0.1",
+                   help="density variations at 1 Hz, comma-separated (default 0,0.05,0.1)")
+    g.add_argument("--timeout", type=float, default=300.0,
+                   help="[s] wall time allowed per flight (default 300)")
+    g.add_argument("--retries", type=int, default=1,
+                   help="times a failed flight is flown again (default 1)")
+    g.add_argument("--real-time-factor", type=float, default=0.0,
+                   help="run_flight --real-time-factor (default 0: as fast as possible)")
+    g.add_argument("--reports", choices=("first", "none"), default="first",
+                   help="per-run report of the first seed of each case (default) or none")
+    g.add_argument("--no-rrd", action="store_true", help="reports without the .rrd")
     p.set_defaults(func=_evaluate)
 
 
-def _run(argv: list[str], what: str, timeout: float = 3600.0) -> str:
-    """Run a helper command; its stdout, or ValueError with its last error line."""
-    result = subprocess.run(argv, capture_output=True, text=True, timeout=timeout)
-    if result.returncode != 0:
-        lines = (result.stderr or result.stdout).strip().splitlines()
-        raise ValueError(f"{what} failed ({result.returncode}): "
-                         f"{lines[-1] if lines else 'no output'}")
-    return result.stdout
-
-
-def _dva(*args: str) -> list[str]:
-    return [sys.executable, "-m", "dva_offline.cli", *args]
-
-
-def _inputs(args, controllers, inputs: Path, log) -> dict:
-    """Schedule, fixed c2 and network for the chosen controllers (given or made)."""
-    made: dict = {}
-    inputs.mkdir(parents=True, exist_ok=True)
-    if "schedule" in controllers:
-        if args.schedule:
-            made["schedule"] = str(Path(args.schedule).resolve())
-        else:
-            path = inputs / "schedule.json"
-            if not path.is_file():
-                log("making the airspeed schedule (dva control schedule)")
-                _run(_dva("control", "schedule", "--out", str(path), "--plot",
-                          str(inputs / "schedule.png"), "--json"), "dva control schedule")
-            made["schedule"] = str(path)
-        if not Path(made["schedule"]).is_file():
-            raise FileNotFoundError(f"--schedule: no file {made['schedule']}")
-    if "fixed" in controllers:
-        if args.fixed_c2 is not None:
-            if not (math.isfinite(args.fixed_c2) and args.fixed_c2 >= 0):
-                raise ValueError(f"--fixed-c2 must be a finite c2 >= 0, got {args.fixed_c2}")
-            made["fixed_c2"] = {"damping": args.fixed_c2, "source": "--fixed-c2"}
-        else:
-            path = inputs / "fixed_c2.json"
-            if not path.is_file():
-                log("choosing the fixed c2 (highest flutter airspeed)")
-                _save(path, _best_fixed())
-            made["fixed_c2"] = json.loads(path.read_text())
-    if "rbf" in controllers:
-        if args.network:
-            made["network"] = str(Path(args.network).resolve())
-            if not Path(made["network"]).is_file():
-                raise FileNotFoundError(f"--network: no file {made['network']}")
-        else:
-            path = inputs / "rbf.npz"
-            if not path.is_file():
-                bag = Path(args.sweep_bag) if args.sweep_bag else inputs / "train_sweep"
-                if not args.sweep_bag and not (bag / "metadata.yaml").is_file():
-                    shutil.rmtree(bag, ignore_errors=True)  # an interrupted recording
-                    log("recording the training sweep (dva train sweep, several minutes)")
-                    _run(_dva("train", "sweep", "--out", str(bag), "--json"), "dva train sweep")
-                log(f"training the RBF network from {bag} (dva train rbf)")
-                _run(_dva("train", "rbf", str(bag), "--out", str(path), "--plot",
-                          str(inputs / "rbf_fig7_11.png"), "--json"), "dva train rbf")
-            made["network"] = str(path)
-    return made
-
-
-def _check_given_inputs(args, controllers) -> None:
-    """Read the input files the user gave, before anything is made or flown: a bad one ends
-    the run here with the file named, instead of failing (or, for a controller that cannot
-    start, flying on the damper's fallback) in every flight."""
-    from aero_dva.bag.mcap_io import bag_topics
-    from aero_dva.control.rbf_io import load_rbf_network
-    from aero_dva.control.schedule_io import load_schedule
-
-    if "schedule" in controllers and args.schedule:
-        load_schedule(args.schedule)
-    if "rbf" in controllers and args.network:
-        load_rbf_network(args.network)
-    elif "rbf" in controllers and args.sweep_bag:
-        bag_topics(args.sweep_bag)
-
-
-def _save(path, payload):
-    from dva_offline.evaluation_io import save_json
-
-    return save_json(path, payload)
-
-
-def _best_fixed() -> dict:
-    import numpy as np
-
-    from aero_dva.wing.flutter import NoFlutterError, flutter_speed
-    from aero_dva.wing.model import AeroelasticModel
-    from aero_dva.wing.wing_io import load_wing
-    from dva_offline.evaluation import best_fixed_damping
-
-    cfg = load_wing(None)
-    model = AeroelasticModel(cfg.wing, cfg.absorber, cfg.aero)
-    rho = cfg.air_density
-
-    def critical(c2):
-        try:
-            return flutter_speed(model, rho, damping=c2).critical_airspeed
-        except NoFlutterError:
-            return math.nan
-
-    grid = np.linspace(0.0, 2500.0, 51)  # the simulator's damper range
-    choice = best_fixed_damping(critical, grid)
-    u_cr = flutter_speed(AeroelasticModel(cfg.wing, None, cfg.aero), rho).critical_airspeed
-    return {"damping": choice.damping, "critical_airspeed": choice.critical_airspeed,
-            "critical_ratio": choice.critical_airspeed / u_cr, "density": rho,
-            "source": "c2 in 0..2500 N s/m maximising the flutter airspeed of the reference "
-                      "wing with its Maxwell DVA and c2 held fixed (eigenvalues, base density)"}
-
-
-def _flight_argv(case, scenario: Path, bag: Path, made: dict, args) -> list[str]:
-    from aero_dva_sim.run_flight import executable
-
-    try:
-        exe = executable("aero_dva_sim", "run_flight")
-    except SystemExit as exc:  # not sourced: say how to fix it, in one line
-        raise ValueError(str(exc).replace("run_flight: error: ", "")) from None
-    argv = [exe, "--scenario", str(scenario), "--output", str(bag), "--json",
-            "--real-time-factor", str(args.real_time_factor), "--timeout", str(args.timeout)]
-    if case.controller == "none":
-        argv += ["--controller", "none", "--absorber", "none"]
-    elif case.controller == "fixed":
-        argv += ["--controller", "fixed", "--damping", repr(made["fixed_c2"]["damping"])]
-    elif case.controller == "schedule":
-        argv += ["--controller", "schedule", "--schedule", made["schedule"]]
-    else:
-        argv += ["--controller", "rbf", "--network", made["network"]]
-    return argv
-
-
-def _sliding_divergence(bag: Path, u_cr) -> dict:
-    """U_div / U_cr from the bag with 1 s windows sliding by 0.05 s (evaluation.py says why)."""
-    import numpy as np
-
-    from aero_dva.bag.flight_log_io import load_flight_log
-    from dva_offline.evaluation import divergence_airspeed_sliding
-
-    log = load_flight_log(bag)
-    response = log.displacements[2]
-    valid = np.isfinite(response) & np.isfinite(log.airspeed)
-    u_div = divergence_airspeed_sliding(log.airspeed[valid], response[valid], log.sample_rate)
-    ratio = u_div / u_cr if u_cr and math.isfinite(u_div) else None
-    return {"divergence_airspeed_sliding": u_div if math.isfinite(u_div) else None,
-            "divergence_ratio_sliding": ratio}
-
-
-def _fly(case, scenario: Path, out: Path, made: dict, args) -> dict:
-    """One flight through run_flight; the record (never raises for a failed flight)."""
-    from dva_offline.evaluation_io import flight_bag
-
-    bag = flight_bag(out, case)
-    for leftover in (bag, bag.with_name(bag.name + "_logs")):  # an interrupted attempt
-        shutil.rmtree(leftover, ignore_errors=True)
-    record = {"controller": case.controller, "mu": case.mu, "seed": case.seed,
-              "scenario": str(scenario), "scenario_name": scenario.stem, "bag": str(bag),
-              "absorber": "none" if case.controller == "none" else "maxwell"}
-    started = time.monotonic()
-    try:
-        result = subprocess.run(_flight_argv(case, scenario, bag, made, args),
-                                capture_output=True, text=True, timeout=args.timeout + 120)
-        if result.returncode == 0:
-            record.update(json.loads(result.stdout))
-            record.update(_sliding_divergence(bag, record.get("critical_airspeed")))
-            record["ok"] = True
-        else:
-            lines = (result.stderr or "").strip().splitlines()
-            record.update(ok=False, error=f"run_flight exited {result.returncode}: "
-                          + (lines[-1] if lines else "no output"))
-    except subprocess.TimeoutExpired:
-        record.update(ok=False, error=f"run_flight took longer than {args.timeout + 120:g} s")
-    except json.JSONDecodeError as exc:
-        record.update(ok=False, error=f"run_flight printed no JSON summary ({exc})")
-    except (ValueError, OSError) as exc:  # the bag does not read back
-        record.update(ok=False, error=f"the recorded bag does not read back: {exc}")
-    record["runner_wall_time"] = time.monotonic() - started
-    return record
-
-
 def _evaluate(args) -> int:
+    if args.graph:
+        from dva_offline.evaluation_graph import GRAPH_CONTROLLERS, evaluate_graph
+
+        args.seeds = 10 if args.seeds is None else args.seeds
+        args.controllers = args.controllers or ",".join(GRAPH_CONTROLLERS)
+        return evaluate_graph(args)
+    return _batch(args)
+
+
+def _choose(option: str, text: str | None, known: tuple[str, ...]) -> tuple[str, ...]:
+    if text is None:
+        return known
+    names = [v.strip() for v in text.split(",") if v.strip()]
+    bad = [n for n in names if n not in known]
+    if bad or not names:
+        raise ValueError(f"{option} must be a comma-separated subset of {','.join(known)}, "
+                         f"got {text!r}")
+    return tuple(n for n in known if n in names)
+
+
+def _rms_range(text: str) -> tuple[float, float]:
+    try:
+        low, high = (float(v) for v in text.split(":"))
+    except ValueError:
+        raise ValueError(f"--rms-range expects LOW:HIGH (U/U_cr), got {text!r}") from None
+    if not (math.isfinite(low) and math.isfinite(high) and 0 < low < high):
+        raise ValueError(f"--rms-range needs 0 < LOW < HIGH, got {text!r}")
+    return low, high
+
+
+def _batch(args) -> int:
     from tqdm import tqdm
 
     from aero_dva import data_files
-    from dva_offline.evaluation import (
-        aggregate,
-        case_grid,
-        compare_rbf_with_schedule,
-        evaluation_scenario,
-        markdown_table,
-        parse_controllers,
-        parse_mu_list,
+    from aero_dva.control.rbf_io import load_rbf_network
+    from aero_dva.control.schedule_io import load_schedule
+    from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
+    from aero_dva.wing.model import AeroelasticModel
+    from dva_offline.evaluation_batch import (
+        CASE_NAMES,
+        EVALUATION_CONTROLLERS,
+        default_cases,
+        summarise,
     )
-    from dva_offline.evaluation_io import (
-        flight_record_path,
-        load_base_scenario,
-        load_records,
-        save_json,
-        write_scenario,
+    from dva_offline.evaluation_batch_io import plot_batch, write_batch_results
+    from dva_offline.evaluation_flights import (
+        EvaluationSetup,
+        case_table,
+        fly_batch,
+        oracle_table,
+        stability_boundaries,
     )
+    from dva_offline.evaluation_inputs import check_given_inputs, inputs
 
-    if args.retries < 0:
-        raise ValueError(f"--retries must be >= 0, got {args.retries}")
-    if args.seeds < 1 or args.first_seed < 0:
-        raise ValueError(f"--seeds must be >= 1 and --first-seed >= 0, got {args.seeds}, "
+    seeds_n = DEFAULT_SEEDS if args.seeds is None else args.seeds
+    if seeds_n < 1 or args.first_seed < 0:
+        raise ValueError(f"--seeds must be >= 1 and --first-seed >= 0, got {seeds_n}, "
                          f"{args.first_seed}")
-    if not (args.timeout > 0):
-        raise ValueError(f"--timeout must be > 0, got {args.timeout}")
-    controllers = parse_controllers(args.controllers)
-    mus = parse_mu_list(args.mu)
-    seeds = list(range(args.first_seed, args.first_seed + args.seeds))
+    controllers = _choose("--controllers", args.controllers, EVALUATION_CONTROLLERS)
+    controllers = tuple(c for c in EVALUATION_CONTROLLERS if c in controllers or c == "fixed")
+    case_names = _choose("--cases", args.cases, CASE_NAMES)
+    rms_low, rms_high = _rms_range(args.rms_range)
+    seeds = list(range(args.first_seed, args.first_seed + seeds_n))
     scenario_path = Path(args.scenario) if args.scenario else \
         data_files.data_file("scenario_ramp.yaml")
-    base = load_base_scenario(scenario_path)
-    _check_given_inputs(args, controllers)
+    config = load_runtime_config({"scenario": str(scenario_path)})
+    if config.scenario.airspeed.kind != "ramp":
+        raise ValueError(f"--scenario {scenario_path}: the evaluation flies a ramp, got "
+                         f"airspeed kind {config.scenario.airspeed.kind!r}")
+    check_given_inputs(args, controllers)
     stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
     out = Path(args.out or f"runs/evaluation_{stamp}").resolve()
     created = not out.exists()
-    (out / "flights").mkdir(parents=True, exist_ok=True)
+    out.mkdir(parents=True, exist_ok=True)
     started = time.monotonic()
 
     def log(text):
         tqdm.write(f"dva evaluate: {text}", file=sys.stderr)
 
     try:
-        made = _inputs(args, controllers, out / "inputs", log)
+        made = inputs(args, controllers, out / "inputs", log)
     except BaseException:
         if created:  # nothing was flown: leave no directory that looks like an evaluation
             shutil.rmtree(out, ignore_errors=True)
         raise
-    scenarios = {(mu, seed): write_scenario(out / "scenarios",
-                                            evaluation_scenario(base, mu, seed))
-                 for mu in mus for seed in seeds}
-    cases = case_grid(controllers, mus, seeds)
-    records = {c: r for c, r in load_records(out, cases).items() if r.get("ok")}
-    todo = [c for c in cases if c not in records]
-    if records:
-        log(f"resuming {out}: {len(records)} of {len(cases)} flights already recorded")
-    bar = tqdm(total=len(cases), initial=len(records), desc="flights", unit="flight",
-               file=sys.stderr, dynamic_ncols=True)
-    flight_times = []
+    model = AeroelasticModel(config.wing, config.absorber, config.aero)
+    u_cr = FlightRuntime(config).critical_airspeed
+    fixed = made["fixed_c2"]
+    flutter_frequency = fixed.get("flutter_frequency") or _flutter_frequency(model, config,
+                                                                             fixed["damping"])
+    cases = {k: v for k, v in default_cases(flutter_frequency).items() if k in case_names}
+    ramp = config.scenario.airspeed.values
+    if not config.scenario.airspeed.relative:
+        ramp = tuple(v / u_cr for v in ramp)
+    table = oracle_table(model, u_cr, config.scenario.density, list(cases.values()), ramp) \
+        if "oracle" in controllers else None
+    setup = EvaluationSetup(
+        config=config, model=model, critical_airspeed=u_cr, fixed_damping=fixed["damping"],
+        schedule=load_schedule(made["schedule"]) if "schedule" in made else None,
+        network=load_rbf_network(made["network"], expected_input_dim=33)
+        if "network" in made else None,
+        table=table, rms_range=(rms_low * u_cr, rms_high * u_cr))
+    total = len(cases) * len(seeds) * len(controllers)
+    bar = tqdm(total=total, desc="flights", unit="flight", file=sys.stderr, leave=False)
+
+    def progress(text):
+        bar.set_postfix_str(text)
+        bar.update(1)
+
+    from dva_offline.evaluation_resume import FlightStore
+
+    store = FlightStore(out / "flights", {
+        "scenario": str(scenario_path), "controllers": list(controllers),
+        "cases": case_table(cases), "rms_range_ratio": [rms_low, rms_high],
+        "fixed_c2": fixed["damping"], "schedule": made.get("schedule"),
+        "network": made.get("network")})
+    done = store.load(seeds)
+    if done:
+        log(f"resuming: {len(done)} of {len(cases) * len(seeds)} (case, seed) jobs already "
+            f"flown in {store.directory}")
+        bar.update(sum(len(v) for k, v in done.items() if k[1] != seeds[0]))
+    flights_started = time.monotonic()
     try:
-        for case in todo:
-            bar.set_postfix_str(case.key)
-            for attempt in range(1 + args.retries):
-                record = _fly(case, scenarios[(case.mu, case.seed)], out, made, args)
-                record["attempts"] = attempt + 1
-                if record["ok"]:
-                    break
-                log(f"flight {case.key} attempt {attempt + 1} failed: {record['error']}")
-            save_json(flight_record_path(out, case), record)
-            records[case] = record
-            flight_times.append(record["runner_wall_time"])
-            if record["ok"]:
-                ratio = record.get(RATIO_KEY)
-                bar.set_postfix_str(f"{case.key}: U_div/U_cr = "
-                                    + (f"{ratio:.3f}" if ratio is not None else "none"))
-            bar.update(1)
+        records, kept = fly_batch(setup, list(cases.values()), seeds, controllers, progress,
+                                  keep_seed=seeds[0], workers=args.workers,
+                                  ray_address=args.ray, done=done, finished=store.save)
     finally:
         bar.close()
-    stats = aggregate(records.values(), ratio_key=RATIO_KEY)
-    key = compare_rbf_with_schedule(stats)
-    table = markdown_table(stats)
-    files = _outputs(out, args, mus, controllers, seeds, records, stats, key, table, made,
-                     log)
-    elapsed = time.monotonic() - started
+    flight_time = time.monotonic() - flights_started
+    rows = summarise(records, controllers, list(cases))
+    boundaries = {} if args.no_boundaries else stability_boundaries(
+        setup, list(cases.values()), controllers)
     payload = {
         "out": str(out), "scenario": str(scenario_path), "controllers": list(controllers),
-        "mu": list(mus), "seeds": seeds, "inputs": made,
-        "flights": len(cases), "flown_now": len(flight_times),
-        "failed": sum(1 for r in records.values() if not r.get("ok")),
-        "wall_time_s": elapsed,
-        "mean_flight_wall_time_s": (sum(flight_times) / len(flight_times)
-                                    if flight_times else None),
-        "cases": [s.to_dict() for s in stats],
-        "rbf_vs_schedule": [k.to_dict() for k in key],
-        **files,
+        "cases": case_table(cases), "seeds": seeds, "inputs": made,
+        "critical_airspeed_no_dva": u_cr, "fixed_c2": fixed["damping"],
+        "rms_range_ratio": [rms_low, rms_high], "flights": len(records),
+        "flight_wall_time_s": flight_time, "workers": args.workers, "ray": args.ray,
+        "resumed_jobs": len(done),
+        "results": [_row_json(r) for r in rows], "boundaries": boundaries,
     }
-    save_json(out / "results.json", payload)
+    files = write_batch_results(out, payload, records)
+    payload["files"] = {**files, **plot_batch(out, payload, kept, u_cr)}
+    payload["wall_time_s"] = time.monotonic() - started
+    (out / "results.json").write_text(json.dumps(payload, allow_nan=False))
     if args.json:
-        print(json.dumps(payload))
+        print(json.dumps(payload, allow_nan=False))
     else:
-        print(table)
-        for k in key:
-            print(f"mu = {k.mu:g}: RBF - schedule = {k.difference:+.3f} U_cr "
-                  f"(SE {k.standard_error:.3f}): {k.verdict}")
-        print(f"results: {out / 'results.md'} ({len(flight_times)} flights flown now in "
-              f"{elapsed:.0f} s)")
-    return 0 if payload["failed"] == 0 else 1
+        from dva_offline.evaluation_batch_io import markdown_results
+
+        print(markdown_results(payload))
+        print(f"results: {out / 'results.md'} ({len(records)} flights in {flight_time:.0f} s)")
+    return 0
 
 
-def _outputs(out, args, mus, controllers, seeds, records, stats, key, table, made, log) -> dict:
-    """results.md, plots, per-run reports; returns the files written."""
-    from aero_dva.bag.flight_log_io import load_flight_log
-    from dva_offline.evaluation import CONTROLLER_LABELS
-    from dva_offline.evaluation_io import plot_summary, plot_traces
-    from dva_offline.run_report_io import write_report
+def _flutter_frequency(model, config, damping: float) -> float:
+    from aero_dva.wing.flutter import flutter_speed
 
-    first = {}  # (controller, mu) -> record of the first seed that flew
-    for seed in seeds:
-        for (c, m) in ((c, m) for c in controllers for m in mus):
-            rec = next((r for r in records.values() if r["controller"] == c and r["mu"] == m
-                        and r["seed"] == seed and r.get("ok")), None)
-            if rec is not None and (c, m) not in first:
-                first[(c, m)] = rec
-    files: dict = {"traces": [], "reports": []}
-    u_cr = next((r.get("critical_airspeed") for r in first.values()
-                 if r.get("critical_airspeed")), None)
-    for mu in mus:
-        runs = {c: load_flight_log(first[(c, mu)]["bag"]) for c in controllers
-                if (c, mu) in first}
-        if runs and u_cr:
-            path = plot_traces(out / f"traces_mu{mu:g}.png", mu, runs, u_cr)
-            files["traces"].append(str(path))
-    if stats:
-        files["summary_plot"] = str(plot_summary(out / "divergence_vs_mu.png", stats))
-    if args.reports != "none":
-        for (c, m), rec in first.items():
-            report_dir = out / "reports" / f"{c}_mu{m:g}"
-            try:
-                meta = {"absorber": "none" if c == "none" else "maxwell", **rec}
-                written = write_report(rec["bag"], report_dir, rrd=not args.no_rrd,
-                                       metadata=meta, stem="run")
-                files["reports"].append(str(written.markdown))
-            except Exception as exc:  # a report is a by-product: say so, keep the table
-                log(f"report of {rec['bag']} failed: {exc}")
-    lines = ["# Evaluation flights", "",
-             f"Base scenario `{args.scenario or 'scenario_ramp.yaml'}`; seeds {seeds[0]}.."
-             f"{seeds[-1]}; U_div / U_cr over the flights that diverged "
-             "(U_cr: wing without DVA, base density; U_div: the leading-edge RMS over 1 s "
-             "windows sliding by 0.05 s exceeds 10x its start value for good).", ""]
-    if "schedule" in made:
-        lines.append(f"- schedule: `{made['schedule']}`")
-    if "fixed_c2" in made:
-        fixed = made["fixed_c2"]
-        lines.append(f"- fixed c2: {fixed['damping']:.1f} N s/m ({fixed['source']}"
-                     + (f"; flutter at {fixed['critical_ratio']:.4f} U_cr"
-                        if "critical_ratio" in fixed else "") + ")")
-    if "network" in made:
-        lines.append(f"- network: `{made['network']}`")
-    lines += ["", table, ""]
-    for k in key:
-        lines.append(f"- mu = {k.mu:g}: {CONTROLLER_LABELS['rbf']} {k.rbf_mean:.3f} vs "
-                     f"{CONTROLLER_LABELS['schedule']} {k.schedule_mean:.3f}: difference "
-                     f"{k.difference:+.3f} (SE {k.standard_error:.3f}): **{k.verdict}**")
-    failed = [r for r in records.values() if not r.get("ok")]
-    if failed:
-        lines += ["", "Failed flights:", *[f"- {r['bag']}: {r['error']}" for r in failed]]
-    lines += ["", "![divergence vs mu](divergence_vs_mu.png)", ""]
-    lines += [f"![traces]({Path(p).name})" for p in files["traces"]]
-    lines += ["", "Per-run reports: " + ", ".join(
-        f"[{Path(p).parent.name}]({Path(p).relative_to(out)})" for p in files["reports"])]
-    (out / "results.md").write_text("\n".join(lines) + "\n")
-    files["results_md"] = str(out / "results.md")
-    return files
+    return flutter_speed(model, config.scenario.density, damping=damping).flutter_frequency
+
+
+def _row_json(row: dict) -> dict:
+    def clean(v):
+        return None if isinstance(v, float) and not math.isfinite(v) else v
+
+    stats = ("divergence_difference", "rms_change", "divergence_to_oracle",
+             "divergence_to_schedule", "rms_to_schedule")
+    out = {k: clean(v) for k, v in row.items() if k not in stats}
+    out.update({k: row[k].to_dict() for k in stats})
+    return out

@@ -1,7 +1,7 @@
 """Bag I/O of ``dva replay``: a recorded flight's controller inputs and outputs read from a bag,
 the re-run's spectra and commands written to a new one.
 
-All reading goes through :func:`_messages` (the domain's :func:`aero_dva.bag.mcap_io.
+All reading goes through :func:`_messages` (the domain's :func:`aero_dva.bag.bag_reader.
 read_messages`, decoded), so a change of bag reader touches one function. The new bag is
 written to a hidden directory beside its destination and renamed into place once closed: a
 failed run leaves no bag that looks complete.
@@ -15,7 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from aero_dva.bag.mcap_io import BagReadError, BagWriter, bag_topics, read_messages
+from aero_dva.bag import channels as ch
+from aero_dva.bag.bag_reader import BagReadError, bag_topics, read_messages
+from aero_dva.bag.bag_writer import BagWriter
 from dva_offline.replay import (
     ACCELERATION_CHANNELS,
     BlockInput,
@@ -26,18 +28,10 @@ from dva_offline.replay import (
 
 __all__ = ["FlightRecording", "read_outputs", "read_recording", "write_outputs"]
 
-ACCELERATION = "/wing/acceleration"
-DAMPER_STATE = "/dva/damper_state"
-CONDITION = "/flight/condition"
-SPECTRUM = "/dva/spectrum"
-COMMAND = "/dva/damper_command"
-TYPES = {
-    ACCELERATION: "dva_msgs/msg/AccelerationBlock",
-    DAMPER_STATE: "dva_msgs/msg/DamperState",
-    CONDITION: "dva_msgs/msg/FlightCondition",
-    SPECTRUM: "dva_msgs/msg/ScaledSpectrum",
-    COMMAND: "dva_msgs/msg/DamperCommand",
-}
+_CHANNELS = (ch.ACCELERATION, ch.DAMPER_STATE, ch.FLIGHT_CONDITION, ch.SPECTRUM,
+             ch.DAMPER_COMMAND)
+ACCELERATION, DAMPER_STATE, CONDITION, SPECTRUM, COMMAND = (c.absolute() for c in _CHANNELS)
+TYPES = {c.absolute(): c.type_name for c in _CHANNELS}
 _NS = 1_000_000_000
 
 

@@ -24,6 +24,9 @@ def register(subparsers) -> None:
                    help="directory to write into (default <RUN>_report next to the bag)")
     p.add_argument("--no-rrd", action="store_true", help="skip the rerun recording")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.add_argument("--allow-truncated", action="store_true",
+                   help="read a bag that was not closed or is cut up to the damage (warns); "
+                        "`dva bag recover` makes a complete copy instead")
     p.set_defaults(func=_report)
 
 
@@ -37,7 +40,7 @@ def _report(args) -> int:
     out = Path(args.out) if args.out else base.with_name(base.name + "_report")
     created = not out.exists()
     try:
-        files = write_report(run, out, rrd=not args.no_rrd)
+        files = write_report(run, out, rrd=not args.no_rrd, allow_truncated=args.allow_truncated)
     except BaseException:
         if created:  # a failed report leaves no directory that looks like one
             shutil.rmtree(out, ignore_errors=True)

@@ -17,8 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
+from aero_dva.bag import channels as ch
+from aero_dva.bag.bag_reader import bag_topics, read_messages
 from aero_dva.bag.flight_log_io import load_flight_log
-from aero_dva.bag.mcap_io import bag_topics, read_messages
 from dva_offline.run_report import RunData, SpectrumTrack, build_report, report_markdown
 
 __all__ = ["ReportFiles", "inspect_rrd", "load_run", "write_plots", "write_report", "write_rrd"]
@@ -34,26 +35,29 @@ SERIES = {  # entity path -> (FlightLog attribute, row or None, scale, legend)
 }
 
 
-def load_run(bag, metadata: dict | None = None) -> RunData:
+def load_run(bag, metadata: dict | None = None, *, allow_truncated: bool = False) -> RunData:
     """Read a bag directory or .mcap file (``load_flight_log`` plus the spectra and the damper
     sources); ``metadata`` (e.g. controller, scenario file) is what the bag cannot say.
+    ``allow_truncated`` reads what a cut or unclosed bag holds before the damage.
 
     A sidecar ``<bag>.json`` (written by ``dva evaluate`` and ``run_flight --json`` users) is read
     when no metadata is given.
     """
     bag = Path(bag)
-    log = load_flight_log(bag)
-    topics = bag_topics(bag)
+    log = load_flight_log(bag, allow_truncated=allow_truncated)
+    topics = bag_topics(bag, allow_truncated=allow_truncated)
     counts = {name: info.message_count for name, info in topics.items()}
     sources: list[str] = []
-    if "/dva/damper_state" in topics:
-        sources = [r.message.source for r in read_messages(bag, ["/dva/damper_state"])]
+    damper_topic, spectrum_topic = ch.DAMPER_STATE.absolute(), ch.SPECTRUM.absolute()
+    if damper_topic in topics:
+        sources = [r.message.source for r in read_messages(
+            bag, [damper_topic], allow_truncated=allow_truncated)]
     spectrum = None
-    if counts.get("/dva/spectrum"):
+    if counts.get(spectrum_topic):
         stamps, mags, freqs, names = [], [], None, None
         for record in read_messages(
-                bag, ["/dva/spectrum"],
-                expected_types={"/dva/spectrum": "dva_msgs/msg/ScaledSpectrum"}):
+                bag, [spectrum_topic], allow_truncated=allow_truncated,
+                expected_types={spectrum_topic: ch.SPECTRUM.type_name}):
             msg = record.message
             freqs = np.asarray(msg.frequencies, dtype=float)
             names = tuple(msg.channel_names)
@@ -187,11 +191,12 @@ class ReportFiles:
 
 
 def write_report(bag, out_dir, rrd: bool = True, metadata: dict | None = None,
-                 stem: str = "run") -> ReportFiles:
-    """Read ``bag`` and write ``<stem>.md``, ``<stem>.json``, the PNGs and ``<stem>.rrd``."""
+                 stem: str = "run", *, allow_truncated: bool = False) -> ReportFiles:
+    """Read ``bag`` and write ``<stem>.md``, ``<stem>.json``, the PNGs and ``<stem>.rrd``
+    (``allow_truncated``: see :func:`load_run`)."""
     out_dir = Path(out_dir)
+    data = load_run(bag, metadata, allow_truncated=allow_truncated)
     out_dir.mkdir(parents=True, exist_ok=True)
-    data = load_run(bag, metadata)
     report = build_report(data)
     pngs = write_plots(out_dir, data, stem)
     links = {caption: p.name for caption, p in pngs.items()}

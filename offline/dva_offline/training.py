@@ -1,30 +1,35 @@
-"""Training the spectrum-based RBF controller from a recorded sweep (seed sec. 7.2.1, fig. 7.11).
+"""Training the spectrum-based RBF controller from a recorded sweep (Zhang (2006) sec. 7.2.1).
 
-The seed's experiment: at each airspeed of 0.8 .. 1.14 U_cr (step 0.002 U_cr) 20 values of the
+The study's experiment: at each airspeed of 0.8 .. 1.14 U_cr (step 0.002 U_cr) 20 values of the
 damper c2 are applied in turn; each (U, c2) pair gives a 2 s window at 1 kHz of both responses
 (translational and rotational), whose eq. 7.3 scaled spectra at 5..20 Hz plus the current c2 are
-the network's 33 inputs. The output (label) of every window of an airspeed is the c2 that gave
-the lowest *measured* RMS at that airspeed: model-free, read from the log alone.
+the network's 33 inputs, and the optimal c2 of the condition is the output. Here the recorded
+sweep is a training plan (:mod:`dva_offline.training_plan`: several densities, c2 around the
+optimum, each dwell started from its stationary state) or a scenario sweep.
 
 Steps (all pure numerics on arrays of a :class:`~aero_dva.bag.flight_log_io.FlightLog`):
 
-1. :func:`find_dwells` cuts the log where the recorded applied c2 or the airspeed changes;
-2. :func:`build_dataset` takes the last ``window`` seconds of each dwell (the wing carries its
-   state from one dwell into the next, so the start of a dwell is a transient) and computes the
+1. :func:`find_dwells` cuts the log where the recorded airspeed, density or applied c2
+   changes;
+2. :func:`build_dataset` takes the last ``window`` seconds of each dwell and computes the
    scaled spectra of the plunge and pitch accelerations (what the ``spectrum`` node publishes
-   to the ``rbf_controller``) and the leading-edge displacement RMS (the seed's objective);
-3. :func:`label_min_rms` labels each airspeed with the c2 of its lowest measured RMS;
-4. :func:`split_by_airspeed` holds out whole airspeeds (every k-th), so validation windows
-   never share an airspeed, hence a label and a flight state, with training windows;
+   to the ``rbf_controller``) and the leading-edge displacement RMS (the study's objective);
+3. :mod:`dva_offline.training_labels` labels each window: the exact c2*(U, rho) of its
+   condition (default) or the measured-RMS argmin (the study's procedure, which fails);
+4. :func:`split_by_airspeed` holds out whole airspeeds (every k-th, at every density), so
+   validation windows never share an airspeed with training windows;
 5. :func:`train_network` trains by orthogonal least squares for each candidate spread and keeps
-   the spread with the lowest RMS error on the held-out airspeeds.
+   the spread with the lowest RMS error on the held-out airspeeds among those whose neurons
+   respond to the held-out inputs (median peak activation >= :data:`MIN_ACTIVATION`).
 
-:func:`adapt_sweep` makes a sweep scenario safe to fly continuously: an unstable (U, c2) pair
-grows and ruins every later dwell, so only airspeeds at which every c2 of the list decays at
-least at a given rate are kept, and each dwell gets a settling time before its window.
+:func:`adapt_sweep` makes a *scenario* sweep safe to fly continuously (``dva train sweep
+--scenario``): an unstable (U, c2) pair grows and ruins every later dwell, so only airspeeds
+at which every c2 of the list decays at least at a given rate are kept, and each dwell gets a
+settling time before its window.
 """
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 
@@ -34,38 +39,50 @@ from aero_dva.control.rbf_network import (
     SPECTRUM_INPUT_DIM,
     OLSTrainingResult,
     fit_input_scaling,
-    select_spread,
     spectrum_input_names,
     spectrum_input_vector,
+    train_rbf_ols,
 )
 from aero_dva.control.spectrum import DEFAULT_FREQUENCIES, scaled_spectrum
 from aero_dva.flight.scenario import AirspeedProfile, Scenario, sweep_duration
+from aero_dva.wing.model import ACCELERATION_NAMES
 
 __all__ = [
     "ACCELERATION_CHANNELS",
     "CHANNELS",
     "DEFAULT_SPREADS",
+    "MAX_CANDIDATES",
+    "MIN_ACTIVATION",
     "Dwells",
-    "OptimalC2",
+    "NetworkMetrics",
     "SweepAdaptation",
     "TrainingData",
     "TrainingDataError",
     "TrainingOutcome",
     "adapt_sweep",
     "build_dataset",
+    "condition_predictability",
     "find_dwells",
-    "label_min_rms",
+    "network_c2_per_condition",
+    "network_metrics",
+    "select_windows",
     "split_by_airspeed",
     "train_network",
 ]
 
-#: Acceleration channels of a FlightLog, in its row order.
-ACCELERATION_CHANNELS = ("plunge", "pitch", "leading_edge")
-#: Spectrum channels of the seed's network (translational, rotational), as the spectrum node.
+#: Acceleration channels of a FlightLog, in its row order (the wing model's outputs).
+ACCELERATION_CHANNELS = ACCELERATION_NAMES
+#: Spectrum channels of the study's network (translational, rotational), as the spectrum node.
 CHANNELS = ("plunge", "pitch")
 LEADING_EDGE = 2  # row of the leading-edge displacement in FlightLog.displacements
 #: Candidate spreads in min-max scaled input space (33 inputs: distances of order 0.1 .. 1).
 DEFAULT_SPREADS = (0.1, 0.2, 0.3, 0.5, 0.7, 1.0, 1.5, 2.0, 3.0)
+#: A network whose median peak activation on its validation inputs is below this has neurons
+#: that do not respond to inputs it has not seen: it outputs its bias, a constant c2.
+MIN_ACTIVATION = 0.1
+#: Candidate centres of the OLS selection at most (evenly spaced through the training windows):
+#: the candidate matrix is n_train x n_candidates doubles (8 000 x 2 000 = 128 MB).
+MAX_CANDIDATES = 2000
 
 
 class TrainingDataError(ValueError):
@@ -174,29 +191,33 @@ def adapt_sweep(scenario: Scenario, critical_airspeed: float,
 
 @dataclass(frozen=True)
 class Dwells:
-    """Runs of samples with constant recorded airspeed and applied c2.
+    """Runs of samples with constant recorded airspeed, density and applied c2.
 
     Attributes
     ----------
     start, stop : ndarray of int, shape (n,)
         Sample index range ``[start, stop)`` of each dwell.
     airspeed : ndarray, shape (n,) [m/s]
+    density : ndarray, shape (n,) [kg/m^3]
     damping : ndarray, shape (n,) [N s/m] applied c2
     """
 
     start: np.ndarray
     stop: np.ndarray
     airspeed: np.ndarray
+    density: np.ndarray
     damping: np.ndarray
 
 
-def find_dwells(airspeed, applied_damping) -> Dwells:
-    """Cut a sweep where the recorded airspeed or applied c2 changes.
+def find_dwells(airspeed, applied_damping, density=None) -> Dwells:
+    """Cut a sweep where the recorded airspeed, density or applied c2 changes.
 
     Parameters
     ----------
     airspeed, applied_damping : array_like, shape (n,)
         Per-sample airspeed [m/s] and applied c2 [N s/m] (FlightLog fields).
+    density : array_like, shape (n,), optional
+        Per-sample air density [kg/m^3]; default: not cut on (NaN in the result).
 
     Raises
     ------
@@ -205,21 +226,25 @@ def find_dwells(airspeed, applied_damping) -> Dwells:
     """
     u = np.asarray(airspeed, dtype=float)
     c = np.asarray(applied_damping, dtype=float)
-    if u.ndim != 1 or c.shape != u.shape:
-        raise ValueError(f"airspeed and applied_damping must be 1-D of equal length, got "
-                         f"{u.shape} and {c.shape}")
+    rho = np.full(u.shape, np.nan) if density is None else np.asarray(density, dtype=float)
+    if u.ndim != 1 or c.shape != u.shape or rho.shape != u.shape:
+        raise ValueError(f"airspeed, applied_damping and density must be 1-D of equal length, "
+                         f"got {u.shape}, {c.shape} and {rho.shape}")
     if u.size == 0:
         raise TrainingDataError("the log holds no samples")
     if np.all(np.isnan(c)):
         raise TrainingDataError("the log has no applied c2 (topic /dva/damper_state missing or "
                                 "empty): dwells cannot be found")
     # NaN != NaN would cut at every sample; compare with NaN mapped to a sentinel.
-    uk = np.where(np.isnan(u), -1.0, u)
-    ck = np.where(np.isnan(c), -1.0, c)
-    cuts = np.flatnonzero((np.diff(uk) != 0) | (np.diff(ck) != 0)) + 1
+    keys = [np.where(np.isnan(x), -1.0, x) for x in (u, c, rho)]
+    changed = np.zeros(u.size - 1, dtype=bool)
+    for key in keys:
+        changed |= np.diff(key) != 0
+    cuts = np.flatnonzero(changed) + 1
     start = np.concatenate([[0], cuts]).astype(int)
     stop = np.concatenate([cuts, [u.size]]).astype(int)
-    return Dwells(start=start, stop=stop, airspeed=u[start], damping=c[start])
+    return Dwells(start=start, stop=stop, airspeed=u[start], density=rho[start],
+                  damping=c[start])
 
 
 @dataclass(frozen=True)
@@ -231,12 +256,15 @@ class TrainingData:
     inputs : ndarray, shape (n, 33)
         Scaled spectra of the plunge and pitch accelerations (channel-major, 5..20 Hz), then c2.
     airspeed : ndarray, shape (n,) [m/s]
+    density : ndarray, shape (n,) [kg/m^3]
     damping : ndarray, shape (n,) [N s/m] c2 applied during the window
     rms : ndarray, shape (n,) [m] measured leading-edge displacement RMS over the window
     window_start : ndarray of int, shape (n,)
         Sample index of each window's first sample.
     window : float
         [s] window length.
+    sample_rate : float
+        [Hz]
     skipped : dict
         Dwells not used, by reason ("short", "gap", "no_airspeed").
     input_names, input_units : tuple of str
@@ -245,10 +273,12 @@ class TrainingData:
 
     inputs: np.ndarray
     airspeed: np.ndarray
+    density: np.ndarray
     damping: np.ndarray
     rms: np.ndarray
     window_start: np.ndarray
     window: float
+    sample_rate: float
     skipped: dict
     input_names: tuple[str, ...]
     input_units: tuple[str, ...]
@@ -287,12 +317,13 @@ def build_dataset(log, window: float = 2.0, channels: Sequence[str] = CHANNELS,
     if not window > 0 or abs(n_win - window * rate) > 1e-6 * max(1.0, window * rate):
         raise ValueError(f"window * sample_rate must be a whole number of samples, got "
                          f"{window} s * {rate} Hz")
-    dwells = find_dwells(log.airspeed, log.applied_damping)
+    dwells = find_dwells(log.airspeed, log.applied_damping, log.density)
     names, units = spectrum_input_names(channels, frequencies)
     skipped = {"short": 0, "gap": 0, "no_airspeed": 0}
-    inputs, speeds, c2s, rms, starts = [], [], [], [], []
-    for a, b, u, c in zip(dwells.start, dwells.stop, dwells.airspeed, dwells.damping):
-        if np.isnan(u) or np.isnan(c):
+    inputs, speeds, rhos, c2s, rms, starts = [], [], [], [], [], []
+    for a, b, u, rho, c in zip(dwells.start, dwells.stop, dwells.airspeed, dwells.density,
+                               dwells.damping):
+        if np.isnan(u) or np.isnan(c) or np.isnan(rho):
             skipped["no_airspeed"] += 1
             continue
         if b - a < n_win:
@@ -310,6 +341,7 @@ def build_dataset(log, window: float = 2.0, channels: Sequence[str] = CHANNELS,
             continue
         inputs.append(spectrum_input_vector(spectrum.magnitudes, c))
         speeds.append(u)
+        rhos.append(rho)
         c2s.append(c)
         rms.append(float(np.sqrt(np.mean(disp ** 2))))
         starts.append(lo)
@@ -318,82 +350,85 @@ def build_dataset(log, window: float = 2.0, channels: Sequence[str] = CHANNELS,
             f"no usable {window:g} s window in the log: {dwells.start.size} dwell(s) found "
             f"(by changes of airspeed or applied c2), skipped {skipped}")
     return TrainingData(
-        inputs=np.array(inputs), airspeed=np.array(speeds), damping=np.array(c2s),
-        rms=np.array(rms), window_start=np.array(starts, dtype=int), window=float(window),
-        skipped=skipped, input_names=names, input_units=units)
+        inputs=np.array(inputs), airspeed=np.array(speeds), density=np.array(rhos),
+        damping=np.array(c2s), rms=np.array(rms), window_start=np.array(starts, dtype=int),
+        window=float(window), sample_rate=rate, skipped=skipped, input_names=names,
+        input_units=units)
 
 
-# -- labels, split, training --------------------------------------------------------------------
+def select_windows(data: TrainingData, keep) -> TrainingData:
+    """The windows ``keep`` (bool mask or indices) of ``data``."""
+    keep = np.asarray(keep)
+    per_window = ("inputs", "airspeed", "density", "damping", "rms", "window_start")
+    return replace(data, **{name: getattr(data, name)[keep] for name in per_window})
 
-@dataclass(frozen=True)
-class OptimalC2:
-    """Per airspeed: the c2 with the lowest measured RMS (the experiment's optimum).
 
-    Attributes
+# -- split, training --------------------------------------------------------------------------
+
+def split_by_airspeed(airspeed, validation_every: int = 5, offset: int = 2) -> np.ndarray:
+    """Hold out every ``validation_every``-th distinct airspeed, at every density.
+
+    Parameters
     ----------
-    airspeed : ndarray, shape (n_airspeeds,) [m/s], ascending
-    damping : ndarray, shape (n_airspeeds,) [N s/m] c2 of the lowest RMS
-    rms : ndarray, shape (n_airspeeds,) [m] that lowest RMS
-    n_damping : ndarray of int, shape (n_airspeeds,) windows (c2 values) seen at each airspeed
-    targets : ndarray, shape (n_windows,) [N s/m] label of every window of the data set
-    airspeed_index : ndarray of int, shape (n_windows,) index of each window's airspeed
-    """
-
-    airspeed: np.ndarray
-    damping: np.ndarray
-    rms: np.ndarray
-    n_damping: np.ndarray
-    targets: np.ndarray
-    airspeed_index: np.ndarray
-
-
-def label_min_rms(data: TrainingData, min_damping_values: int = 2) -> OptimalC2:
-    """Label each window with the c2 that minimised the measured RMS at its airspeed.
-
-    Raises
-    ------
-    TrainingDataError
-        An airspeed with fewer than ``min_damping_values`` distinct c2 windows (no choice).
-    """
-    speeds, index = np.unique(data.airspeed, return_inverse=True)
-    best_c2 = np.empty(speeds.size)
-    best_rms = np.empty(speeds.size)
-    counts = np.zeros(speeds.size, dtype=int)
-    for k in range(speeds.size):
-        members = np.flatnonzero(index == k)
-        counts[k] = np.unique(data.damping[members]).size
-        if counts[k] < min_damping_values:
-            raise TrainingDataError(
-                f"airspeed {speeds[k]:.3f} m/s has windows for {counts[k]} c2 value(s); "
-                f"labelling needs at least {min_damping_values}")
-        j = members[int(np.argmin(data.rms[members]))]
-        best_c2[k], best_rms[k] = data.damping[j], data.rms[j]
-    return OptimalC2(airspeed=speeds, damping=best_c2, rms=best_rms, n_damping=counts,
-                     targets=best_c2[index], airspeed_index=index)
-
-
-def split_by_airspeed(n_airspeeds: int, validation_every: int = 5, offset: int = 2
-                      ) -> tuple[np.ndarray, np.ndarray]:
-    """Interleaved split of airspeed indices: every ``validation_every``-th is held out.
+    airspeed : array_like, shape (n_windows,)
+        [m/s] each window's airspeed.
 
     Returns
     -------
-    train, validation : ndarray of int
-        Airspeed indices (ascending). Needs at least 2 training and 1 validation airspeed.
+    ndarray of bool, shape (n_windows,)
+        True for the training windows. Needs at least 2 training and 1 validation airspeed.
     """
     if isinstance(validation_every, bool) or not isinstance(validation_every, int) \
             or validation_every < 2:
         raise ValueError(f"validation_every must be an integer >= 2, got {validation_every!r}")
-    idx = np.arange(n_airspeeds)
+    speeds, index = np.unique(np.asarray(airspeed, dtype=float), return_inverse=True)
+    idx = np.arange(speeds.size)
     held = (idx % validation_every) == (offset % validation_every)
-    if not held.any() and n_airspeeds >= 3:
-        held[n_airspeeds // 2] = True
-    train, val = idx[~held], idx[held]
-    if train.size < 2 or val.size < 1:
+    if not held.any() and speeds.size >= 3:
+        held[speeds.size // 2] = True
+    if held.sum() < 1 or (~held).sum() < 2:
         raise TrainingDataError(
-            f"{n_airspeeds} airspeed(s) in the log: too few to hold out whole airspeeds for "
+            f"{speeds.size} airspeed(s) in the log: too few to hold out whole airspeeds for "
             f"validation (need at least 3)")
-    return train, val
+    return ~held[index.reshape(-1)]
+
+
+@dataclass(frozen=True)
+class NetworkMetrics:
+    """How a network does on a set of windows.
+
+    Attributes
+    ----------
+    rmse : float
+        [N s/m] RMS error against the labels.
+    r2 : float
+        Coefficient of determination against the labels (1 - SSE / SST; NaN if the labels are
+        constant).
+    output_min, output_max : float
+        [N s/m] the network's output range over the windows.
+    median_peak_activation : float
+        Median over the windows of the largest hidden-neuron response (1 at a centre): below
+        :data:`MIN_ACTIVATION` the network mostly outputs its bias.
+    """
+
+    rmse: float
+    r2: float
+    output_min: float
+    output_max: float
+    median_peak_activation: float
+
+
+def network_metrics(network, inputs: np.ndarray, targets: np.ndarray) -> NetworkMetrics:
+    """:class:`NetworkMetrics` of ``network`` on ``inputs`` (n, 33) against ``targets`` (n,)."""
+    hidden = network.hidden(inputs)
+    pred = hidden @ network.output_weights + network.output_bias
+    err = pred - targets
+    sst = float(np.sum((targets - targets.mean()) ** 2))
+    peak = hidden.max(axis=1) if hidden.shape[1] else np.zeros(len(targets))
+    return NetworkMetrics(rmse=float(np.sqrt(np.mean(err ** 2))),
+                          r2=1.0 - float(err @ err) / sst if sst > 0 else math.nan,
+                          output_min=float(pred.min()), output_max=float(pred.max()),
+                          median_peak_activation=float(np.median(peak)))
 
 
 @dataclass(frozen=True)
@@ -404,64 +439,112 @@ class TrainingOutcome:
     ----------
     result : OLSTrainingResult
         Training on the training airspeeds with the chosen spread (``result.network``).
-    spreads, training_rmse, validation_rmse : ndarray, shape (n_spreads,)
-        The candidates and their RMS errors [N s/m] on the training / held-out airspeeds.
-    spread : float
-        The chosen spread (lowest validation RMS error).
-    train_airspeeds, validation_airspeeds : ndarray [m/s]
-    training_error, validation_error : float
-        [N s/m] RMS error of the chosen network on the training / validation windows.
+    spreads : ndarray, shape (n_spreads,)
+        The candidates.
+    training : list of NetworkMetrics
+        Per spread, on the training windows.
+    validation : list of NetworkMetrics
+        Per spread, on the held-out windows.
+    chosen : int
+        Index of the chosen spread.
     train_mask : ndarray of bool, shape (n_windows,)
         Which windows were used for training.
+    n_candidates : int
+        Candidate centres offered to the OLS selection.
     """
 
     result: OLSTrainingResult
     spreads: np.ndarray
-    training_rmse: np.ndarray
-    validation_rmse: np.ndarray
-    spread: float
-    train_airspeeds: np.ndarray
-    validation_airspeeds: np.ndarray
-    training_error: float
-    validation_error: float
+    training: list
+    validation: list
+    chosen: int
     train_mask: np.ndarray
+    n_candidates: int
 
     @property
     def network(self):
         return self.result.network
 
+    @property
+    def spread(self) -> float:
+        return float(self.spreads[self.chosen])
 
-def train_network(data: TrainingData, labels: OptimalC2, *, spreads=DEFAULT_SPREADS,
+    @property
+    def training_metrics(self) -> NetworkMetrics:
+        return self.training[self.chosen]
+
+    @property
+    def validation_metrics(self) -> NetworkMetrics:
+        return self.validation[self.chosen]
+
+
+def train_network(data: TrainingData, labels, *, spreads=DEFAULT_SPREADS,
                   validation_every: int = 5, tolerance: float = 1e-3,
-                  max_neurons: int = 100) -> TrainingOutcome:
-    """OLS-train the RBF network; choose the spread on held-out airspeeds.
+                  max_neurons: int = 100, max_candidates: int = MAX_CANDIDATES
+                  ) -> TrainingOutcome:
+    """OLS-train the RBF network on the training airspeeds, one network per spread; keep the
+    spread with the lowest validation RMS error among those with a median peak activation of
+    at least :data:`MIN_ACTIVATION` on the held-out windows (the lowest error overall when no
+    spread reaches it: the caller then refuses the network).
 
     The input scaling is fitted on all windows (min-max of inputs, not of labels), so the
-    held-out windows lie in the scaled range the network was built for.
+    held-out windows lie in the scaled range the network was built for. ``labels`` is a
+    :class:`~dva_offline.training_labels.Labels`.
     """
     if data.inputs.shape[1] != SPECTRUM_INPUT_DIM:
-        raise ValueError(f"data has {data.inputs.shape[1]} inputs, the seed's network "
+        raise ValueError(f"data has {data.inputs.shape[1]} inputs, the study's network "
                          f"{SPECTRUM_INPUT_DIM}")
-    train_idx, val_idx = split_by_airspeed(labels.airspeed.size, validation_every)
-    train_mask = np.isin(labels.airspeed_index, train_idx)
+    grid = np.array(spreads, dtype=float, ndmin=1)
+    if grid.ndim != 1 or grid.size == 0 or not np.all(np.isfinite(grid)) or np.any(grid <= 0):
+        raise ValueError(f"spreads must be finite values > 0, got {spreads}")
+    if isinstance(max_candidates, bool) or not isinstance(max_candidates, int) \
+            or max_candidates < 1:
+        raise ValueError(f"max_candidates must be a positive integer, got {max_candidates!r}")
+    train = split_by_airspeed(data.airspeed, validation_every)
     x, y = data.inputs, labels.targets
-    selection = select_spread(
-        x[train_mask], y[train_mask], x[~train_mask], y[~train_mask], spreads,
-        tolerance=tolerance, max_neurons=max_neurons, scaling=fit_input_scaling(x),
-        input_names=data.input_names, input_units=data.input_units)
-    best = selection.best_index
-    return TrainingOutcome(
-        result=selection.best, spreads=selection.spreads,
-        training_rmse=selection.training_rmse, validation_rmse=selection.validation_rmse,
-        spread=float(selection.best_spread), train_airspeeds=labels.airspeed[train_idx],
-        validation_airspeeds=labels.airspeed[val_idx],
-        training_error=float(selection.training_rmse[best]),
-        validation_error=float(selection.validation_rmse[best]), train_mask=train_mask)
+    rows = np.flatnonzero(train)
+    if rows.size > max_candidates:
+        rows = rows[np.unique(np.linspace(0, rows.size - 1, max_candidates).round()
+                              .astype(int))]
+    scaling = fit_input_scaling(x)
+    results, on_train, on_val = [], [], []
+    for spread in grid:
+        res = train_rbf_ols(x[train], y[train], float(spread), tolerance=tolerance,
+                            max_neurons=max_neurons, scaling=scaling, candidates=x[rows],
+                            input_names=data.input_names, input_units=data.input_units)
+        results.append(res)
+        on_train.append(network_metrics(res.network, x[train], y[train]))
+        on_val.append(network_metrics(res.network, x[~train], y[~train]))
+    rmse = np.array([m.rmse for m in on_val])
+    active = np.array([m.median_peak_activation >= MIN_ACTIVATION for m in on_val])
+    chosen = int(np.argmin(np.where(active, rmse, np.inf))) if active.any() \
+        else int(np.argmin(rmse))
+    return TrainingOutcome(result=results[chosen], spreads=grid, training=on_train,
+                           validation=on_val, chosen=chosen, train_mask=train,
+                           n_candidates=int(rows.size))
 
 
-def network_c2_per_airspeed(network, data: TrainingData, labels: OptimalC2) -> np.ndarray:
-    """Mean network output over each airspeed's windows [N s/m], shape (n_airspeeds,)."""
+def network_c2_per_condition(network, data: TrainingData, labels) -> np.ndarray:
+    """Mean network output over each condition's windows [N s/m], shape (n_conditions,)."""
     pred = network.predict(data.inputs)
-    out = np.zeros(labels.airspeed.size)
-    np.add.at(out, labels.airspeed_index, pred)
-    return out / np.bincount(labels.airspeed_index, minlength=labels.airspeed.size)
+    out = np.zeros(labels.n_conditions)
+    np.add.at(out, labels.condition_index, pred)
+    return out / np.bincount(labels.condition_index, minlength=labels.n_conditions)
+
+
+def condition_predictability(data: TrainingData, train_mask: np.ndarray) -> dict[str, float]:
+    """How much of the airspeed and of the density one window's spectra carry.
+
+    Least squares of each on the 32 scaled spectrum values (and a constant) over the training
+    windows, R^2 on the held-out windows: a linear read-out, a lower bound of what the network
+    can extract. NaN where the held-out windows have one value only.
+    """
+    x = np.column_stack([data.inputs[:, :-1], np.ones(data.n_windows)])
+    out = {}
+    for name, y in (("airspeed", data.airspeed), ("density", data.density)):
+        coef, *_ = np.linalg.lstsq(x[train_mask], y[train_mask], rcond=None)
+        held = y[~train_mask]
+        sst = float(np.sum((held - held.mean()) ** 2))
+        err = x[~train_mask] @ coef - held
+        out[name] = 1.0 - float(err @ err) / sst if sst > 0 else math.nan
+    return out

@@ -1,4 +1,4 @@
-"""``dva wing``: modal analysis, flutter, DVA design and ramp flights of the wing (seed ch. 6).
+"""``dva wing``: modal analysis, flutter, DVA design and ramp flights of the wing (study ch. 6).
 
 Subcommands::
 
@@ -7,7 +7,7 @@ Subcommands::
     dva wing design    the chapter-6 DVA studies (tables 6.1-6.3, Maxwell designs)
     dva wing simulate  ramp flight 0.8 -> 1.2 U_cr with random aileron force (fig. 6.4)
 
-The wing comes from ``--wing FILE`` (default: the packaged reference wing) or, for ``modal``
+The wing comes from ``--wing FILE`` (default: the packaged chapter-6 wing) or, for ``modal``
 and ``flutter``, from a textbook typical section ``--section FILE``. Absorbers are given in SI
 units; ``--tune`` gives the tunable parameters their damping-optimal value at every airspeed.
 """
@@ -45,14 +45,14 @@ def _absorber_options(p: argparse.ArgumentParser) -> None:
 
 def _common(p: argparse.ArgumentParser, section: bool = True) -> None:
     src = p.add_mutually_exclusive_group()
-    src.add_argument("--wing", metavar="FILE", help="wing YAML (default: reference wing)")
+    src.add_argument("--wing", metavar="FILE", help="wing YAML (default: the chapter-6 wing)")
     if section:
         src.add_argument("--section", metavar="FILE",
                          help="textbook typical section YAML (semichord, mass_ratio, ...)")
     p.add_argument("--aero", choices=("quasi-steady", "theodorsen", "wagner"), default=None,
                    help="aerodynamic model (default: the wing file's, else quasi-steady)")
     p.add_argument("--pitch-damping", choices=("thin_airfoil", "printed_6_2"), default=None,
-                   help="reading of the seed's pitch-rate couple (quasi-steady)")
+                   help="reading of the study's pitch-rate couple (quasi-steady)")
     p.add_argument("--density", type=float, default=None, help="air density [kg/m^3]")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     _absorber_options(p)
@@ -80,7 +80,7 @@ def register(subparsers) -> None:
     f.set_defaults(func=_flutter)
 
     d = sub.add_parser("design", help="the chapter-6 DVA studies (tables 6.1-6.3, 6.3.2)")
-    d.add_argument("--wing", metavar="FILE", help="wing YAML (default: reference wing)")
+    d.add_argument("--wing", metavar="FILE", help="wing YAML (default: the chapter-6 wing)")
     d.add_argument("--density", type=float, default=None, help="air density [kg/m^3]")
     d.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     d.add_argument("--plot", metavar="PNG", help="write the tuned-DVA figure (fig. 6.12/6.20)")
@@ -120,7 +120,7 @@ def _setup(args, allow_section=True):
     else:
         cfg = load_wing(args.wing)
         wing, aero, rho, file_absorber = cfg.wing, cfg.aero, cfg.air_density, cfg.absorber
-        source = {"wing": args.wing or "reference"}
+        source = {"wing": args.wing or "chapter6"}
     if args.aero is not None:
         aero = aero_from_name(args.aero)
     if aero is None:
@@ -290,17 +290,17 @@ def _design(args) -> int:
     steps = tqdm(total=4, desc="design studies", file=sys.stderr)
     u_cr = dd.bare_critical_airspeed(wing, rho, aero)
     tables = {}
-    tables["table_6_1"] = _rows(dd.position_study(wing, rho, aero=aero), dd.SEED_TABLE_6_1)
+    tables["table_6_1"] = _rows(dd.position_study(wing, rho, aero=aero), dd.STUDY_TABLE_6_1)
     steps.update()
     tables["table_6_2"] = _rows(dd.mass_study(wing, rho, aero=aero),
-                                {f"{k:g}": v for k, v in dd.SEED_TABLE_6_2.items()})
+                                {f"{k:g}": v for k, v in dd.STUDY_TABLE_6_2.items()})
     steps.update()
-    seed63 = {f"constant DVA({i + 1})": row[2] for i, row in enumerate(dd.SEED_TABLE_6_3)}
+    seed63 = {f"constant DVA({i + 1})": row[2] for i, row in enumerate(dd.STUDY_TABLE_6_3)}
     seed63["tunable DVA"] = dd.SEED_TUNED_RATIO
     tables["table_6_3"] = _rows(dd.constant_absorber_study(wing, rho, aero=aero), seed63)
     steps.update()
-    seedmx = {f"Maxwell DVA({i + 1})": row[3] for i, row in enumerate(dd.SEED_MAXWELL_DESIGNS)}
-    tables["maxwell"] = _rows(dd.maxwell_study(wing, rho, aero=aero), seedmx)
+    studymx = {f"Maxwell DVA({i + 1})": row[3] for i, row in enumerate(dd.SEED_MAXWELL_DESIGNS)}
+    tables["maxwell"] = _rows(dd.maxwell_study(wing, rho, aero=aero), studymx)
     steps.update()
     steps.close()
     if args.plot:
@@ -313,12 +313,12 @@ def _design(args) -> int:
             aero)
         u = np.linspace(0.5, 1.25, 31) * u_cr
         plot_tuned(dd.best_damping_curve(model, u, rho), u_cr, args.plot)
-    payload = {"wing": args.wing or "reference", "density": rho, "aero": aero.name,
+    payload = {"wing": args.wing or "chapter6", "density": rho, "aero": aero.name,
                "bare_critical_airspeed": u_cr, **tables}
     lines = [f"bare wing critical airspeed: {u_cr:.4f} m/s"]
     for name, rows in tables.items():
-        lines.append(f"{name}:  label  project  seed")
-        lines += [f"  {r['label']:22s} {r['ratio']:.4f}  {r['seed']}" for r in rows]
+        lines.append(f"{name}:  label  project  study")
+        lines += [f"  {r['label']:22s} {r['ratio']:.4f}  {r['study']}" for r in rows]
     _emit(args, payload, lines)
     return 0
 

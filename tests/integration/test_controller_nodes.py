@@ -24,7 +24,6 @@ from aero_dva.control.rbf_io import save_rbf_network
 from aero_dva.control.rbf_network import spectrum_input_names, train_rbf_ols
 from aero_dva.control.schedule_io import save_schedule
 from aero_dva.control.spectrum import scaled_spectrum
-from dva_controller import messages
 from dva_controller.airspeed_controller_node import AirspeedController
 from dva_controller.rbf_controller_node import RBFController
 from dva_controller.spectrum_node import SpectrumNode
@@ -97,7 +96,7 @@ def _signals(n: int) -> np.ndarray:
 def _block(samples: np.ndarray, start: int) -> AccelerationBlock:
     chunk = samples[:, start : start + BLOCK]
     stamp = conversions.ns_to_time(T0_NS + round(start * 1e9 / FS))
-    return messages.acceleration_block(stamp, FS, start, *chunk)
+    return conversions.acceleration_block(stamp, FS, start, chunk)
 
 
 def test_spectrum_node_windows_match_pure_function_and_gap_resets(executor, spin, ros_context):
@@ -210,7 +209,7 @@ def test_spectrum_node_rejects_bad_parameters(ros_context):
 
 # ---------------------------------------------------------------------------- airspeed
 def _condition(t_s: float, airspeed: float) -> FlightCondition:
-    return messages.flight_condition(conversions.ns_to_time(round(t_s * 1e9)), airspeed)
+    return conversions.flight_condition(conversions.ns_to_time(round(t_s * 1e9)), airspeed)
 
 
 def _airspeed_rig(executor, spin, ros_context, **params):

@@ -1,4 +1,4 @@
-"""``dva evaluate`` on a tiny subset, through the real node graph (run_flight per flight)."""
+"""``dva evaluate --graph`` on a tiny subset, through the real node graph (run_flight each)."""
 from __future__ import annotations
 
 import json
@@ -9,8 +9,8 @@ import pytest
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
-# A short, fast ramp: 0.8 -> 1.3 U_cr in 10 s (the seed's is 0.8 -> 1.2 in 30 s), so the wing
-# without DVA (U_cr) and with the best fixed c2 (about 1.14 U_cr) both diverge within it.
+# A short, fast ramp: 0.8 -> 1.3 U_cr in 10 s (the study's is 0.8 -> 1.2 in 30 s), so the wing
+# without DVA (U_cr) and with the best fixed c2 (1.15 U_cr) both diverge within it.
 SCENARIO = """\
 name: short_ramp
 duration: 10.0
@@ -31,7 +31,7 @@ def test_evaluate_flies_the_subset_and_tabulates_it(tmp_path):
     scenario = tmp_path / "short_ramp.yaml"
     scenario.write_text(SCENARIO)
     out = tmp_path / "ev"
-    argv = ["evaluate", "--out", str(out), "--scenario", str(scenario), "--seeds", "1",
+    argv = ["evaluate", "--graph", "--out", str(out), "--scenario", str(scenario), "--seeds", "1",
             "--mu", "0,0.1", "--controllers", "none,fixed", "--no-rrd", "--json"]
     result = _dva(*argv)
     assert result.returncode == 0, result.stderr[-2000:]

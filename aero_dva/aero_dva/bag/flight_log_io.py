@@ -11,23 +11,17 @@ from pathlib import Path
 
 import numpy as np
 
-from aero_dva.bag.cdr_decoding import (
-    CdrDecodeError,
-    decode_damper_state_applied,
-    decode_flight_condition,
-    decode_sample_block,
-)
-from aero_dva.bag.mcap_io import BagReadError, bag_topics, read_messages
+from aero_dva.bag import channels as ch
+from aero_dva.bag.bag_reader import BagReadError, bag_topics, read_messages
+from aero_dva.wing.model import ACCELERATION_NAMES, DISPLACEMENT_NAMES
 
-TOPIC_TYPES = {
-    "/wing/acceleration": "dva_msgs/msg/AccelerationBlock",
-    "/wing/displacement": "dva_msgs/msg/DisplacementBlock",
-    "/wing/excitation": "dva_msgs/msg/ForceBlock",
-    "/flight/condition": "dva_msgs/msg/FlightCondition",
-    "/dva/damper_state": "dva_msgs/msg/DamperState",
-}
-REQUIRED = ("/wing/displacement", "/flight/condition")
-SAMPLE_CHANNELS = {"/wing/acceleration": 3, "/wing/displacement": 4, "/wing/excitation": 1}
+#: Topics a flight log reads, relative to the simulator's namespace (``/diagnostics`` global).
+FLIGHT_TOPICS = (ch.DISPLACEMENT, ch.ACCELERATION, ch.EXCITATION, ch.FLIGHT_CONDITION,
+                 ch.DAMPER_STATE)
+REQUIRED = (ch.DISPLACEMENT, ch.FLIGHT_CONDITION)
+# Sample topics -> the message fields that make the rows of their FlightLog array.
+SAMPLE_ROWS = {ch.DISPLACEMENT: DISPLACEMENT_NAMES, ch.ACCELERATION: ACCELERATION_NAMES,
+               ch.EXCITATION: ("aileron_force",)}
 
 
 @dataclass(frozen=True)
@@ -63,14 +57,23 @@ class FlightLog:
     diagnostics: tuple[dict, ...]
 
 
-def _fill(target: np.ndarray, blocks: list[tuple[int, tuple[np.ndarray, ...]]]) -> None:
+def _fill(target: np.ndarray, blocks: list[tuple[int, list[np.ndarray]]]) -> None:
+    """Put each block's rows at its first sample index."""
     for index, channels in blocks:
         for row, values in zip(target, channels):
             row[index:index + values.size] = values
 
 
-def load_flight_log(bag: str | Path, namespace: str = "") -> FlightLog:
+def _stamp(msg) -> float:
+    return msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+
+
+def load_flight_log(bag: str | Path, namespace: str = "", *,
+                    allow_truncated: bool = False) -> FlightLog:
     """Read the flight topics of ``bag`` (optionally under ``namespace``).
+
+    ``allow_truncated`` reads what a cut or unclosed bag holds before the damage (with a
+    RuntimeWarning); otherwise such a bag is refused with a message naming ``dva bag recover``.
 
     Raises
     ------
@@ -78,41 +81,35 @@ def load_flight_log(bag: str | Path, namespace: str = "") -> FlightLog:
         Unreadable bag, a required topic (displacement, flight condition) missing, a topic of
         the wrong type, or a sample rate that changes within the flight.
     """
-    prefix = "/" + namespace.strip("/") if namespace.strip("/") else ""
-    topics = {prefix + name: kind for name, kind in TOPIC_TYPES.items()}
-    present = bag_topics(bag)
-    for name in REQUIRED:
-        if prefix + name not in present:
-            raise BagReadError(f"{bag}: no topic {prefix + name} (the flight's "
-                               f"{name.rsplit('/', 1)[-1]}); topics: {sorted(present)}")
-    if "/diagnostics" in present:  # global name, shared by every node
-        topics["/diagnostics"] = "diagnostic_msgs/msg/DiagnosticArray"
-    wanted = [t for t in topics if t in present]
-    blocks: dict[str, list] = {t: [] for t in topics}  # sample topics -> [(index, values)]
+    topics = {c.absolute(namespace): c for c in FLIGHT_TOPICS}
+    present = bag_topics(bag, allow_truncated=allow_truncated)
+    for channel in REQUIRED:
+        if channel.absolute(namespace) not in present:
+            raise BagReadError(f"{bag}: no topic {channel.absolute(namespace)} (the flight's "
+                               f"{channel.name.rsplit('/', 1)[-1]}); topics: {sorted(present)}")
+    wanted = {name: c for name, c in topics.items() if name in present}
+    blocks: dict = {c: [] for c in SAMPLE_ROWS}  # sample topic -> [(first index, rows)]
     rates = set()
     conditions, damper, diagnostics = [], [], []
-    flight_topics = [t for t in wanted if t != "/diagnostics"]
-    # The flight topics are decoded here (cdr_decoding: numpy views of the sample arrays, ~50x
-    # faster than the generic decoder on a sweep's 10^6 blocks); /diagnostics generically.
-    for record in read_messages(bag, flight_topics, decode=False, log_time_order=False,
-                                expected_types={t: topics[t] for t in flight_topics}):
-        name = record.topic[len(prefix):] if record.topic.startswith(prefix) else record.topic
-        try:
-            if name in SAMPLE_CHANNELS:
-                block = decode_sample_block(record.message, SAMPLE_CHANNELS[name],
-                                            record.type_name)
-                rates.add(block.sample_rate)
-                blocks[record.topic].append((block.first_index, block.channels))
-            elif name == "/flight/condition":
-                conditions.append(decode_flight_condition(record.message))
-            elif name == "/dva/damper_state":
-                damper.append(decode_damper_state_applied(record.message))
-        except CdrDecodeError as exc:
-            raise BagReadError(f"{bag}: a message on {record.topic} does not decode: "
-                               f"{exc}") from None
-    if "/diagnostics" in wanted:
-        for record in read_messages(bag, ["/diagnostics"],
-                                    expected_types={"/diagnostics": topics["/diagnostics"]}):
+    for record in read_messages(bag, wanted, log_time_order=False,
+                                allow_truncated=allow_truncated,
+                                expected_types={t: c.type_name for t, c in wanted.items()}):
+        channel, msg = wanted[record.topic], record.message
+        if channel in SAMPLE_ROWS:
+            rows = [getattr(msg, field) for field in SAMPLE_ROWS[channel]]
+            if len({row.size for row in rows}) > 1:
+                raise BagReadError(f"{bag}: a message on {record.topic} has arrays of "
+                                   f"different lengths {[row.size for row in rows]}")
+            rates.add(float(msg.sample_rate))
+            blocks[channel].append((int(msg.first_sample_index), rows))
+        elif channel == ch.FLIGHT_CONDITION:
+            conditions.append((_stamp(msg), msg.airspeed, msg.air_density))
+        elif channel == ch.DAMPER_STATE:
+            damper.append((_stamp(msg), msg.applied_damping))
+    if ch.DIAGNOSTICS.name in present:  # global name, shared by every node
+        for record in read_messages(bag, [ch.DIAGNOSTICS.name], allow_truncated=allow_truncated,
+                                    expected_types={ch.DIAGNOSTICS.name:
+                                                    ch.DIAGNOSTICS.type_name}):
             diagnostics.extend(
                 {"name": st.name, "message": st.message, "level": _level(st.level),
                  "values": {kv.key: kv.value for kv in st.values}}
@@ -120,21 +117,22 @@ def load_flight_log(bag: str | Path, namespace: str = "") -> FlightLog:
     if len(rates) != 1:
         raise BagReadError(f"{bag}: sample rate must be one value over the flight, got {rates}")
     rate = rates.pop()
-    disp_blocks = blocks[prefix + "/wing/displacement"]
-    n = max(i + v[0].size for i, v in disp_blocks)
-    displacements = np.full((4, n), np.nan)
-    _fill(displacements, disp_blocks)
-    accelerations = np.full((3, n), np.nan)
-    _fill(accelerations, blocks[prefix + "/wing/acceleration"])
-    force = np.full((1, n), np.nan)
-    _fill(force, blocks[prefix + "/wing/excitation"])
+    if not blocks[ch.DISPLACEMENT]:
+        raise BagReadError(f"{bag}: no displacement block to read")
+    # The flight spans every sample any topic holds (a cut log may end between topics).
+    n = max(i + v[0].size for topic_blocks in blocks.values() for i, v in topic_blocks)
+    arrays = {}
+    for channel, names in SAMPLE_ROWS.items():
+        arrays[channel] = np.full((len(names), n), np.nan)
+        _fill(arrays[channel], blocks[channel])
     time = np.arange(n) / rate
     airspeed, density = _held(time, conditions, 2)
     (applied,) = _held(time, damper, 1)
+    displacements = arrays[ch.DISPLACEMENT]
     return FlightLog(
         sample_rate=rate, time=time, airspeed=airspeed, density=density,
-        displacements=displacements, accelerations=accelerations, force=force[0],
-        applied_damping=applied,
+        displacements=displacements, accelerations=arrays[ch.ACCELERATION],
+        force=arrays[ch.EXCITATION][0], applied_damping=applied,
         missing_samples=int(np.isnan(displacements[0]).sum()),
         diagnostics=tuple(diagnostics),
     )

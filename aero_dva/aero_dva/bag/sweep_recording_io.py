@@ -1,6 +1,6 @@
 """Record a stepped sweep through the batch path, simulated parallel in time.
 
-:func:`record_sweep` writes the bag :func:`~aero_dva.bag.batch_recording_io.record_runtime`
+:func:`record_sweep` writes the bag :func:`~aero_dva.bag.runtime_recording.record_runtime`
 writes for the same flight (same topics, schemas, messages and diagnostics; the samples equal
 to round-off), from whole arrays computed by :mod:`aero_dva.flight.sweep_simulator` instead of
 50-sample steps. Per process, the main thread simulates chunk after chunk while a second
@@ -28,16 +28,15 @@ from pathlib import Path
 
 import numpy as np
 
-from aero_dva.bag.batch_recording_io import (
-    _BLOCK_TOPICS,
-    _DAMPER_COLUMNS,
-    BatchRecorder,
+from aero_dva.bag.bag_writer import BagSummary, create_bag_directory
+from aero_dva.bag.batch_recorder import DAMPER_COLUMNS, BatchRecorder, load_definitions
+from aero_dva.bag.chunk_framing import close_split_bag
+from aero_dva.bag.runtime_recording import (
     RecordedFlight,
-    _summary_values,
-    close_split_bag,
+    flight_status_values,
+    published_topics,
     record_runtime,
 )
-from aero_dva.bag.mcap_io import BagSummary, create_bag_directory
 from aero_dva.flight import sweep_simulator
 from aero_dva.flight.damper import DamperModel, DamperStatus
 from aero_dva.flight.discrete_model import ACCELERATION_OUTPUTS, OUTPUT_NAMES
@@ -93,7 +92,7 @@ def record_sweep(bag_dir, runtime, progress: Callable[[int, int], None] | None =
 
     A flight the parallel path does not model
     (:func:`~aero_dva.flight.sweep_simulator.unsupported_reason`: not a sweep, varying density, a
-    hidden plant, ...) is flown by :func:`~aero_dva.bag.batch_recording_io.record_runtime`
+    hidden plant, ...) is flown by :func:`~aero_dva.bag.runtime_recording.record_runtime`
     instead (one process), so this is always safe to call. ``runtime`` is only read (its
     config, scenario and critical airspeed), not stepped.
 
@@ -135,9 +134,8 @@ def record_sweep(bag_dir, runtime, progress: Callable[[int, int], None] | None =
         (Linux; elsewhere 1 is used), and forks the calling process: call it where no other
         thread holds a lock the processes need (the CLI runs no other thread).
     **options
-        ``namespace``, ``compression``, ``chunk_size``, ``ros_distro``, ``engine``,
-        ``chunk_crc`` of :class:`~aero_dva.bag.batch_recording_io.BatchRecorder`
-        (``engine="bagwriter"`` only with one process).
+        ``namespace``, ``compression``, ``chunk_size``, ``ros_distro``, ``chunk_crc`` of
+        :class:`~aero_dva.bag.batch_recorder.BatchRecorder`.
 
     Returns
     -------
@@ -177,8 +175,6 @@ def record_sweep(bag_dir, runtime, progress: Callable[[int, int], None] | None =
                    chunk_samples=chunk_samples or sweep_simulator.CHUNK_SAMPLES,
                    overlap=len(spans) == 1 if overlap is None else bool(overlap),
                    started=started)
-    if len(spans) > 1 and options.get("engine", "numpy") != "numpy":
-        raise ValueError("jobs > 1 writes a split bag, which needs engine='numpy'")
     total = plan.n_samples
 
     def report(done: int) -> None:
@@ -260,8 +256,8 @@ def _write_status(sweep: _Sweep, recorder: BatchRecorder, done: int,
     """The node's final "simulator: flight" status: completed, or where the wing diverged."""
     runtime, rate = sweep.runtime, sweep.rate
     blocks = -(-done // sweep.block)
-    published = {t: blocks for _, t in _BLOCK_TOPICS if not t.startswith("/")}
-    values = _summary_values(done / rate, sweep.started, runtime, published)
+    published = dict.fromkeys(published_topics(), blocks)
+    values = flight_status_values(done / rate, sweep.started, runtime, published)
     if diverged_at is None:
         recorder.write_diagnostics(done / rate, [("ok", "flight completed", values)])
         return
@@ -292,6 +288,7 @@ def _record_split(bag_dir, sweep: _Sweep, spans: list[tuple[int, int]],
     """Fly ``spans[:-1]`` in forked processes and the last span here; returns (bag summary,
     samples flown to, first sample of the diverging block or None)."""
     context = multiprocessing.get_context("fork")
+    load_definitions()  # once, inherited by the forked processes
     directory, _ = create_bag_directory(bag_dir)
     names = [f"{directory.name}_{j}.mcap" for j in range(len(spans))]
     counters = [context.Value("q", 0, lock=False) for _ in spans]
@@ -547,5 +544,5 @@ def _sweep_damper_states(config, t0: np.ndarray, c2: np.ndarray) -> dict[str, np
                              f"({snap.status.name}); the stepped path records that")
         rows.append((snap.time, snap.commanded_damping, snap.applied_damping,
                      snap.min_damping, snap.max_damping, snap.command_age, int(snap.status)))
-    table = np.array(rows, dtype=np.float64).reshape(-1, 7)
-    return dict(zip(_DAMPER_COLUMNS, table.T))
+    table = np.array(rows, dtype=np.float64).reshape(-1, len(DAMPER_COLUMNS))
+    return dict(zip(DAMPER_COLUMNS, table.T))

@@ -306,7 +306,7 @@ def _cmd_flight(args) -> int:
     settings = FlightSettings(band=band, window_s=args.window,
                               segment_windows=args.segment_windows, settle_s=args.settle)
     print(f"reading {path} ...", file=sys.stderr, flush=True)
-    log = load_flight_log(path, namespace=args.namespace)
+    log = load_flight_log(path, namespace=args.namespace, allow_truncated=args.allow_truncated)
     wing = load_wing(args.wing)
     domain = FlightDomain(arrays_from_log(log), wing, settings)
     rng = None if args.holdout_seed is None else np.random.default_rng(args.holdout_seed)
@@ -490,7 +490,7 @@ def register(subparsers) -> None:
     p = sub.add_parser("flight", help="flight log (MCAP) against the wing + Maxwell DVA model")
     p.add_argument("file", help="rosbag2 directory or .mcap file of a flight (simulator node "
                                "or batch recorder)")
-    p.add_argument("--wing", default=None, help="wing file (default: the reference wing)")
+    p.add_argument("--wing", default=None, help="wing file (default: the chapter-6 wing)")
     p.add_argument("--namespace", default="", help="topic namespace of the flight")
     p.add_argument("--band", default="2,20", help="frequency band LOW,HIGH [Hz] (default 2,20)")
     p.add_argument("--window", type=float, default=1.0,
@@ -507,6 +507,9 @@ def register(subparsers) -> None:
     p.add_argument("--plot-dir", "--plot", dest="plot_dir", default=None,
                    help="write PNG plots into this directory")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.add_argument("--allow-truncated", action="store_true",
+                   help="read a bag that was not closed or is cut up to the damage (warns); "
+                        "`dva bag recover` makes a complete copy instead")
     p.set_defaults(func=_cmd_flight)
 
     p = sub.add_parser("synth-flight",

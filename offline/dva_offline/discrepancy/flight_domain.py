@@ -20,7 +20,7 @@ coherent with the force well above the modes), so the residual w_j (H_model,j - 
 relative error scaled to the median point's noise and a correct model leaves residuals of about
 equal size everywhere (the loop's noise floor and consistency test assume that).
 
-Baseline: :class:`~aero_dva.wing.model.AeroelasticModel` of the wing file (reference wing
+Baseline: :class:`~aero_dva.wing.model.AeroelasticModel` of the wing file (chapter-6 wing
 by default) with its Maxwell DVA and aerodynamics, calibrated by three parameters: pitch
 stiffness k_alpha, plunge stiffness k and the structural damping factor beta (each within a
 factor 1.5 of the file's value).
@@ -44,6 +44,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import lfilter
 
+from aero_dva.bag import channels
 from aero_dva.flight.discrete_model import DiscreteWing, pitch_moment_input
 from aero_dva.flight.modal_simulator import ModalBlocks, simulate
 from aero_dva.wing.aerodynamics import QuasiSteadyAero, TheodorsenAero, WagnerAero
@@ -156,11 +157,11 @@ def arrays_from_log(log) -> FlightArrays:
     """
     missing = []
     if np.all(np.isnan(log.accelerations)):
-        missing.append("/wing/acceleration (accelerations)")
+        missing.append(f"{channels.ACCELERATION.absolute()} (accelerations)")
     if np.all(np.isnan(log.force)):
-        missing.append("/wing/excitation (aileron force)")
+        missing.append(f"{channels.EXCITATION.absolute()} (aileron force)")
     if np.all(np.isnan(log.applied_damping)):
-        missing.append("/dva/damper_state (c2)")
+        missing.append(f"{channels.DAMPER_STATE.absolute()} (c2)")
     if missing:
         raise FlightDataError("the log lacks " + ", ".join(missing)
                               + "; a flight log needs force, accelerations, flight condition "

@@ -1,7 +1,7 @@
 """Test flights that hide one plant effect (the generator of the flight-domain tests).
 
-Not used by the engine. A case is a stepped flight of the reference wing recorded through the
-batch path (:func:`aero_dva.bag.batch_recording_io.record_runtime`) into an MCAP bag, flown
+Not used by the loop. A case is a stepped flight of the reference wing recorded through the
+batch path (:func:`aero_dva.bag.runtime_recording.record_runtime`) into an MCAP bag, flown
 with a hidden plant (:mod:`aero_dva.flight.hidden_plant`) that the log does not reveal:
 
 - three airspeeds drawn in 0.55-0.85 U_cr, flown in a random order and then again in the same
@@ -101,7 +101,7 @@ def generate_flight(effect: str | None, seed: int, out_dir, dwell: float = 4.0) 
     dwell : float
         [s] seconds per (airspeed, c2) pair; the flight lasts 12 dwells.
     """
-    from aero_dva.bag.batch_recording_io import record_runtime
+    from aero_dva.bag.runtime_recording import record_runtime
     from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
     from aero_dva.flight.scenario import AirspeedProfile, Scenario
 

@@ -11,10 +11,12 @@ setup(
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
     ],
-    install_requires=["setuptools"],
+    # aero-dva: the ROS-free domain package (aero_dva/), installed by scripts/setup.sh
+    install_requires=["setuptools", "aero-dva"],
     zip_safe=True,
     maintainer="aero-dva maintainers",
     maintainer_email="maintainers@aero-dva.org",
-    description="Executor, node main(), parameters and diagnostics shared by the aero-dva nodes.",
+    description="Executor, node main(), parameters, diagnostics and message conversions "
+                "shared by the aero-dva nodes.",
     license="Apache-2.0",
 )

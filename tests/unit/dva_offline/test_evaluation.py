@@ -76,7 +76,7 @@ def test_best_fixed_damping_finds_the_maximum_between_grid_points():
         best_fixed_damping(lambda c: math.nan, [0.0, 1.0, 2.0])
 
 
-def test_best_fixed_damping_of_the_reference_wing_beats_its_neighbours():
+def test_best_fixed_damping_of_the_default_wing_beats_its_neighbours():
     from aero_dva.wing.flutter import flutter_speed
     from aero_dva.wing.model import AeroelasticModel
     from aero_dva.wing.wing_io import load_wing
@@ -88,7 +88,7 @@ def test_best_fixed_damping_of_the_reference_wing_beats_its_neighbours():
         return flutter_speed(model, 1.2, damping=c2).critical_airspeed
 
     choice = best_fixed_damping(critical, np.linspace(0, 2500, 11))
-    assert 250 < choice.damping < 750  # the grid's best is 500 (step 250)
+    assert 500 < choice.damping < 750  # between the grid's best two (step 250)
     for delta in (-20.0, 20.0):
         assert critical(choice.damping + delta) <= choice.critical_airspeed + 1e-6
     assert choice.critical_airspeed >= np.nanmax(choice.grid_critical_airspeed)
@@ -141,7 +141,7 @@ def test_aggregate_counts_diverged_not_diverged_and_failed_flights():
     assert sch0.mean == pytest.approx(1.155) and sch0.std == pytest.approx(np.std([1.16, 1.15],
                                                                                   ddof=1))
     assert (rbf1.n_flights, rbf1.n_failed, rbf1.min, rbf1.max) == (4, 1, 1.10, 1.12)
-    assert sch1.seed_ratio == SEED_RATIOS["schedule"][0.1] == 1.04
+    assert sch1.study_ratio == SEED_RATIOS["schedule"][0.1] == 1.04
     assert sch1.mean_rms == pytest.approx(2e-3)
     table = markdown_table(stats)
     assert "| airspeed schedule | 0 | 3 | 2 (1 reached the end) | 1.155 |" in table
@@ -173,25 +173,18 @@ def test_summary_plot_is_written(tmp_path):
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
-def test_cli_rejects_bad_options_in_one_line(capsys, tmp_path):
-    for argv, message in ((["--mu", "0,2"], "--mu"), (["--controllers", "pid"], "--controllers"),
-                          (["--seeds", "0"], "--seeds"),
-                          (["--scenario", str(tmp_path / "nope.yaml")], "nope.yaml")):
-        assert cli.main(["evaluate", "--out", str(tmp_path / "ev"), *argv]) == 2
-        err = capsys.readouterr().err
-        assert err.startswith("dva evaluate: error:") and message in err
-
-
-MINI_SWEEP = """\
-name: mini_sweep
-duration: auto
-sample_rate: 1000.0
-block_size: 50
-airspeed: {kind: steps, ratios: [0.90, 0.93, 0.96, 0.98, 1.0]}
-density: {base: 1.2}
-excitation: {force_std: 1000.0, seed: 11}
-sweep: {dwell: 4.0, damping: [100.0, 250.0, 400.0, 700.0, 1100.0]}
-"""
+@pytest.mark.parametrize("argv,message", [
+    (["--graph", "--mu", "0,2"], "--mu"), (["--graph", "--controllers", "pid"], "--controllers"),
+    (["--graph", "--seeds", "0"], "--seeds"), (["--controllers", "pid"], "--controllers"),
+    (["--seeds", "0"], "--seeds"), (["--cases", "rho0,moon"], "--cases"),
+    (["--rms-range", "1.1:0.9"], "--rms-range"), (["--rms-range", "x"], "--rms-range"),
+    (["--scenario", "nope.yaml"], "nope.yaml")])
+def test_cli_rejects_bad_options_in_one_line(capsys, tmp_path, argv, message):
+    argv = [str(tmp_path / a) if a.endswith(".yaml") else a for a in argv]
+    assert cli.main(["evaluate", "--out", str(tmp_path / "ev"), *argv]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("dva evaluate: error:") and message in err
+    assert len(err.strip().splitlines()) == 1
 
 
 def test_missing_inputs_are_made_with_the_project_commands(tmp_path):
@@ -202,21 +195,23 @@ def test_missing_inputs_are_made_with_the_project_commands(tmp_path):
 
     from aero_dva.control.rbf_io import load_rbf_network
     from aero_dva.control.schedule_io import load_schedule
-    from dva_offline.evaluation_cli import _inputs
+    from dva_offline.evaluation_inputs import inputs as _inputs
 
-    (tmp_path / "mini.yaml").write_text(MINI_SWEEP)
-    sweep = tmp_path / "sweep"
-    done = subprocess.run([sys.executable, "-m", "dva_offline.cli", "train", "sweep", "--as-is",
-                           "--scenario", str(tmp_path / "mini.yaml"), "--out", str(sweep)],
-                          capture_output=True, text=True, timeout=300)
+    sweep = tmp_path / "sweep"  # a mini training plan (264 s of flight)
+    done = subprocess.run([sys.executable, "-m", "dva_offline.cli", "train", "sweep",
+                           "--ratios", "0.8:1.12:0.02", "--factors", "1.0,1.1", "--n-damping",
+                           "4", "--out", str(sweep)], capture_output=True, text=True,
+                          timeout=300)
     assert done.returncode == 0, done.stderr
     args = Namespace(schedule=None, fixed_c2=None, network=None, sweep_bag=str(sweep))
     said = []
     made = _inputs(args, ("fixed", "schedule", "rbf"), tmp_path / "inputs", said.append)
     schedule = load_schedule(made["schedule"])
     assert schedule.a1 > 0  # the optimal c2 rises with airspeed near the limit
-    assert made["fixed_c2"]["damping"] == pytest.approx(446.9, abs=1.0)
-    assert made["fixed_c2"]["critical_ratio"] == pytest.approx(1.1447, abs=1e-3)
+    # the chapter-6 wing: c2 = 624.7 N s/m keeps it stable up to 1.1505 U_cr
+    assert made["fixed_c2"]["damping"] == pytest.approx(624.7, abs=1.0)
+    assert made["fixed_c2"]["critical_ratio"] == pytest.approx(1.1505, abs=1e-3)
+    assert made["fixed_c2"]["flutter_frequency"] == pytest.approx(8.48, abs=0.01)
     assert load_rbf_network(made["network"]).input_dim == 33
     assert len(said) == 3  # one progress line per input made
     again = _inputs(args, ("fixed", "schedule", "rbf"), tmp_path / "inputs", said.append)

@@ -7,9 +7,9 @@ import shutil
 import numpy as np
 import pytest
 
+from aero_dva.bag.bag_reader import bag_topics
 from aero_dva.bag.flight_log_io import load_flight_log
 from aero_dva.bag.flight_summary import summarize
-from aero_dva.bag.mcap_io import bag_topics
 from dva_offline import cli
 from dva_offline.run_report import SpectrumTrack, build_report
 from dva_offline.run_report_io import inspect_rrd, load_run, write_report, write_rrd
@@ -32,7 +32,7 @@ SERIES = {"/wing/plunge", "/wing/pitch", "/wing/leading_edge", "/damper/c2",
 @pytest.fixture(scope="module")
 def bag(tmp_path_factory):
     """A diverging flight recorded through the batch path (the simulator node's topics)."""
-    from aero_dva.bag.batch_recording_io import record_runtime
+    from aero_dva.bag.runtime_recording import record_runtime
     from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
 
     root = tmp_path_factory.mktemp("report")
@@ -121,3 +121,19 @@ def test_cli_names_a_missing_or_unfinished_bag(bag, tmp_path, capsys):
     assert cli.main(["report", str(unfinished), "--out", str(tmp_path / "u")]) == 2
     err = capsys.readouterr().err
     assert err.startswith("dva report: error:") and "metadata.yaml" in err
+    assert "dva bag recover" in err and "allow_truncated" not in err
+    assert not (tmp_path / "u").exists()  # nothing written for a refused bag
+
+
+def test_cli_reads_a_cut_bag_with_allow_truncated(bag, tmp_path, capsys):
+    cut = tmp_path / "cut"
+    cut.mkdir()
+    data = next(bag.glob("*.mcap")).read_bytes()
+    (cut / "cut_0.mcap").write_bytes(data[:len(data) * 2 // 3])
+    assert cli.main(["report", str(cut), "--out", str(tmp_path / "r"), "--no-rrd", "--json",
+                     "--allow-truncated"]) == 0
+    captured = capsys.readouterr()
+    payload = json.loads(captured.out)
+    assert 0 < payload["message_counts"]["/wing/displacement"] < \
+        bag_topics(bag)["/wing/displacement"].message_count
+    assert captured.err.count("dva report: warning: MCAP file") == 1  # one line, once

@@ -1,8 +1,9 @@
 """``mcap_recorder``: record topics to a rosbag2-layout MCAP bag, like ``ros2 bag record -s mcap``.
 
 Topics are discovered while the node runs and recorded as serialized CDR, untouched, with their
-``ros2msg`` schemas (and dependencies) from the installed .msg files. On SIGINT/SIGTERM the bag
-is closed cleanly: everything received is in the MCAP file, and ``metadata.yaml`` is written.
+``ros2msg`` schemas (and dependencies) from the installed .msg files. On SIGINT/SIGTERM the
+recorder first takes what is still queued (it can lag its publishers under load), then closes
+the bag cleanly: everything received is in the MCAP file, and ``metadata.yaml`` is written.
 
 Its parameters (units, defaults, ranges) are the table ``SPEC`` below, which the node declares
 them from and ``mcap_recorder --help`` prints. Log times are the node's clock: sim time with
@@ -19,7 +20,8 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile, QoSReliabilityPolicy
 
-from aero_dva.bag.mcap_io import BagWriter, MessageDefinitionNotFound, qos_profile_yaml
+from aero_dva.bag.bag_writer import BagWriter, qos_profile_yaml
+from aero_dva.bag.schemas import MessageDefinitionNotFound
 from dva_ros_common.conversions import message_class
 from dva_ros_common.node_params import NodeSpec, Param, declare_parameters
 from dva_ros_common.node_tools import run_node
@@ -154,7 +156,8 @@ class McapRecorder(Node):
 
 
 def main(args=None) -> int:
-    return run_node(McapRecorder, SPEC, args)
+    # On SIGINT/SIGTERM, record what is still queued before closing the bag.
+    return run_node(McapRecorder, SPEC, args, drain=lambda node: node.received)
 
 
 if __name__ == "__main__":

@@ -20,10 +20,11 @@ import sys
 import time
 from pathlib import Path
 
+from aero_dva.bag import channels as ch
 from aero_dva_sim.run_flight import die_with_parent, executable, ros_params, stop_process
 
 CONTROLLERS = ("rbf", "schedule", "fixed")
-INPUTS = ("/wing/acceleration", "/dva/damper_state", "/flight/condition")
+INPUTS = tuple(c.absolute() for c in (ch.ACCELERATION, ch.DAMPER_STATE, ch.FLIGHT_CONDITION))
 DEFAULT_RATE = 10.0  # x recorded speed; docs/replay.md: what the graph keeps up with here
 
 
@@ -50,10 +51,15 @@ def build_commands(args, inputs: list[str]) -> dict[str, list[str]]:
                                         "--ros-args",
                                         *ros_params(damping=args.damping, rate=20.0, **sim_time)]
     others = list(commands)
+    # The links between the nodes must be up before the first message, not only the nodes:
+    # the spectra reach the network and the recorder, the commands the recorder.
+    links = ["/dva/spectrum:2", "/dva/damper_command:1"] if args.controller == "rbf" \
+        else ["/dva/damper_command:1"]
     commands["bag_player"] = [
         executable("aero_dva_sim", "bag_player"), "--ros-args",
         *ros_params(bag=args.bag, rate=args.rate, wait_for_subscribers=1,
                  wait_for_nodes="[" + ",".join(others) + "]",
+                 wait_for_topics="[" + ",".join(f'"{t}"' for t in links) + "]", delay=1.0,
                  topics="[" + ",".join(inputs) + "]", wait_timeout=60.0),
     ]
     return commands
@@ -61,7 +67,7 @@ def build_commands(args, inputs: list[str]) -> dict[str, list[str]]:
 
 def run(args) -> dict:
     """Run the replay graph; return a summary (raises SystemExit on failure)."""
-    from aero_dva.bag.mcap_io import bag_topics
+    from aero_dva.bag.bag_reader import bag_topics
 
     present = bag_topics(args.bag)
     inputs = [t for t in INPUTS if t in present]

@@ -21,24 +21,16 @@ import sys
 import time
 
 import numpy as np
-from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.task import Future
-from rosgraph_msgs.msg import Clock as ClockMsg
 
+from aero_dva.bag import channels as ch
 from aero_dva.flight.damper import DamperStatus
 from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
-from aero_dva_sim import messages
-from dva_msgs.msg import (
-    AccelerationBlock,
-    DamperCommand,
-    DamperState,
-    DisplacementBlock,
-    FlightCondition,
-    ForceBlock,
-)
-from dva_ros_common.conversions import time_to_seconds
+from dva_msgs.msg import DamperCommand
+from dva_ros_common import conversions
+from dva_ros_common.conversions import message_class, time_to_seconds
 from dva_ros_common.node_params import NodeSpec, Param, declare_parameters
 from dva_ros_common.node_tools import run_node
 
@@ -46,8 +38,9 @@ POLL_PERIOD = 0.005  # [s] wall time between checks before the start and while h
 # [s] wall time between two reports of rejected commands of one kind: a controller gone wrong
 # can send thousands a second, and one report (with the count) per second says as much.
 REJECTION_REPORT_PERIOD = 1.0
-DATA_TOPICS = ("wing/acceleration", "wing/displacement", "wing/excitation", "flight/condition",
-               "dva/damper_state")
+#: The per-block topics in publish order (after /clock), as the bag records them.
+DATA_CHANNELS = tuple(c for c in ch.SIMULATOR_BLOCK if c != ch.CLOCK)
+DATA_TOPICS = tuple(c.name for c in DATA_CHANNELS)
 _NAN = float("nan")
 _DESIGN = "the wing file's Maxwell design"
 MAX_DAMPING = 1.0e6  # [N s/m] far above any damper of this size class; larger is a unit error
@@ -63,7 +56,7 @@ SPEC = NodeSpec(
     params=(
         Param("scenario", "", "scenario YAML", default_text="the package's scenario_ramp.yaml "
               "(0.8 -> 1.2 U_cr in 30 s)"),
-        Param("wing", "", "wing YAML", default_text="the package's reference wing"),
+        Param("wing", "", "wing YAML", default_text="the package's chapter-6 wing"),
         Param("absorber", "maxwell", "absorber on the wing", choices=("maxwell", "none")),
         Param("absorber_mass", _NAN, "DVA mass", "kg", 0.0, 1.0e5, nan_means=_DESIGN),
         Param("absorber_stiffness", _NAN, "DVA spring k1", "N/m", 0.0, 1.0e10,
@@ -120,15 +113,12 @@ class Simulator(Node):
         # run_node spins until ``done``: the end of the flight, or shutdown without exit_on_end
         self.done = self.finished if self._exit_on_end else None
 
-        self._pub = {
-            "wing/acceleration": self.create_publisher(AccelerationBlock, "wing/acceleration", 50),
-            "wing/displacement": self.create_publisher(DisplacementBlock, "wing/displacement", 50),
-            "wing/excitation": self.create_publisher(ForceBlock, "wing/excitation", 50),
-            "flight/condition": self.create_publisher(FlightCondition, "flight/condition", 50),
-            "dva/damper_state": self.create_publisher(DamperState, "dva/damper_state", 50),
-        }
-        self._clock_pub = self.create_publisher(ClockMsg, "/clock", 10)
-        self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self._pub = {c.name: self.create_publisher(message_class(c.type_name), c.name, 50)
+                     for c in DATA_CHANNELS}
+        self._clock_pub = self.create_publisher(message_class(ch.CLOCK.type_name),
+                                                ch.CLOCK.name, 10)
+        self._diag_pub = self.create_publisher(message_class(ch.DIAGNOSTICS.type_name),
+                                               ch.DIAGNOSTICS.name, 10)
         self.published = dict.fromkeys(DATA_TOPICS, 0)
         self._latencies: list[float] = []  # [s] sim time from a command's input to its effect
         self._max_lag = float(self.get_parameter("max_command_lag").value)
@@ -139,7 +129,7 @@ class Simulator(Node):
         self.lag_timeouts = 0
         self.rejected: dict[str, int] = {}  # rejection reason -> commands rejected
         self._rejections_reported: dict[str, tuple[float, int]] = {}  # reason -> (wall, count)
-        self.create_subscription(DamperCommand, "dva/damper_command", self._on_command, 10)
+        self.create_subscription(DamperCommand, ch.DAMPER_COMMAND.name, self._on_command, 10)
 
         self._wall = Clock(clock_type=ClockType.STEADY_TIME)
         self._started_wall: float | None = None
@@ -292,14 +282,16 @@ class Simulator(Node):
 
     def _publish(self, block) -> None:
         fs, i0, t0 = self.runtime.sample_rate, block.first_index, block.t0
-        self._clock_pub.publish(messages.clock(block.t_end))
+        self._clock_pub.publish(conversions.clock(block.t_end))
         outgoing = {
-            "wing/acceleration": messages.acceleration_block(t0, fs, i0, block.accelerations),
-            "wing/displacement": messages.displacement_block(t0, fs, i0, block.displacements),
-            "wing/excitation": messages.force_block(t0, fs, i0, block.force),
-            "flight/condition": messages.flight_condition(
+            ch.ACCELERATION.name: conversions.acceleration_block(t0, fs, i0,
+                                                                 block.accelerations),
+            ch.DISPLACEMENT.name: conversions.displacement_block(t0, fs, i0,
+                                                                 block.displacements),
+            ch.EXCITATION.name: conversions.force_block(t0, fs, i0, block.force),
+            ch.FLIGHT_CONDITION.name: conversions.flight_condition(
                 t0, block.airspeed[0], block.density[0]),
-            "dva/damper_state": messages.damper_state(self.runtime.damper_snapshot()),
+            ch.DAMPER_STATE.name: conversions.damper_state(self.runtime.damper_snapshot()),
         }
         for topic, msg in outgoing.items():
             self._pub[topic].publish(msg)
@@ -330,8 +322,9 @@ class Simulator(Node):
             self.get_logger().warning(text)
         else:
             self.get_logger().info(text)
-        self._diag_pub.publish(messages.diagnostics(
-            self.runtime.time, "simulator: flight", "aero_dva_sim", [(level, text, values)]))
+        self._diag_pub.publish(conversions.diagnostics(
+            self.runtime.time, ch.FLIGHT_DIAGNOSTIC_NAME, ch.SIMULATOR_HARDWARE_ID,
+            [(level, text, values)]))
 
     def _finish(self, outcome: str) -> None:
         self._timer.cancel()

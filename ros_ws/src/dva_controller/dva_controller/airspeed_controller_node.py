@@ -1,4 +1,4 @@
-"""``airspeed_controller``: c2 from the measured airspeed, ``c2 = a0 + a1 U`` (seed eq. 7.1).
+"""``airspeed_controller``: c2 from the measured airspeed, ``c2 = a0 + a1 U`` (study eq. 7.1).
 
 One ``dva/damper_command`` (source "airspeed_schedule") per accepted ``flight/condition``
 message, at most one per ``min_period`` of ROS time. The command is clamped to the damper's
@@ -23,10 +23,10 @@ import sys
 
 from rclpy.node import Node
 
+from aero_dva.bag import channels as ch
 from aero_dva.control.airspeed_schedule import AirspeedSchedule
 from aero_dva.control.command_laws import ScheduleLaw
 from aero_dva.control.schedule_io import load_schedule
-from dva_controller import messages
 from dva_controller.shared_params import DAMPER_RANGE, damping_range
 from dva_msgs.msg import DamperCommand, FlightCondition
 from dva_ros_common import conversions
@@ -98,11 +98,11 @@ class AirspeedController(Node):
         self.counts = dict.fromkeys(("conditions", "rejected", "commands", "rate_limited"), 0)
         self.last_command = math.nan
         self._health = InputHealth(
-            self, "airspeed schedule", "flight/condition", self.counts, self._status
+            self, "airspeed schedule", ch.FLIGHT_CONDITION.name, self.counts, self._status
         )
 
-        self._command_pub = self.create_publisher(DamperCommand, "dva/damper_command", 10)
-        self.create_subscription(FlightCondition, "flight/condition", self._on_condition, 10)
+        self._command_pub = self.create_publisher(DamperCommand, ch.DAMPER_COMMAND.name, 10)
+        self.create_subscription(FlightCondition, ch.FLIGHT_CONDITION.name, self._on_condition, 10)
         self.get_logger().info(
             f"c2 = {self.schedule.a0:g} + {self.schedule.a1:g} U N s/m ({origin}), "
             f"clamped to [{low:g}, {high:g}] N s/m"
@@ -115,7 +115,7 @@ class AirspeedController(Node):
     def _on_condition(self, msg: FlightCondition) -> None:
         self.counts["conditions"] += 1
         self._health.mark_input()
-        condition = messages.flight_condition_values(msg)
+        condition = conversions.flight_condition_values(msg)
         result = self.law.step(condition.stamp_ns, condition.airspeed)
         if result.kind == "rejected":
             self.counts["rejected"] += 1
@@ -127,7 +127,7 @@ class AirspeedController(Node):
             self.counts["rate_limited"] += 1
             return
         self._command_pub.publish(
-            messages.damper_command(conversions.ns_to_time(condition.stamp_ns), result.damping,
+            conversions.damper_command(conversions.ns_to_time(condition.stamp_ns), result.damping,
                                     DamperCommand.SOURCE_AIRSPEED_SCHEDULE))
         self.last_command = result.damping
         self.counts["commands"] += 1

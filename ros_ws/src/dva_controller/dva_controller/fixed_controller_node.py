@@ -11,9 +11,10 @@ import sys
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 
-from dva_controller.messages import damper_command
+from aero_dva.bag import channels as ch
 from dva_controller.shared_params import MAX_DAMPING
 from dva_msgs.msg import DamperCommand
+from dva_ros_common.conversions import damper_command
 from dva_ros_common.node_params import NodeSpec, Param, declare_parameters
 from dva_ros_common.node_tools import run_node
 
@@ -39,7 +40,7 @@ class FixedController(Node):
         values = declare_parameters(self, SPEC)
         self._damping = self._checked_damping(values["damping"])
         rate = float(values["rate"])
-        self._publisher = self.create_publisher(DamperCommand, "dva/damper_command", 10)
+        self._publisher = self.create_publisher(DamperCommand, ch.DAMPER_COMMAND.name, 10)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.create_timer(1.0 / rate, self._publish)
         self.get_logger().info(f"commanding c2 = {self._damping:g} N s/m at {rate:g} Hz")

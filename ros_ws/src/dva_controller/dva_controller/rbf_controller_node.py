@@ -1,4 +1,4 @@
-"""``rbf_controller``: c2 from the scaled vibration spectra with an RBF network (seed sec. 7.2).
+"""``rbf_controller``: c2 from the scaled vibration spectra with an RBF network (study sec. 7.2).
 
 For each ``dva/spectrum`` message the network's input is the scaled magnitudes, channel-major,
 followed by the current c2 (the spectrum's ``damping`` field, the c2 applied during the
@@ -32,10 +32,10 @@ import sys
 import numpy as np
 from rclpy.node import Node
 
+from aero_dva.bag import channels as ch
 from aero_dva.control.command_laws import RBFLaw
 from aero_dva.control.rbf_io import load_rbf_network
 from aero_dva.control.rbf_network import RBFNetwork, spectrum_input_names
-from dva_controller import messages
 from dva_controller.shared_params import (
     DAMPER_RANGE,
     SPECTRUM_SHAPE,
@@ -117,17 +117,18 @@ class RBFController(Node):
         self.counts = dict.fromkeys(("spectra", "rejected", "commands", "far_inputs"), 0)
         self.last_command = math.nan
         self.last_activation = math.nan
-        self._health = InputHealth(self, "rbf network", "dva/spectrum", self.counts, self._status)
+        self._health = InputHealth(self, "rbf network", ch.SPECTRUM.name, self.counts,
+                                   self._status)
 
-        self._command_pub = self.create_publisher(DamperCommand, "dva/damper_command", 10)
-        self.create_subscription(ScaledSpectrum, "dva/spectrum", self._on_spectrum, 10)
+        self._command_pub = self.create_publisher(DamperCommand, ch.DAMPER_COMMAND.name, 10)
+        self.create_subscription(ScaledSpectrum, ch.SPECTRUM.name, self._on_spectrum, 10)
         self.get_logger().info(
             f"RBF network {path}: {self.network.n_neurons} neurons, {dim} inputs "
             f"({list(self.channels)} x {self.frequencies.size} frequencies + c2); "
             f"commands clamped to [{low:g}, {high:g}] N s/m"
         )
 
-    def mismatch(self, spectrum: messages.SpectrumInput) -> str | None:
+    def mismatch(self, spectrum: conversions.SpectrumInput) -> str | None:
         """Why a spectrum is not an input of this network (None if it is)."""
         if spectrum.channel_names != self.channels:
             return f"channels {list(spectrum.channel_names)}, network has {list(self.channels)}"
@@ -155,7 +156,7 @@ class RBFController(Node):
             return f"current c2 (damping) is {spectrum.damping}, not a finite value >= 0"
         return None
 
-    def command_for(self, spectrum: messages.SpectrumInput) -> tuple[float, float]:
+    def command_for(self, spectrum: conversions.SpectrumInput) -> tuple[float, float]:
         """Clamped network output [N s/m] and the largest hidden activation for a spectrum."""
         return self.law.command(spectrum.magnitudes, spectrum.damping)
 
@@ -163,7 +164,7 @@ class RBFController(Node):
         self.counts["spectra"] += 1
         self._health.mark_input()
         try:
-            spectrum = messages.spectrum_input(msg)
+            spectrum = conversions.spectrum_input(msg)
             problem = self.mismatch(spectrum)
         except ValueError as exc:
             spectrum, problem = None, str(exc)
@@ -181,7 +182,7 @@ class RBFController(Node):
             self.counts["far_inputs"] += 1
         stamp_ns = spectrum.stamp_ns
         self._command_pub.publish(
-            messages.damper_command(
+            conversions.damper_command(
                 conversions.ns_to_time(stamp_ns), c2, DamperCommand.SOURCE_RBF_NETWORK
             )
         )

@@ -8,7 +8,7 @@ import math
 import numpy as np
 
 from aero_dva.control.spectrum import DEFAULT_FREQUENCIES, WINDOW_FUNCTIONS
-from dva_controller.messages import ACCELERATION_CHANNELS
+from dva_ros_common.conversions import ACCELERATION_CHANNELS
 from dva_ros_common.node_params import Param
 
 MAX_DAMPING = 1.0e6  # [N s/m] far above any damper of this size class; larger is a unit error

@@ -27,8 +27,8 @@ import sys
 
 from rclpy.node import Node
 
+from aero_dva.bag import channels as ch
 from aero_dva.control.spectrum_stream import SpectrumStream
-from dva_controller import messages
 from dva_controller.shared_params import SPECTRUM_SHAPE, checked_channels, checked_frequencies
 from dva_msgs.msg import AccelerationBlock, DamperState, ScaledSpectrum
 from dva_ros_common import conversions
@@ -72,11 +72,12 @@ class SpectrumNode(Node):
         self._stream = SpectrumStream(self.channels, self.window_duration, self.hop,
                                       self.frequencies, self.window)
         self.counts = self._stream.counts
-        self._health = InputHealth(self, "window", "wing/acceleration", self.counts, self._status)
+        self._health = InputHealth(self, "window", ch.ACCELERATION.name, self.counts, self._status)
 
-        self._spectrum_pub = self.create_publisher(ScaledSpectrum, "dva/spectrum", 10)
-        self.create_subscription(AccelerationBlock, "wing/acceleration", self._on_block, QOS_DEPTH)
-        self.create_subscription(DamperState, "dva/damper_state", self._on_damper_state,
+        self._spectrum_pub = self.create_publisher(ScaledSpectrum, ch.SPECTRUM.name, 10)
+        self.create_subscription(AccelerationBlock, ch.ACCELERATION.name, self._on_block,
+                                 QOS_DEPTH)
+        self.create_subscription(DamperState, ch.DAMPER_STATE.name, self._on_damper_state,
                                  QOS_DEPTH)
         self.get_logger().info(
             f"spectra of {list(self.channels)} at {self.frequencies.size} frequencies "
@@ -92,12 +93,12 @@ class SpectrumNode(Node):
     # ------------------------------------------------------------------ callbacks
     def _on_damper_state(self, msg: DamperState) -> None:
         self._stream.damper_state(conversions.time_to_ns(msg.header.stamp),
-                                  messages.applied_damping(msg))
+                                  conversions.applied_damping(msg))
 
     def _on_block(self, msg: AccelerationBlock) -> None:
         self._health.mark_input()
         try:
-            block = messages.acceleration_samples(msg, self.channels)
+            block = conversions.acceleration_samples(msg, self.channels)
         except ValueError as exc:
             index = int(msg.first_sample_index)
             self.counts["blocks"] += 1
@@ -111,7 +112,7 @@ class SpectrumNode(Node):
             level = conversions.ERROR if event.level == "error" else conversions.WARN
             self._health.report(level, event.event, event.text, **event.values)
         for item in spectra:
-            self._spectrum_pub.publish(messages.scaled_spectrum_message(
+            self._spectrum_pub.publish(conversions.scaled_spectrum_message(
                 conversions.ns_to_time(item.stamp_ns), block.frame_id, self.channels,
                 item.spectrum, item.hop, item.damping))
 

@@ -1,4 +1,5 @@
-"""The batch path: flight blocks -> rosbag2 MCAP bag, read back exactly by every reader."""
+"""The batch recorder: flight blocks -> rosbag2 MCAP bag, byte for byte what rosbags and mcap's
+writer make of the same messages, read back exactly by every reader."""
 from __future__ import annotations
 
 import math
@@ -12,12 +13,16 @@ from mcap.reader import make_reader
 from mcap.records import Chunk
 from mcap.stream_reader import StreamReader
 
-from aero_dva.bag import batch_recording_io as br
 from aero_dva.bag import sweep_recording_io as sr
+from aero_dva.bag.bag_reader import bag_topics, read_messages
+from aero_dva.bag.bag_writer import qos_profile_yaml
+from aero_dva.bag.batch_recorder import DAMPER_COLUMNS, BatchRecorder, recorded_topics
 from aero_dva.bag.flight_log_io import load_flight_log
-from aero_dva.bag.mcap_io import bag_topics, message_definition, qos_profile_yaml, read_messages
+from aero_dva.bag.runtime_recording import record_flight_blocks, record_runtime
+from aero_dva.bag.schemas import message_definition
 from aero_dva.flight.damper import DamperSnapshot, DamperStatus
 from aero_dva.flight.flight_runtime import FlightBlock
+from tests.unit.aero_dva.bag.reference_bag import ReferenceBag
 
 RATE = 1000.0
 TOPICS = {
@@ -67,7 +72,7 @@ def flight():
 def bag(flight, tmp_path_factory):
     blocks, states = flight
     path = tmp_path_factory.mktemp("batch") / "run"
-    with br.BatchRecorder(path, RATE) as recorder:
+    with BatchRecorder(path, RATE) as recorder:
         recorder.write_blocks(blocks[:50], states[:50])
         recorder.write_blocks(blocks[50:], states[50:])
         recorder.write_diagnostics(blocks[-1].t_end, [
@@ -191,14 +196,14 @@ def test_rosbags_reads_the_bag(bag, flight):
 
 
 # --------------------------------------------------------------------------------------------
-# The two writers give the same file
+# The batch recorder writes what rosbags + mcap's writer write, byte for byte
 # --------------------------------------------------------------------------------------------
 
 
-def _record(path, engine, flight, compression, chunk_size):
+def _record(path, flight, compression, chunk_size):
     blocks, states = flight
-    with br.BatchRecorder(path, RATE, engine=engine, compression=compression,
-                          chunk_size=chunk_size) as recorder:
+    with BatchRecorder(path, RATE, compression=compression,
+                       chunk_size=chunk_size) as recorder:
         recorder.write_blocks(blocks[:33], states[:33])
         recorder.write_diagnostics(1.0, [("warn", "no damper command within 0.5 s", {})])
         for start in range(33, len(blocks), 10):  # equal runs: work buffers are reused
@@ -207,15 +212,25 @@ def _record(path, engine, flight, compression, chunk_size):
     return (path / f"{path.name}_0.mcap").read_bytes(), (path / "metadata.yaml").read_text()
 
 
+def _reference(path, flight, compression, chunk_size):
+    """The oracle: each message serialized by rosbags, written by mcap's writer."""
+    blocks, states = flight
+    bag = ReferenceBag(path, RATE, compression=compression, chunk_size=chunk_size)
+    bag.blocks(blocks[:33], states[:33])
+    bag.diagnostics(1.0, "warn", "no damper command within 0.5 s", {})
+    bag.blocks(blocks[33:], states[33:])
+    bag.diagnostics(blocks[-1].t_end, "error", "diverged", {"u": 1.5})
+    bag.close()
+    return (path / f"{path.name}_0.mcap").read_bytes(), (path / "metadata.yaml").read_text()
+
+
 @pytest.mark.parametrize(("compression", "chunk_size"), [
     ("none", 1 << 20), ("none", 4000), ("none", 1), ("zstd", 1 << 20), ("zstd", 10_000),
     ("lz4", 30_000)])
-def test_numpy_writer_equals_bagwriter_byte_for_byte(tmp_path, monkeypatch, flight,
-                                                     compression, chunk_size):
-    # Same writer library name in the MCAP header, so that the files can be equal.
-    monkeypatch.setattr(br, "_LIBRARY", "aero_dva.bag.mcap_io")
-    fast = _record(tmp_path / "a" / "bag", "numpy", flight, compression, chunk_size)
-    reference = _record(tmp_path / "b" / "bag", "bagwriter", flight, compression, chunk_size)
+def test_batch_recorder_equals_rosbags_and_mcap_byte_for_byte(tmp_path, flight, compression,
+                                                              chunk_size):
+    fast = _record(tmp_path / "a" / "bag", flight, compression, chunk_size)
+    reference = _reference(tmp_path / "b" / "bag", flight, compression, chunk_size)
     assert fast[1] == reference[1]
     assert len(fast[0]) == len(reference[0])
     assert fast[0] == reference[0]
@@ -224,7 +239,7 @@ def test_numpy_writer_equals_bagwriter_byte_for_byte(tmp_path, monkeypatch, flig
 def test_writer_library_is_named(bag):
     with open(bag / "run_0.mcap", "rb") as stream:
         header = make_reader(stream).get_header()
-    assert header.profile == "ros2" and header.library == "aero_dva.bag.batch_recording_io"
+    assert header.profile == "ros2" and header.library == "aero_dva.bag.batch_recorder"
 
 
 # --------------------------------------------------------------------------------------------
@@ -234,11 +249,11 @@ def test_writer_library_is_named(bag):
 
 def test_record_flight_blocks_streams_and_namespaces(tmp_path, flight):
     blocks, states = flight
-    summary = br.record_flight_blocks(tmp_path / "ns", iter(blocks), iter(states), RATE,
+    summary = record_flight_blocks(tmp_path / "ns", iter(blocks), iter(states), RATE,
                                       batch_blocks=7, namespace="/wing1/")
-    assert {t.name for t in summary.topics} == set(br.flight_topics("wing1"))
-    assert "/wing1/wing/acceleration" in br.flight_topics("wing1")
-    assert "/clock" in br.flight_topics("wing1")
+    assert {t.name for t in summary.topics} == set(recorded_topics("wing1"))
+    assert "/wing1/wing/acceleration" in recorded_topics("wing1")
+    assert "/clock" in recorded_topics("wing1")
     log = load_flight_log(tmp_path / "ns", namespace="wing1")
     np.testing.assert_array_equal(log.force, np.concatenate([b.force for b in blocks]))
     assert summary.message_count == 6 * len(blocks)
@@ -248,7 +263,7 @@ def test_record_flight_blocks_streams_and_namespaces(tmp_path, flight):
 
 def test_without_damper_states_there_is_no_damper_topic(tmp_path, flight):
     blocks, _ = flight
-    summary = br.record_flight_blocks(tmp_path / "b", blocks, None, RATE)
+    summary = record_flight_blocks(tmp_path / "b", blocks, None, RATE)
     assert "/dva/damper_state" not in {t.name for t in summary.topics}
     log = load_flight_log(tmp_path / "b")
     assert np.all(np.isnan(log.applied_damping))
@@ -256,7 +271,7 @@ def test_without_damper_states_there_is_no_damper_topic(tmp_path, flight):
 
 def test_bad_input_is_refused(tmp_path, flight):
     blocks, states = flight
-    with br.BatchRecorder(tmp_path / "x", RATE) as recorder:
+    with BatchRecorder(tmp_path / "x", RATE) as recorder:
         with pytest.raises(ValueError, match="damper_states is required"):
             recorder.write_blocks(blocks[:2])
         with pytest.raises(ValueError, match="2 snapshots for 3 blocks"):
@@ -276,18 +291,17 @@ def test_bad_input_is_refused(tmp_path, flight):
     with pytest.raises(ValueError, match="closed"):
         recorder.write_blocks(blocks[:1], states[:1])
     with pytest.raises(FileExistsError):
-        br.BatchRecorder(tmp_path / "x", RATE)
-    for kwargs, match in (({"engine": "rclpy"}, "engine"), ({"compression": "gzip"},
-                                                           "compression"),
+        BatchRecorder(tmp_path / "x", RATE)
+    for kwargs, match in (({"compression": "gzip"}, "compression"),
                           ({"chunk_size": 0}, "chunk_size")):
         with pytest.raises(ValueError, match=match):
-            br.BatchRecorder(tmp_path / "y", RATE, **kwargs)
+            BatchRecorder(tmp_path / "y", RATE, **kwargs)
     with pytest.raises(ValueError, match="sample_rate"):
-        br.BatchRecorder(tmp_path / "y", 0.0)
+        BatchRecorder(tmp_path / "y", 0.0)
     with pytest.raises(ValueError, match="ended after 2"):
-        br.record_flight_blocks(tmp_path / "z", blocks[:3], states[:2], RATE)
+        record_flight_blocks(tmp_path / "z", blocks[:3], states[:2], RATE)
     with pytest.raises(ValueError, match="more snapshots"):
-        br.record_flight_blocks(tmp_path / "w", blocks[:2], states[:3], RATE)
+        record_flight_blocks(tmp_path / "w", blocks[:2], states[:3], RATE)
 
 
 def test_lists_and_other_dtypes_are_converted(tmp_path, flight):
@@ -296,7 +310,7 @@ def test_lists_and_other_dtypes_are_converted(tmp_path, flight):
     as_lists = replace(block, force=block.force.tolist(),
                        accelerations=block.accelerations.astype(np.float32),
                        displacements=np.asfortranarray(block.displacements))
-    br.record_flight_blocks(tmp_path / "l", [as_lists], states[:1], RATE)
+    record_flight_blocks(tmp_path / "l", [as_lists], states[:1], RATE)
     log = load_flight_log(tmp_path / "l")
     np.testing.assert_array_equal(log.force, block.force)
     np.testing.assert_array_equal(log.accelerations,
@@ -341,7 +355,7 @@ def _runtime(scenario: str, **params):
 def test_record_runtime_records_the_same_flight_as_stepping_it(tmp_path):
     scenario = _scenario(tmp_path, RAMP)
     seen = []
-    result = br.record_runtime(tmp_path / "bag", _runtime(scenario), batch_blocks=6,
+    result = record_runtime(tmp_path / "bag", _runtime(scenario), batch_blocks=6,
                                progress=lambda done, total: seen.append((done, total)))
     assert result.outcome == "completed" and result.blocks == 20 and result.samples == 1000
     assert seen[-1] == (1000, 1000) and [d for d, _ in seen] == sorted(d for d, _ in seen)
@@ -375,7 +389,7 @@ def test_record_runtime_records_the_same_flight_as_stepping_it(tmp_path):
 
 
 def test_record_runtime_stops_at_divergence_like_the_node(tmp_path):
-    result = br.record_runtime(tmp_path / "bag", _runtime(_scenario(tmp_path, DIVERGING)))
+    result = record_runtime(tmp_path / "bag", _runtime(_scenario(tmp_path, DIVERGING)))
     assert result.outcome == "diverged" and result.sim_time < 3.0
     log = load_flight_log(tmp_path / "bag")
     assert log.time.size == result.samples == 50 * result.blocks
@@ -436,7 +450,7 @@ class _FakeRuntime:
 def test_record_runtime_warns_once_when_the_damper_goes_stale(tmp_path, flight):
     blocks, states = flight
     runtime = _FakeRuntime(blocks[:10], states[:10])
-    result = br.record_runtime(tmp_path / "bag", runtime, batch_blocks=3, engine="bagwriter")
+    result = record_runtime(tmp_path / "bag", runtime, batch_blocks=3)
     assert result.outcome == "completed"
     diagnostics = [m for m in read_messages(tmp_path / "bag") if m.topic == "/diagnostics"]
     assert len(diagnostics) == 2
@@ -506,7 +520,7 @@ def test_record_sweep_writes_the_runtimes_bag(tmp_path):
     seen = []
     fast = sr.record_sweep(tmp_path / "fast", _runtime(scenario),
                            progress=lambda done, total: seen.append((done, total)))
-    ref = br.record_runtime(tmp_path / "ref", _runtime(scenario))
+    ref = record_runtime(tmp_path / "ref", _runtime(scenario))
     assert (fast.method, ref.method) == ("parallel", "stepped")
     assert (fast.outcome, fast.samples, fast.blocks) == ("completed", 5400, 108)
     assert (fast.sim_time, fast.blocks) == (ref.sim_time, ref.blocks)
@@ -537,7 +551,7 @@ def test_record_sweep_blocks_across_chunk_boundaries(tmp_path):
     # 70-sample blocks do not divide the 600-sample dwells: blocks straddle the chunks.
     scenario = _scenario(tmp_path, SWEEP.replace("block_size: 50", "block_size: 70"))
     fast = sr.record_sweep(tmp_path / "fast", _runtime(scenario), chunk_samples=1300)
-    ref = br.record_runtime(tmp_path / "ref", _runtime(scenario))
+    ref = record_runtime(tmp_path / "ref", _runtime(scenario))
     assert fast.method == "parallel" and fast.blocks == ref.blocks == 78
     a, b = _raw_messages(tmp_path / "fast"), _raw_messages(tmp_path / "ref")
     assert [m[:3] for m in a] == [m[:3] for m in b]
@@ -571,7 +585,7 @@ def test_record_sweep_stops_at_divergence_like_the_runtime(tmp_path):
         "dwell: 0.6", "dwell: 2.0")
     scenario = _scenario(tmp_path, text)
     fast = sr.record_sweep(tmp_path / "fast", _runtime(scenario))
-    ref = br.record_runtime(tmp_path / "ref", _runtime(scenario))
+    ref = record_runtime(tmp_path / "ref", _runtime(scenario))
     assert fast.outcome == ref.outcome == "diverged"
     assert (fast.samples, fast.blocks) == (ref.samples, ref.blocks)
     (diagnostic,) = load_flight_log(tmp_path / "fast").diagnostics
@@ -620,42 +634,44 @@ def test_sweep_damper_states_equal_the_damper_model(tmp_path):
     assert np.all(ideal["status"] == 0) and np.all(ideal["applied_damping"] == 300.0)
 
 
-def test_write_samples_equals_write_blocks(tmp_path, monkeypatch, flight):
+def test_write_samples_equals_write_blocks(tmp_path, flight):
     blocks, states = flight
     blocks, states = blocks[:-1], [replace(s, source="sweep") for s in states[:-1]]
     acc = np.concatenate([b.accelerations for b in blocks], axis=1)
     disp = np.concatenate([b.displacements for b in blocks], axis=1)
     force = np.concatenate([b.force for b in blocks])
-    columns = br._snapshot_values(states)
+    columns = dict(zip(DAMPER_COLUMNS, np.array(
+        [(s.time, s.commanded_damping, s.applied_damping, s.min_damping, s.max_damping,
+          s.command_age, int(s.status)) for s in states]).T))
     # Blocks of 50 with t0 = index / rate: make the reference blocks follow that convention.
     ref_blocks = [replace(b, t0=b.first_index / RATE, t_end=(b.first_index + 50) / RATE)
                   for b in blocks]
-    for engine in ("numpy", "bagwriter"):
-        with br.BatchRecorder(tmp_path / engine, RATE, engine=engine) as recorder:
-            recorder.write_samples(0, acc[:, :2000], disp[:, :2000], force[:2000],
-                                   block_size=50,
-                                   airspeed=[b.airspeed[0] for b in blocks[:40]],
-                                   density=[b.density[0] for b in blocks[:40]],
-                                   damper={k: v[:40] for k, v in columns.items()},
-                                   source="sweep")
-            count = recorder.write_samples(
-                2000, acc[:, 2000:], disp[:, 2000:], force[2000:], block_size=50,
-                airspeed=[b.airspeed[0] for b in blocks[40:]],
-                density=[b.density[0] for b in blocks[40:]],
-                damper={k: v[40:] for k, v in columns.items()}, source="sweep")
-            assert count == len(blocks) - 40
-    with br.BatchRecorder(tmp_path / "ref", RATE) as recorder:
+    with BatchRecorder(tmp_path / "samples", RATE) as recorder:
+        recorder.write_samples(0, acc[:, :2000], disp[:, :2000], force[:2000], block_size=50,
+                               airspeed=[b.airspeed[0] for b in blocks[:40]],
+                               density=[b.density[0] for b in blocks[:40]],
+                               damper={k: v[:40] for k, v in columns.items()}, source="sweep")
+        count = recorder.write_samples(
+            2000, acc[:, 2000:], disp[:, 2000:], force[2000:], block_size=50,
+            airspeed=[b.airspeed[0] for b in blocks[40:]],
+            density=[b.density[0] for b in blocks[40:]],
+            damper={k: v[40:] for k, v in columns.items()}, source="sweep")
+        assert count == len(blocks) - 40
+    with BatchRecorder(tmp_path / "blocks", RATE) as recorder:
         recorder.write_blocks(ref_blocks, states)
-    ref = _raw_messages(tmp_path / "ref")
-    assert _raw_messages(tmp_path / "numpy") == ref
-    assert _raw_messages(tmp_path / "bagwriter") == ref
+    reference = ReferenceBag(tmp_path / "reference", RATE)
+    reference.blocks(ref_blocks, states)
+    reference.close()
+    ref = _raw_messages(tmp_path / "reference")
+    assert _raw_messages(tmp_path / "samples") == ref
+    assert _raw_messages(tmp_path / "blocks") == ref
 
 
 def test_write_samples_ends_with_a_shorter_block_and_checks_input(tmp_path):
     rng = np.random.default_rng(3)
     acc, disp, force = rng.standard_normal((3, 130)), rng.standard_normal((4, 130)), \
         rng.standard_normal(130)
-    with br.BatchRecorder(tmp_path / "bag", RATE, damper_state=False) as recorder:
+    with BatchRecorder(tmp_path / "bag", RATE, damper_state=False) as recorder:
         assert recorder.write_samples(100, acc, disp, force, block_size=50,
                                       airspeed=[80.0, 81.0, 82.0], density=[1.2] * 3) == 3
         with pytest.raises(ValueError, match=r"accelerations must have shape \(3, T\)"):
@@ -684,7 +700,7 @@ def test_write_samples_ends_with_a_shorter_block_and_checks_input(tmp_path):
 def test_chunk_crc_can_be_left_out(tmp_path, flight):
     blocks, states = flight
     for crc in (True, False):
-        with br.BatchRecorder(tmp_path / f"c{crc}", RATE, chunk_crc=crc,
+        with BatchRecorder(tmp_path / f"c{crc}", RATE, chunk_crc=crc,
                               chunk_size=20_000) as recorder:
             recorder.write_blocks(blocks, states)
     with open(tmp_path / "cTrue" / "cTrue_0.mcap", "rb") as stream:
@@ -698,5 +714,3 @@ def test_chunk_crc_can_be_left_out(tmp_path, flight):
     assert len(crcs["cFalse"]) > 3 and set(crcs["cFalse"]) == {0}
     assert len(crcs["cTrue"]) == len(crcs["cFalse"]) and 0 not in crcs["cTrue"]
     assert _raw_messages(tmp_path / "cFalse") == _raw_messages(tmp_path / "cTrue")
-    with pytest.raises(ValueError, match="chunk_crc"):
-        br.BatchRecorder(tmp_path / "x", RATE, engine="bagwriter", chunk_crc=False)

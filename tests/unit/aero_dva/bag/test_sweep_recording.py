@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 
-from aero_dva.bag import batch_recording_io as br
 from aero_dva.bag import sweep_recording_io as sr
-from aero_dva.bag.mcap_io import bag_topics, read_messages
+from aero_dva.bag.bag_reader import bag_topics, read_messages
+from aero_dva.bag.chunk_framing import ChunkedMcapFile
 from aero_dva.flight import sweep_simulator
 from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
 from tests.unit.aero_dva.bag.test_batch_recording import SWEEP
@@ -112,7 +112,7 @@ def _on_writer_thread() -> bool:
 
 def test_the_writer_is_at_most_two_runs_behind(tmp_path, scenario, monkeypatch):
     simulated, lag = [], []
-    append = br._ChunkedBag.add_messages
+    append = ChunkedMcapFile.add_messages
 
     def slow_append(bag, *args):
         if _on_writer_thread():
@@ -120,7 +120,7 @@ def test_the_writer_is_at_most_two_runs_behind(tmp_path, scenario, monkeypatch):
             threading.Event().wait(0.05)
         return append(bag, *args)
 
-    monkeypatch.setattr(br._ChunkedBag, "add_messages", slow_append)
+    monkeypatch.setattr(ChunkedMcapFile, "add_messages", slow_append)
     result = sr.record_sweep(tmp_path / "bag", _runtime(scenario), chunk_samples=1300,
                              progress=lambda done, total: simulated.append(done))
     assert result.samples == 5400 and len(lag) == 5  # one encoded run per chunk here
@@ -138,7 +138,7 @@ def _raw_reference(tmp_path: Path, scenario: str) -> list[tuple]:
 def test_a_writer_error_is_raised_and_leaves_no_completed_flight(tmp_path, scenario,
                                                                   monkeypatch):
     calls = []
-    append = br._ChunkedBag.add_messages
+    append = ChunkedMcapFile.add_messages
 
     def failing(bag, *args):
         if _on_writer_thread():
@@ -147,7 +147,7 @@ def test_a_writer_error_is_raised_and_leaves_no_completed_flight(tmp_path, scena
                 raise OSError(28, "No space left on device")
         return append(bag, *args)
 
-    monkeypatch.setattr(br._ChunkedBag, "add_messages", failing)
+    monkeypatch.setattr(ChunkedMcapFile, "add_messages", failing)
     with pytest.raises(OSError, match="No space left"):
         sr.record_sweep(tmp_path / "bag", _runtime(scenario), chunk_samples=1300)
     assert _writer_threads() == []
@@ -180,7 +180,7 @@ def test_a_simulation_error_stops_the_writer(tmp_path, scenario, monkeypatch):
 
 
 def test_training_names_the_missing_displacement_of_a_measured_only_bag(tmp_path, scenario):
-    from aero_dva.bag.mcap_io import TopicNotFoundError
+    from aero_dva.bag.bag_reader import TopicNotFoundError
     from dva_offline.train_cli import _check_topics
 
     sr.record_sweep(tmp_path / "bag", _runtime(scenario), displacement=False)

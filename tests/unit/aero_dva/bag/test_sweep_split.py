@@ -8,10 +8,11 @@ import pytest
 import yaml
 from mcap.reader import make_reader
 
-from aero_dva.bag import batch_recording_io as br
+from aero_dva.bag import bag_reader
 from aero_dva.bag import sweep_recording_io as sr
+from aero_dva.bag.bag_reader import BagReadError, bag_topics, read_messages
+from aero_dva.bag.batch_recorder import BatchRecorder
 from aero_dva.bag.flight_log_io import load_flight_log
-from aero_dva.bag.mcap_io import BagReadError, bag_topics, read_messages
 from aero_dva.flight import sweep_simulator
 from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
 from tests.unit.aero_dva.bag.test_batch_recording import SWEEP
@@ -128,14 +129,14 @@ def test_divergence_in_an_early_span_ends_the_bag_there(tmp_path):
 
 
 def test_a_failed_span_leaves_no_completed_bag(tmp_path, monkeypatch):
-    write = br.BatchRecorder.write_samples
+    write = BatchRecorder.write_samples
 
     def fails_at_the_start(recorder, first_index, *args, **kwargs):
         if first_index == 0:  # the first span's process
             raise OSError(28, "No space left on device")
         return write(recorder, first_index, *args, **kwargs)
 
-    monkeypatch.setattr(br.BatchRecorder, "write_samples", fails_at_the_start)
+    monkeypatch.setattr(BatchRecorder, "write_samples", fails_at_the_start)
     with pytest.raises(RuntimeError, match="recording span 0 of the sweep failed: OSError: "
                                            r"\[Errno 28\] No space left"):
         sr.record_sweep(tmp_path / "bag", _runtime(tmp_path), jobs=2)
@@ -146,14 +147,14 @@ def test_a_failed_span_leaves_no_completed_bag(tmp_path, monkeypatch):
 
 
 def test_a_failure_in_the_last_span_keeps_the_prefix_without_status(tmp_path, monkeypatch):
-    write = br.BatchRecorder.write_samples
+    write = BatchRecorder.write_samples
 
     def fails_late(recorder, first_index, *args, **kwargs):
         if first_index >= 3000:  # the calling process's span
             raise OSError(5, "Input/output error")
         return write(recorder, first_index, *args, **kwargs)
 
-    monkeypatch.setattr(br.BatchRecorder, "write_samples", fails_late)
+    monkeypatch.setattr(BatchRecorder, "write_samples", fails_late)
     with pytest.raises(OSError, match="Input/output error"):
         sr.record_sweep(tmp_path / "bag", _runtime(tmp_path), jobs=2)
     # The first span's file and what the second wrote before failing (nothing here) make
@@ -172,13 +173,11 @@ def test_jobs_must_be_a_positive_integer(tmp_path):
 
 
 def test_a_split_bag_without_metadata_is_salvaged_in_file_order(tmp_path):
-    from aero_dva.bag import mcap_io
-
     sr.record_sweep(tmp_path / "bag", _runtime(tmp_path), jobs=3)
     (tmp_path / "bag" / "metadata.yaml").unlink()  # as if the recording had crashed
     blocks = [m.message.first_sample_index for m in read_messages(
         tmp_path / "bag", ["/wing/excitation"], allow_truncated=True)]
     assert blocks == list(range(0, 5400, 50))
     names = [Path(f"bag_{i}.mcap") for i in (10, 2, 1)]
-    assert [p.name for p in sorted(names, key=mcap_io._file_order)] == \
+    assert [p.name for p in sorted(names, key=bag_reader._file_order)] == \
         ["bag_1.mcap", "bag_2.mcap", "bag_10.mcap"]

@@ -9,6 +9,7 @@ import yaml
 from aero_dva.wing.absorbers import MaxwellAbsorber
 from aero_dva.wing.aerodynamics import QuasiSteadyAero
 from aero_dva.wing.wing_io import (
+    default_wing_path,
     load_section,
     load_wing,
     reference_wing_path,
@@ -16,15 +17,21 @@ from aero_dva.wing.wing_io import (
 )
 
 
-def test_reference_wing_loads_with_its_maxwell_design():
-    cfg = load_wing()
-    assert reference_wing_path().name == "reference_wing.yaml"
+@pytest.mark.parametrize("path", [default_wing_path(), reference_wing_path()])
+def test_packaged_wings_load_with_their_maxwell_design(path):
+    cfg = load_wing(path)
     assert cfg.wing.mass == 1000.0
     assert cfg.air_density == 1.2
     assert isinstance(cfg.aero, QuasiSteadyAero) and cfg.aero.pitch_damping == "thin_airfoil"
     assert isinstance(cfg.maxwell_design, MaxwellAbsorber)
     assert cfg.maxwell_design.mass == pytest.approx(0.04 * cfg.wing.mass)
-    assert load_wing(reference_wing_path()) == cfg
+
+
+def test_the_default_wing_is_the_chapter6_wing_and_the_reference_wing_stays_a_file():
+    assert default_wing_path().name == "chapter6_wing.yaml"
+    assert reference_wing_path().name == "reference_wing.yaml"
+    assert load_wing() == load_wing(default_wing_path())
+    assert load_wing() != load_wing(reference_wing_path())
 
 
 def test_round_trip(tmp_path):

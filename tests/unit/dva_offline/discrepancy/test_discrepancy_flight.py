@@ -151,8 +151,8 @@ def test_model_through_the_estimator_reproduces_a_noise_free_flight(plant, effec
     """The simulated response to the logged force, through the same windows, equals the
     measured H1 estimates exactly when the model is the plant (no noise): no leakage or
     transient is left in the residual, only what the model lacks."""
-    from aero_dva.bag.batch_recording_io import record_runtime
     from aero_dva.bag.flight_log_io import load_flight_log
+    from aero_dva.bag.runtime_recording import record_runtime
 
     scenario = Scenario("t", 16.0, block_size=50,
                         airspeed=AirspeedProfile("steps", (0.6, 0.75), relative=True),
@@ -223,7 +223,7 @@ def test_flight_cli_errors_name_the_problem(tmp_path, capsys):
 
 
 def test_short_flight_and_missing_topics_are_refused(tmp_path, capsys):
-    from aero_dva.bag.batch_recording_io import record_runtime
+    from aero_dva.bag.runtime_recording import record_runtime
 
     config = dataclasses.replace(load_runtime_config({}), scenario=_scenario(duration=2.5))
     record_runtime(tmp_path / "short", FlightRuntime(config))
@@ -232,3 +232,21 @@ def test_short_flight_and_missing_topics_are_refused(tmp_path, capsys):
     record_runtime(tmp_path / "nodamper", FlightRuntime(config), damper_state=False)
     assert main(["discrepancy", "flight", str(tmp_path / "nodamper")]) == 2
     assert "/dva/damper_state" in capsys.readouterr().err
+
+
+def test_a_cut_flight_log_is_refused_or_read_with_allow_truncated(tmp_path, capsys):
+    from aero_dva.bag.runtime_recording import record_runtime
+
+    config = dataclasses.replace(load_runtime_config({}), scenario=_scenario(duration=2.5))
+    record_runtime(tmp_path / "short", FlightRuntime(config))
+    cut = tmp_path / "cut"
+    cut.mkdir()
+    data = next((tmp_path / "short").glob("*.mcap")).read_bytes()
+    (cut / "cut_0.mcap").write_bytes(data[:len(data) // 2])
+    assert main(["discrepancy", "flight", str(cut)]) == 2
+    err = capsys.readouterr().err
+    assert "dva bag recover" in err and "allow_truncated" not in err
+    # With the flag the log is read up to the damage (and is then too short to analyse).
+    assert main(["discrepancy", "flight", str(cut), "--allow-truncated"]) == 2
+    err = capsys.readouterr().err
+    assert "too short a log" in err and "warning: MCAP file" in err

@@ -9,21 +9,18 @@ import numpy as np
 import pytest
 import yaml
 from mcap.reader import make_reader
-from mcap_ros2._dynamic import serialize_dynamic
 
-from aero_dva.bag import mcap_io
-from aero_dva.bag.mcap_io import (
+from aero_dva.bag import schemas
+from aero_dva.bag.bag_reader import (
     BagReadError,
-    BagWriter,
     MessageTypeError,
     TopicNotFoundError,
     bag_topics,
-    message_definition,
-    qos_profile_yaml,
+    deserialize,
     read_messages,
 )
-
-SHARE = Path("/tmp/trialvenv/share")  # ROS 2 Jazzy interface files, when present
+from aero_dva.bag.bag_writer import BagWriter, message_from_dict, qos_profile_yaml
+from aero_dva.bag.schemas import message_definition, typestore
 
 ACC = "dva_msgs/msg/AccelerationBlock"
 FLIGHT = "dva_msgs/msg/FlightCondition"
@@ -68,7 +65,7 @@ def bag(tmp_path_factory):
         writer.add_topic("wing/acceleration", ACC, qos_profile_yaml("best_effort"))
         writer.add_topic("/flight/condition", FLIGHT)
         writer.add_topic("dva/damper_command", "dva_msgs/DamperCommand")
-        encode = serialize_dynamic(COMMAND, message_definition(COMMAND))[COMMAND]
+        store = typestore()
         for k in range(N_ACC):
             writer.write("wing/acceleration", acceleration(k), log_time_ns=20_000_000 * k)
             if k % 5 == 0:
@@ -76,7 +73,8 @@ def bag(tmp_path_factory):
         for k in range(N_CMD):
             message = command(k)
             if k % 2:  # already-CDR bytes, as from a raw rclpy subscription
-                message = encode(message)
+                message = bytes(store.serialize_cdr(message_from_dict(COMMAND, message),
+                                                    COMMAND))
             writer.write("dva/damper_command", message, log_time_ns=100_000_000 * k + 2)
     return directory
 
@@ -201,18 +199,24 @@ def test_schema_text_has_rosbag2_layout():
     assert "uint64 first_sample_index" in text and "# [m/s^2]" in text  # comments stay
 
 
-@pytest.mark.skipif(not SHARE.is_dir(), reason="no ROS 2 interface files installed")
-def test_embedded_definitions_equal_the_installed_ones(monkeypatch, tmp_path):
+def test_standard_types_without_files_come_from_rosbags(monkeypatch, tmp_path):
+    """With no ROS 2 interface files installed, the definition is rosbags' own, and it
+    parses to the same fields as the installed file."""
+    from rosbags.typesys import get_types_from_msg
+
+    installed = schemas.find_message_file("std_msgs/msg/Header")
     monkeypatch.delenv("AMENT_PREFIX_PATH", raising=False)
     monkeypatch.setattr(sys, "prefix", str(tmp_path))  # no share/ of an environment either
-    embedded = message_definition("std_msgs/Header")
-    installed = message_definition("std_msgs/Header", msg_dirs=[SHARE])
-    assert embedded == installed
-    assert (
-        mcap_io.find_message_file("std_msgs/msg/Header", [SHARE])
-        == SHARE / "std_msgs/msg/Header.msg"
-    )
-    assert mcap_io.find_message_file("std_msgs/msg/Header", []) is None
+    assert schemas.find_message_file("std_msgs/msg/Header") is None
+    generated = message_definition("std_msgs/Header")
+    assert generated.startswith("builtin_interfaces/Time stamp\nstring frame_id\n")
+    assert "MSG: builtin_interfaces/Time" in generated
+    if installed is not None:
+        name = "std_msgs/msg/Header"
+        from_file = get_types_from_msg(installed.read_text(), name)[name]
+        assert get_types_from_msg(generated, name)[name] == from_file
+    with pytest.raises(schemas.MessageDefinitionNotFound, match="no .msg file for 'pkg_a/X'"):
+        message_definition("pkg_a/X")
 
 
 def test_dependencies_come_depth_first_and_once(tmp_path):
@@ -235,7 +239,7 @@ def test_dependencies_come_depth_first_and_once(tmp_path):
     # A package's msg directory itself is also accepted.
     assert message_definition("pkg_a/Root", msg_dirs=[msg]) == text
     with pytest.raises(
-        mcap_io.MessageDefinitionNotFound, match="no .msg file for 'pkg_a/Missing'"
+        schemas.MessageDefinitionNotFound, match="no .msg file for 'pkg_a/Missing'"
     ):
         message_definition("pkg_a/Missing", msg_dirs=[tmp_path])
 
@@ -337,3 +341,60 @@ def test_flushed_messages_survive_a_writer_that_never_closes(tmp_path):
     with pytest.warns(RuntimeWarning, match="ends early"):
         salvaged = list(read_messages(snapshot, allow_truncated=True))
     assert [m.message.airspeed for m in salvaged] == [80.0 + k for k in range(10)]
+
+
+def test_raw_bytes_and_deserialize_give_the_decoded_messages(bag):
+    """What a bag player does: raw CDR with log times, decoded later with the bag's schema."""
+    raw = list(read_messages(bag, ["/flight/condition"], decode=False))
+    decoded = list(read_messages(bag, ["/flight/condition"]))
+    assert [m.log_time_ns for m in raw] == [m.log_time_ns for m in decoded]
+    for r, d in zip(raw, decoded, strict=True):
+        assert isinstance(r.message, bytes) and r.type_name == FLIGHT
+        assert r.schema_text == message_definition(FLIGHT)
+        assert deserialize(r.message, r.type_name, r.schema_text) == d.message
+        assert deserialize(r.message, r.type_name).airspeed == d.message.airspeed
+    with pytest.raises(BagReadError, match="do not decode as dva_msgs/msg/FlightCondition"):
+        deserialize(raw[0].message[:12], FLIGHT)
+
+
+def test_a_type_the_project_does_not_know_is_decoded_by_the_bags_schema(tmp_path):
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+    msg = tmp_path / "pkg_b" / "msg"
+    msg.mkdir(parents=True)
+    (msg / "Probe.msg").write_text("std_msgs/Header header\nint16[] counts\nstring label\n")
+    text = message_definition("pkg_b/Probe", msg_dirs=[tmp_path])
+    store = get_typestore(Stores.ROS2_JAZZY)
+    store.register(get_types_from_msg(text, "pkg_b/msg/Probe"))
+    Probe = store.types["pkg_b/msg/Probe"]
+    values = Probe(header=store.types["std_msgs/msg/Header"](
+        stamp=store.types["builtin_interfaces/msg/Time"](sec=3, nanosec=4), frame_id="p"),
+        counts=np.array([1, -2, 3], dtype=np.int16), label="x")
+    with BagWriter(tmp_path / "bag", msg_dirs=[tmp_path]) as writer:
+        writer.add_topic("probe", "pkg_b/Probe")
+        writer.write("probe", bytes(store.serialize_cdr(values, "pkg_b/msg/Probe")), 7)
+        with pytest.raises(ValueError, match="not in the project's typestore"):
+            writer.write("probe", {"label": "y"}, 8)
+    (got,) = read_messages(tmp_path / "bag")
+    assert got.type_name == "pkg_b/msg/Probe" and got.message.label == "x"
+    np.testing.assert_array_equal(got.message.counts, [1, -2, 3])
+    with pytest.raises(BagReadError, match="pkg_b/msg/Probe is unknown"):
+        deserialize(b"\0\1\0\0", "pkg_b/Probe")
+
+
+def test_an_old_definition_in_a_bag_is_decoded_by_that_definition(tmp_path):
+    """A bag recorded before a field was added to a .msg file still reads."""
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+    text = "std_msgs/Header header\nfloat64 airspeed\n\n" + "=" * 80 + \
+        "\nMSG: std_msgs/Header\n" + message_definition("std_msgs/Header")
+    store = get_typestore(Stores.ROS2_JAZZY)
+    store.register(get_types_from_msg(text, FLIGHT))
+    data = bytes(store.serialize_cdr(store.types[FLIGHT](header=store.types[
+        "std_msgs/msg/Header"](stamp=store.types["builtin_interfaces/msg/Time"](
+            sec=1, nanosec=2), frame_id="f"), airspeed=91.5), FLIGHT))
+    with BagWriter(tmp_path / "bag") as writer:
+        writer.add_topic("flight/condition", FLIGHT, schema_text=text)
+        writer.write("flight/condition", data, 1)
+    (got,) = read_messages(tmp_path / "bag")
+    assert got.message.airspeed == 91.5 and not hasattr(got.message, "air_density")
