@@ -36,7 +36,7 @@ def register(subparsers) -> None:
     """Add the ``evaluate`` command."""
     p = subparsers.add_parser(
         "evaluate", help="paired evaluation flights: best fixed c2, schedule, RBF, oracle x "
-                         "density cases x seeds; differences with 95 % intervals",
+                         "density cases x seeds; differences with 95 %% intervals",
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", metavar="DIR",
                    help="evaluation directory (default runs/evaluation_<UTC time>)")

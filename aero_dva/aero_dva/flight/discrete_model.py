@@ -344,7 +344,8 @@ class DiscreteWing:
         if missing:
             missing = list(dict.fromkeys(missing))
             if len(cache) + len(missing) > self.max_conditions:
-                cache.clear()
+                cache.clear()  # every key of this call is then missing, the cached ones too
+                missing = list(dict.fromkeys(keys))
             for key, condition in zip(missing, self._maps(missing)):
                 cache[key] = condition
         return [cache[k] for k in keys]
