@@ -9,10 +9,12 @@ Measures, with nodes run as processes exactly as ``ros2 run`` starts them, on a 
 reserved per trial:
 
 - recorder: ``mcap_recorder`` killed by SIGINT, SIGTERM or SIGKILL at a random moment of a
-  flight (``--trials`` each); acceleration blocks lost, counted by the simulator's sample
-  indexes against what a probe node had received when the signal was sent; after SIGKILL the
-  bag goes through ``bench.faults.bag_recovery.recover`` and is checked against the chunks
-  complete in the file. The lost stretch is set against the recorder's flush period (ratio).
+  flight (``--trials`` each), and by SIGINT right after being frozen for 0.5 s
+  (SIGSTOP/SIGCONT: a recorder half a second behind its publishers); acceleration blocks
+  lost, counted by the simulator's sample indexes against what a probe node had received when
+  the signal was sent; after SIGKILL the bag goes through
+  ``bench.faults.bag_recovery.recover`` and is checked against the chunks complete in the
+  file. The lost stretch is set against the recorder's flush period (ratio).
 - controller: ``fixed_controller`` killed by SIGKILL at a random moment, with the simulator in
   lockstep (as run_flight flies) and free running; time until ``dva/damper_state`` reports the
   stale fallback and the warning reaches ``/diagnostics``, and the c2 applied meanwhile. The
@@ -48,6 +50,7 @@ from bench.faults import cli_matrix  # noqa: E402
 SECTIONS = ("recorder", "controller", "burst", "cli")
 FLUSH_PERIOD = 1.0  # [s] the recorder's default
 DAMPER_TIMEOUT = 0.5  # [s sim] the simulator's default
+STALL = 0.5  # [s] recorder frozen (SIGSTOP) right before the signal: a recorder that far behind
 
 
 def _median(values) -> float:
@@ -67,25 +70,33 @@ def _trial_dir(root: Path, name: str) -> Path:
     return path
 
 
+# (signal, seconds the recorder is frozen right before it)
+RECORDER_FAULTS = (("SIGINT", 0.0), ("SIGTERM", 0.0), ("SIGKILL", 0.0), ("SIGINT", STALL))
+
+
 def run_recorder(root: Path, trials: int, rng: np.random.Generator) -> tuple[list, str]:
-    from bench.faults.recorder_faults import SIGNALS, run_recorder_trial
+    from bench.faults.recorder_faults import run_recorder_trial
 
     records = []
-    for name in SIGNALS:
+    for name, stall in RECORDER_FAULTS:
         for i in range(trials):
-            kill_after = float(rng.uniform(0.2, 3.0))
-            trial = run_recorder_trial(name, kill_after, _trial_dir(root, f"rec_{name}_{i}"),
-                                       flush_period=FLUSH_PERIOD)
+            kill_after = float(rng.uniform(0.2, 3.0)) + stall
+            trial = run_recorder_trial(name, kill_after,
+                                       _trial_dir(root, f"rec_{name}_{stall:g}_{i}"),
+                                       flush_period=FLUSH_PERIOD, stall=stall)
             records.append(trial)
-            print(f"  recorder {name} {i + 1}/{trials}: after {kill_after:.2f} s, lost "
-                  f"{trial.lost} of {trial.published_before}, gaps {trial.gaps}",
+            print(f"  recorder {name} (stall {stall:g} s) {i + 1}/{trials}: after "
+                  f"{kill_after:.2f} s, lost {trial.lost} of {trial.published_before}, gaps "
+                  f"{trial.gaps}, after the signal {trial.after_signal}",
                   file=sys.stderr, flush=True)
     rows = ["| signal | trials | exit codes | bag closed | blocks before the signal (median) "
-            "| trials losing blocks | blocks lost: median / max | lost stretch [s]: median / max "
-            "(/ flush period) | gaps | complete-chunk blocks not recovered | read back by |",
-            "|---|---|---|---|---|---|---|---|---|---|---|"]
-    for name in SIGNALS:
-        group = [t for t in records if t.signal == name]
+            "| trials losing blocks | blocks lost: median / max (of them, while frozen) | lost "
+            "stretch [s]: median / max (/ flush period) | gaps | blocks recorded after the "
+            "signal: median / max | complete-chunk blocks not recovered | read back by |",
+            "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for name, stall in RECORDER_FAULTS:
+        group = [t for t in records if t.signal == name and t.stall == stall]
+        label = name if stall == 0 else f"{name}, recorder frozen {stall:g} s before"
         codes = ", ".join(f"{c}: {n}" for c, n in sorted(Counter(t.exit_code for t in group)
                                                          .items(), key=str))
         lost = [t.lost for t in group]
@@ -93,11 +104,15 @@ def run_recorder(root: Path, trials: int, rng: np.random.Generator) -> tuple[lis
         missing = [t.missing_from_complete_chunks for t in group
                    if t.missing_from_complete_chunks is not None]
         rows.append(
-            f"| {name} | {len(group)} | {codes} | {sum(t.closed for t in group)} "
+            f"| {label} | {len(group)} | {codes} | {sum(t.closed for t in group)} "
             f"| {_median([t.published_before for t in group]):.0f} "
-            f"| {sum(v > 0 for v in lost)} | {_median(lost):.0f} / {max(lost)} "
+            f"| {sum(v > 0 for v in lost)} | {_median(lost):.0f} / {max(lost)}"
+            + (f" ({sum(t.lost_in_stall for t in group)} of {sum(lost)})" if stall else "")
+            + " "
             f"| {_fmt(_median(window), '.2f')} / {max(window):.2f} "
             f"({max(window) / FLUSH_PERIOD:.2f}) | {sum(t.gaps for t in group)} "
+            f"| {_median([t.after_signal for t in group]):.0f} / "
+            f"{max(t.after_signal for t in group)} "
             f"| {sum(missing) if missing else 'n/a'} "
             f"| {', '.join(sorted({t.method for t in group}))} |")
     return records, "\n".join(rows)
@@ -115,26 +130,27 @@ def run_controller(root: Path, trials: int, rng: np.random.Generator) -> tuple[l
             records.append(trial)
             print(f"  controller {mode} {i + 1}/{trials}: fallback after "
                   f"{trial.fallback_wall_delay:.3f} s wall", file=sys.stderr, flush=True)
-    rows = ["| simulator | trials | to fallback, wall [s]: median / max | to fallback, sim [s]: "
-            "median / max (/ damper timeout) | command age at fallback [s] | warning on "
-            "/diagnostics after [s wall]: median / max | c2 applied until then [N s/m] "
-            "| fallback c2 [N s/m] | longest wait for the controller [s wall] |",
+    rows = ["| simulator | trials | kill to fallback state [s wall]: median / max | last "
+            "command to fallback [s sim]: min-max (/ damper timeout) | warning on /diagnostics "
+            "after the kill [s wall]: median / max | c2 applied until then [N s/m] | fallback "
+            "c2 [N s/m] | longest wait for the controller [s wall]: median / max | trials "
+            "waiting more than once |",
             "|---|---|---|---|---|---|---|---|---|"]
     for mode in MODES:
         group = [t for t in records if t.mode == mode]
         wall = [t.fallback_wall_delay for t in group]
-        sim = [t.fallback_sim_delay for t in group]
+        age = [t.command_age for t in group]
         diag = [t.diagnostic_wall_delay for t in group if t.diagnostic_wall_delay is not None]
         rows.append(
             f"| {mode} | {len(group)} | {_median(wall):.3f} / {max(wall):.3f} "
-            f"| {_median(sim):.3f} / {max(sim):.3f} ({max(sim) / DAMPER_TIMEOUT:.2f}) "
-            f"| {min(t.command_age for t in group):.3f}-{max(t.command_age for t in group):.3f} "
+            f"| {min(age):.3f}-{max(age):.3f} ({max(age) / DAMPER_TIMEOUT:.2f}) "
             f"| {_fmt(_median(diag), '.3f')} / {_fmt(max(diag) if diag else None, '.3f')} "
             f"({len(diag)} of {len(group)}) "
             f"| {min(t.applied_min for t in group):g}-{max(t.applied_max for t in group):g} "
             f"| {', '.join(f'{v:g}' for v in sorted({t.fallback for t in group}))} "
             f"| {_median([t.longest_stall for t in group]):.3f} / "
-            f"{max(t.longest_stall for t in group):.3f} |")
+            f"{max(t.longest_stall for t in group):.3f} "
+            f"| {sum(len([g for g in t.stalls if g > 1.0]) > 1 for t in group)} |")
     return records, "\n".join(rows)
 
 

@@ -38,12 +38,12 @@ class ControllerTrial:
         [s] wall time from the controller's c2 being applied to the kill.
     commanded, fallback : float
         [N s/m] the controller's c2, and the c2 of the first fallback state.
-    fallback_sim_delay : float
-        [s] sim time from the newest state before the kill to the first fallback state.
     fallback_wall_delay : float
         [s] wall time from the kill to the first fallback state reaching the probe.
     command_age : float
-        [s] sim time since the last accepted command, in the first fallback state.
+        [s] sim time since the last accepted command, in the first fallback state: the sim
+        time the damper held the dead controller's c2. (The probe cannot tell the sim time of
+        the kill itself: its own backlog of states makes it late by a varying amount.)
     diagnostic_wall_delay : float or None
         [s] wall time from the kill to the simulator's fallback warning on /diagnostics.
     diagnostic : str
@@ -55,13 +55,14 @@ class ControllerTrial:
     longest_stall : float
         [s] longest wall time between two damper states after the kill (the simulator waiting
         for the controller).
+    stalls : list of float
+        [s] every such gap longer than 0.2 s, in order.
     """
 
     mode: str
     kill_after: float
     commanded: float
     fallback: float
-    fallback_sim_delay: float
     fallback_wall_delay: float
     command_age: float
     diagnostic_wall_delay: float | None
@@ -70,6 +71,7 @@ class ControllerTrial:
     applied_max: float
     statuses_between: dict
     longest_stall: float
+    stalls: list
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -117,15 +119,15 @@ def run_controller_trial(mode: str, kill_after: float, work: Path, *, damping: f
     first = next(s for s in after if s.status == STATUS_FALLBACK)
     between = [s for s in after if s.wall < first.wall]
     walls = [before[-1].wall] + [s.wall for s in after if s.wall <= first.wall]
+    gaps = [b - a for a, b in zip(walls, walls[1:])]
     warning = next((d for d in probe.diagnostics if d.wall > killed and "fallback" in d.message),
                    None)
     values = [s.applied for s in between] or [math.nan]
     return ControllerTrial(
         mode=mode, kill_after=kill_after, commanded=damping, fallback=first.applied,
-        fallback_sim_delay=first.stamp - before[-1].stamp,
         fallback_wall_delay=first.wall - killed, command_age=first.command_age,
         diagnostic_wall_delay=None if warning is None else warning.wall - killed,
         diagnostic="" if warning is None else warning.message,
         applied_min=min(values), applied_max=max(values),
         statuses_between=dict(Counter(STATUS_NAMES[s.status] for s in between)),
-        longest_stall=max(b - a for a, b in zip(walls, walls[1:])) if len(walls) > 1 else 0.0)
+        longest_stall=max(gaps) if gaps else 0.0, stalls=[g for g in gaps if g > 0.2])

@@ -7,6 +7,10 @@ so both hear the flight from its first block. ``kill_after`` seconds of wall tim
 probe received the first acceleration block, the recorder gets the signal. What the probe had
 received by then is what was published before the signal; the bag (recovered after SIGKILL)
 is compared with it by the blocks' ``first_sample_index``.
+
+With ``stall`` > 0 the recorder is frozen (SIGSTOP) for that long just before the signal and
+resumed (SIGCONT) right before it: the signal then meets a recorder that is ``stall`` seconds
+behind its publishers, as a busy recorder on a loaded machine can be.
 """
 from __future__ import annotations
 
@@ -35,6 +39,8 @@ class RecorderTrial:
     Attributes
     ----------
     signal : str
+    stall : float
+        [s] the recorder was frozen this long right before the signal.
     kill_after : float
         [s] wall time from the first block to the signal.
     exit_code : int or None
@@ -62,11 +68,14 @@ class RecorderTrial:
         the stretch of recording lost (to compare with the recorder's flush period).
     lost_at_start, lost_at_end : int
         Lost blocks before the first / after the last block read back.
+    lost_in_stall : int
+        Lost blocks that reached the probe while the recorder was frozen.
     recorder_messages : int or None
         Messages the recorder said it wrote when it closed the bag (all topics).
     """
 
     signal: str
+    stall: float
     kill_after: float
     exit_code: int | None
     closed: bool
@@ -81,6 +90,7 @@ class RecorderTrial:
     lost_window: float
     lost_at_start: int
     lost_at_end: int
+    lost_in_stall: int
     recorder_messages: int | None
 
     @property
@@ -101,7 +111,7 @@ def _gaps(indexes: list[int]) -> int:
 
 def run_recorder_trial(signal_name: str, kill_after: float, work: Path, *,
                        real_time_factor: float = 10.0, flush_period: float = 1.0,
-                       start_timeout: float = 60.0) -> RecorderTrial:
+                       stall: float = 0.0, start_timeout: float = 60.0) -> RecorderTrial:
     """One trial in the empty directory ``work`` (bag, scenario and node logs go there)."""
     number = SIGNALS[signal_name]
     bag = work / "bag"
@@ -118,7 +128,12 @@ def run_recorder_trial(signal_name: str, kill_after: float, work: Path, *,
             raise TrialError("no acceleration block within "
                              f"{start_timeout:g} s:\n{recorder.output()}\n{simulator.output()}")
         first = probe.blocks[0].wall
+        if stall > 0:
+            wait_until(lambda: time.monotonic() >= first + kill_after - stall, kill_after + 1.0)
+            recorder.signal(signal.SIGSTOP)
         wait_until(lambda: time.monotonic() >= first + kill_after, kill_after + 1.0)
+        if stall > 0:
+            recorder.signal(signal.SIGCONT)
         sent = recorder.signal(number)
         heard = list(probe.blocks)
         code = recorder.wait(20.0)
@@ -144,11 +159,12 @@ def run_recorder_trial(signal_name: str, kill_after: float, work: Path, *,
     lost_walls = [b.wall for b in heard if b.wall < sent and b.first_sample_index not in got]
     said = re.search(r"closed .* with (\d+) messages", log)
     return RecorderTrial(
-        signal=signal_name, kill_after=kill_after, exit_code=code, closed=closed,
+        signal=signal_name, stall=stall, kill_after=kill_after, exit_code=code, closed=closed,
         published_before=len(before), recorded=len(got), lost=len(before - got),
         gaps=_gaps(indexes), after_signal=len(got - before), in_complete_chunks=in_chunks,
         missing_from_complete_chunks=missing, method=method,
         lost_window=sent - min(lost_walls) if lost_walls else 0.0,
         lost_at_start=sum(i < min(got) for i in lost_set) if got else len(lost_set),
         lost_at_end=sum(i > max(got) for i in lost_set) if got else 0,
+        lost_in_stall=sum(sent - stall <= w for w in lost_walls) if stall > 0 else 0,
         recorder_messages=int(said.group(1)) if said else None)

@@ -2,11 +2,12 @@
 workers, or on a Ray cluster; results are handed back as each job finishes.
 
 A job is ``work(item)`` for one item; jobs must not depend on each other or on the order they
-run in, so every route gives the same results. Local workers are threads: a flight's work
-happens in the processes it starts (``run_flight`` and its nodes), the thread only waits for
-them. On Ray each job is a task (one CPU each); Ray's workers must see the same installation
-of the project at the same paths (true for a local Ray started here; on a cluster, install
-the project alike on every machine).
+run in, so every route gives the same results. Local workers are threads where a job's work
+happens in processes it starts (``run_flight`` and its nodes: the thread only waits for them),
+or forked processes where the job computes in Python itself (``processes=True``: in-process
+flights, which threads would serialise on the interpreter lock). On Ray each job is a task
+(one CPU each); Ray's workers must see the same installation of the project at the same paths
+(true for a local Ray started here; on a cluster, install the project alike on every machine).
 """
 from __future__ import annotations
 
@@ -29,7 +30,8 @@ def check_workers(workers: int) -> int:
 
 
 def run_jobs(items: Sequence[Item], work: Callable[[Item], Result], *, workers: int = 1,
-             ray_address: str | None = None) -> Iterator[tuple[Item, Result]]:
+             ray_address: str | None = None, processes: bool = False
+             ) -> Iterator[tuple[Item, Result]]:
     """``(item, work(item))`` for every item, as the jobs finish.
 
     Parameters
@@ -40,7 +42,10 @@ def run_jobs(items: Sequence[Item], work: Callable[[Item], Result], *, workers: 
         ``work(item) -> result``; on Ray it must be picklable (a module-level function or a
         ``functools.partial`` of one).
     workers : int
-        Local jobs at a time (threads); 1 runs them in order in this thread.
+        Local jobs at a time; 1 runs them in order in this thread.
+    processes : bool
+        Local workers are forked processes (``work`` and the items must be picklable), not
+        threads.
     ray_address : str, optional
         A Ray cluster's address, ``"auto"`` for the cluster this machine is part of, or
         ``"local"`` to start a local Ray with ``workers`` CPUs. Overrides local workers.
@@ -56,7 +61,14 @@ def run_jobs(items: Sequence[Item], work: Callable[[Item], Result], *, workers: 
         for item in items:
             yield item, work(item)
     else:
-        with cf.ThreadPoolExecutor(max_workers=workers) as pool:
+        if processes:
+            import multiprocessing
+
+            pool = cf.ProcessPoolExecutor(max_workers=workers,
+                                          mp_context=multiprocessing.get_context("fork"))
+        else:
+            pool = cf.ThreadPoolExecutor(max_workers=workers)
+        with pool:
             futures = {pool.submit(work, item): item for item in items}
             try:
                 for future in cf.as_completed(futures):

@@ -5,7 +5,7 @@ scenario block by block (50 samples); after every block the controller sees what
 controller would receive for that block and may command a c2, which the damper applies from
 the next block on: the graph with its command lag bound at one block (``run_flight
 --max-command-lag 0.05``), without DDS and processes, so a flight takes a fraction of a second.
-The same seed gives the same aileron force whatever the controller (the force is drawn per
+The same the study gives the same aileron force whatever the controller (the force is drawn per
 block from the scenario's generator), so flights of different controllers are paired.
 
 Controllers (the nodes' arithmetic on the nodes' inputs):

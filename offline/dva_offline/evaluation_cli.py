@@ -65,6 +65,13 @@ def register(subparsers) -> None:
     p.add_argument("--no-boundaries", action="store_true",
                    help="skip the eigenvalue and Floquet boundaries")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.add_argument("--workers", type=int, default=1, metavar="N",
+                   help="flights in parallel: N local processes (default 1); with --graph, N "
+                        "flights at a time, each in its own ROS domain")
+    p.add_argument("--ray", metavar="ADDRESS", default=None,
+                   help="hand the flights to a Ray cluster: its address, 'auto' (the cluster "
+                        "this machine is part of) or 'local' (start one here with --workers "
+                        "CPUs); needs the 'ray' extra")
     g = p.add_argument_group("--graph: the evaluation through the ROS 2 graph")
     g.add_argument("--graph", action="store_true",
                    help="fly every flight through run_flight (nodes over DDS) instead")
@@ -192,10 +199,23 @@ def _batch(args) -> int:
         bar.set_postfix_str(text)
         bar.update(1)
 
+    from dva_offline.evaluation_resume import FlightStore
+
+    store = FlightStore(out / "flights", {
+        "scenario": str(scenario_path), "controllers": list(controllers),
+        "cases": case_table(cases), "rms_range_ratio": [rms_low, rms_high],
+        "fixed_c2": fixed["damping"], "schedule": made.get("schedule"),
+        "network": made.get("network")})
+    done = store.load(seeds)
+    if done:
+        log(f"resuming: {len(done)} of {len(cases) * len(seeds)} (case, seed) jobs already "
+            f"flown in {store.directory}")
+        bar.update(sum(len(v) for k, v in done.items() if k[1] != seeds[0]))
     flights_started = time.monotonic()
     try:
         records, kept = fly_batch(setup, list(cases.values()), seeds, controllers, progress,
-                                  keep=lambda c, k, s: s == seeds[0])
+                                  keep_seed=seeds[0], workers=args.workers,
+                                  ray_address=args.ray, done=done, finished=store.save)
     finally:
         bar.close()
     flight_time = time.monotonic() - flights_started
@@ -207,7 +227,8 @@ def _batch(args) -> int:
         "cases": case_table(cases), "seeds": seeds, "inputs": made,
         "critical_airspeed_no_dva": u_cr, "fixed_c2": fixed["damping"],
         "rms_range_ratio": [rms_low, rms_high], "flights": len(records),
-        "flight_wall_time_s": flight_time,
+        "flight_wall_time_s": flight_time, "workers": args.workers, "ray": args.ray,
+        "resumed_jobs": len(done),
         "results": [_row_json(r) for r in rows], "boundaries": boundaries,
     }
     files = write_batch_results(out, payload, records)

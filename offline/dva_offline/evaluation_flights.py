@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
+from functools import partial
 
 import numpy as np
 
@@ -28,7 +29,7 @@ from dva_offline.closed_loop import (
 )
 from dva_offline.evaluation_batch import DensityCase, FlightRecord, case_scenario, flight_record
 
-__all__ = ["EvaluationSetup", "case_table", "fly_batch", "oracle_table",
+__all__ = ["EvaluationSetup", "case_table", "fly_batch", "fly_seed", "oracle_table",
            "stability_boundaries"]
 
 
@@ -89,27 +90,68 @@ def oracle_table(model, critical_airspeed: float, base_density: float,
                                      np.linspace(r_lo, r_hi, n_rho))
 
 
+def fly_seed(setup: EvaluationSetup, controllers: Sequence[str], keep: bool,
+             job: tuple[DensityCase, int]) -> tuple[list[FlightRecord], dict]:
+    """One job of the batch: every controller on one (case, seed), the same force realisation
+    for all (paired); the outcomes too when ``keep`` (for plots)."""
+    case, seed = job
+    scenario = case_scenario(setup.config.scenario, case, setup.critical_airspeed, seed)
+    config = replace(setup.config, scenario=scenario)
+    records, kept = [], {}
+    for name in controllers:
+        outcome = fly(config, setup.controller(name))
+        records.append(flight_record(name, case.name, seed, outcome, setup.critical_airspeed,
+                                     setup.rms_range))
+        if keep:
+            kept[(name, case.name, seed)] = outcome
+    return records, kept
+
+
 def fly_batch(setup: EvaluationSetup, cases: Sequence[DensityCase], seeds: Sequence[int],
               controllers: Sequence[str], progress: Callable[[str], None] | None = None,
-              keep: Callable[[str, str, int], bool] | None = None
+              keep_seed: int | None = None, *, workers: int = 1, ray_address: str | None = None,
+              done: Mapping[tuple[str, int], list[FlightRecord]] | None = None,
+              finished: Callable[[tuple[str, int], list[FlightRecord]], None] | None = None
               ) -> tuple[list[FlightRecord], dict]:
-    """Fly everything; returns the records and the outcomes ``keep(controller, case, seed)``
-    asked to keep (for plots)."""
-    records, kept = [], {}
-    for case in cases:
-        for seed in seeds:
-            scenario = case_scenario(setup.config.scenario, case, setup.critical_airspeed,
-                                     seed)
-            config = replace(setup.config, scenario=scenario)
-            for name in controllers:
-                outcome = fly(config, setup.controller(name))
-                records.append(flight_record(name, case.name, seed, outcome,
-                                             setup.critical_airspeed, setup.rms_range))
-                if keep is not None and keep(name, case.name, seed):
-                    kept[(name, case.name, seed)] = outcome
-                if progress is not None:
-                    progress(f"{case.name} seed {seed} {name}")
-    return records, kept
+    """Fly everything; returns the records (in case, seed, controller order, whatever the
+    route) and the outcomes of ``keep_seed`` (for plots).
+
+    The jobs are the (case, seed) pairs, run by :func:`dva_offline.campaign.run_jobs`: in
+    order, on ``workers`` forked processes, or on Ray (``ray_address``). ``done`` maps a
+    (case name, seed) already flown (a resumed evaluation) to its records: that job is not
+    flown again unless its outcomes are wanted for plots. ``finished(key, records)`` is called
+    in this process as each job completes (to save it).
+    """
+    from dva_offline.campaign import run_jobs
+
+    done = dict(done or {})
+    jobs = [(case, seed) for case in cases for seed in seeds
+            if seed == keep_seed or (case.name, seed) not in done]
+    results: dict[tuple[str, int], list[FlightRecord]] = dict(done)
+    kept: dict = {}
+    by_keep = {True: partial(fly_seed, setup, tuple(controllers), True),
+               False: partial(fly_seed, setup, tuple(controllers), False)}
+    # Jobs whose outcomes are kept run in this process (their traces are large to send back).
+    for job in [j for j in jobs if j[1] == keep_seed]:
+        records, outcomes = by_keep[True](job)
+        _finish(job, records, results, finished, progress)
+        kept.update(outcomes)
+    rest = [j for j in jobs if j[1] != keep_seed]
+    for job, (records, _) in run_jobs(rest, by_keep[False], workers=workers,
+                                      ray_address=ray_address, processes=True):
+        _finish(job, records, results, finished, progress)
+    ordered = [r for case in cases for seed in seeds for r in results[(case.name, seed)]]
+    return ordered, kept
+
+
+def _finish(job, records, results, finished, progress) -> None:
+    key = (job[0].name, job[1])
+    results[key] = records
+    if finished is not None:
+        finished(key, records)
+    if progress is not None:
+        for r in records:
+            progress(f"{key[0]} seed {key[1]} {r.controller}")
 
 
 def _laws(setup: EvaluationSetup, controllers: Sequence[str]) -> dict:

@@ -126,6 +126,12 @@ class Comparison:
         RMS of those differences.
     identical : bool
         Same stamps, and every value equal bit for bit.
+    held : dict or None
+        Commands only: each command of ``other`` against the reference c2 in force at its
+        stamp (the latest reference command at or before it), for controllers whose commands
+        come at other times: ``compared`` (commands with a reference before them),
+        ``mean_difference`` (other - reference), ``max_abs_difference``, ``rms_difference``
+        [N s/m].
     """
 
     reference: int
@@ -134,11 +140,13 @@ class Comparison:
     max_abs_difference: float
     rms_difference: float
     identical: bool
+    held: dict | None = None
 
     def to_dict(self) -> dict:
         return dict(reference=self.reference, other=self.other, matched=self.matched,
                     max_abs_difference=self.max_abs_difference,
-                    rms_difference=self.rms_difference, identical=self.identical)
+                    rms_difference=self.rms_difference, identical=self.identical,
+                    held=self.held)
 
 
 def _values(record) -> np.ndarray:
@@ -177,4 +185,26 @@ def compare(reference: Sequence, other: Sequence) -> Comparison:
     finite = flat[np.isfinite(flat)]
     max_diff = float(flat.max()) if flat.size else 0.0
     rms = float(np.sqrt(np.mean(finite ** 2))) if finite.size else 0.0
-    return Comparison(len(ref), len(oth), len(common), max_diff, rms, identical)
+    held = None
+    if all(isinstance(r, CommandRecord) for r in (*reference, *other)):
+        held = _held_difference(reference, other)
+    return Comparison(len(ref), len(oth), len(common), max_diff, rms, identical, held)
+
+
+def _held_difference(reference: Sequence[CommandRecord],
+                     other: Sequence[CommandRecord]) -> dict:
+    """``other``'s commands against the reference c2 in force at their stamps."""
+    ref = sorted(reference, key=lambda r: r.stamp_ns)
+    stamps = np.array([r.stamp_ns for r in ref], dtype=np.int64)
+    values = np.array([r.damping for r in ref])
+    at = np.array([r.stamp_ns for r in other], dtype=np.int64)
+    index = np.searchsorted(stamps, at, side="right") - 1
+    keep = index >= 0
+    diff = np.array([r.damping for r in other])[keep] - values[index[keep]]
+    diff = diff[np.isfinite(diff)]
+    if diff.size == 0:
+        return {"compared": 0, "mean_difference": None, "max_abs_difference": None,
+                "rms_difference": None}
+    return {"compared": int(diff.size), "mean_difference": float(diff.mean()),
+            "max_abs_difference": float(np.abs(diff).max()),
+            "rms_difference": float(np.sqrt(np.mean(diff ** 2)))}

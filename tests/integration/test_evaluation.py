@@ -9,7 +9,7 @@ import pytest
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
-# A short, fast ramp: 0.8 -> 1.3 U_cr in 10 s (the seed's is 0.8 -> 1.2 in 30 s), so the wing
+# A short, fast ramp: 0.8 -> 1.3 U_cr in 10 s (the study's is 0.8 -> 1.2 in 30 s), so the wing
 # without DVA (U_cr) and with the best fixed c2 (1.15 U_cr) both diverge within it.
 SCENARIO = """\
 name: short_ramp

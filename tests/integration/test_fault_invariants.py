@@ -6,13 +6,17 @@ few of them here; the bench runs 20 per fault and docs/reliability.md has its fi
 - after SIGKILL, recovery gives back every block inside the chunks complete in the file;
 - a controller killed mid-flight leaves its last c2 applied until the damper's stale fallback;
 - a 10 kHz burst of valid and invalid commands never gets a NaN, infinite or out-of-range c2
-  applied, and is reported on /diagnostics a few times, not once per command.
+  applied, and is reported on /diagnostics a few times, not once per command;
+- run_flight fails at once when a node of the graph exits before the flight ends.
 """
 from __future__ import annotations
+
+import time
 
 import numpy as np
 import pytest
 
+from aero_dva_sim.run_flight import main as run_flight_main
 from bench.faults.command_faults import DAMPER_RANGE, run_burst_session
 from bench.faults.controller_faults import run_controller_trial
 from bench.faults.recorder_faults import run_recorder_trial
@@ -62,3 +66,15 @@ def test_command_burst_never_applies_an_invalid_c2(tmp_path):
         assert burst.applied_valid, burst
         assert DAMPER_RANGE[0] <= burst.applied_min <= burst.applied_max <= DAMPER_RANGE[1]
         assert burst.diagnostics <= 4, burst  # one report per reason, not one per command
+
+
+def test_run_flight_fails_at_once_when_the_controller_cannot_start(tmp_path):
+    # Before: the controller exited 2 on its file, the simulator waited 30 s for it, flew on
+    # the damper's fallback, and run_flight printed a summary under the controller's name.
+    bad = tmp_path / "schedule.json"
+    bad.write_text('{"format": "something else"}')
+    started = time.monotonic()
+    code = run_flight_main(["--controller", "schedule", "--schedule", str(bad), "--output",
+                            str(tmp_path / "bag"), "--real-time-factor", "0"])
+    assert code == 1
+    assert time.monotonic() - started < 20.0  # not the simulator's 30 s wait for the node

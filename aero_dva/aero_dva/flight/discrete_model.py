@@ -279,15 +279,10 @@ class DiscreteWing:
                                    damping if self.model.absorber is not None else None)
         check_sampling(a, self.dt)
 
-    def next_held(self, raw: tuple, held: tuple) -> tuple:
-        """:func:`next_held` with this model's quantum for every input."""
-        if self.quantum == 0.0:
-            return tuple(raw)
-        return next_held(raw, held, (self.quantum,) * len(raw))
-
     def held_sequence(self, raws, held: tuple) -> list[tuple]:
-        """:meth:`next_held` over successive grid samples ``raws`` (tuples), from ``held``: the
-        held values of each period. (The rule inlined: the streaming simulator's hot path.)"""
+        """:func:`next_held` with this model's quantum over successive grid samples ``raws``
+        (tuples), from ``held``: the held values of each period. (The rule inlined: the
+        streaming simulator's hot path.)"""
         q = self.quantum
         if q == 0.0:
             return [tuple(raw) for raw in raws]
@@ -344,7 +339,7 @@ class DiscreteWing:
         if missing:
             missing = list(dict.fromkeys(missing))
             if len(cache) + len(missing) > self.max_conditions:
-                cache.clear()  # every key of this call is then missing, the cached ones too
+                cache.clear()  # then every key of this call is missing, not only the new ones
                 missing = list(dict.fromkeys(keys))
             for key, condition in zip(missing, self._maps(missing)):
                 cache[key] = condition

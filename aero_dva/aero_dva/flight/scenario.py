@@ -14,7 +14,7 @@ Profiles
   ``dwell`` seconds, one per c2 value (the study's sec. 7.2.1 training experiment).
 - density: rho(t) = rho0 (1 + mu sin(2 pi f t)) (Zhang (2006) eq. 7.2, with f = 1 Hz there).
 - excitation: zero-mean white Gaussian aileron force with standard deviation ``force_std``
-  (1 kN in the seed), drawn per sample from ``numpy.random.default_rng(seed)``; optionally
+  (1 kN in the study), drawn per sample from ``numpy.random.default_rng(seed)``; optionally
   scaled by ``force_levels`` taken in turn for ``level_dwell`` seconds each (a flight test at
   several excitation levels, which shows amplitude-dependent behaviour).
 """

@@ -1,6 +1,6 @@
 """Test flights that hide one plant effect (the generator of the flight-domain tests).
 
-Not used by the engine. A case is a stepped flight of the reference wing recorded through the
+Not used by the loop. A case is a stepped flight of the reference wing recorded through the
 batch path (:func:`aero_dva.bag.runtime_recording.record_runtime`) into an MCAP bag, flown
 with a hidden plant (:mod:`aero_dva.flight.hidden_plant`) that the log does not reveal:
 

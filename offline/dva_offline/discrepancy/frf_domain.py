@@ -1,4 +1,4 @@
-"""Domain 1: frequency responses of isolators and viscoelastic mounts (seed chapters 3-5).
+"""Domain 1: frequency responses of isolators and viscoelastic mounts (Zhang (2006) chapters 3-5).
 
 Baseline: the general Maxwell model of the isolator tool, K(w) = k + j w c +
 sum_i j w c_i k_i / (k_i + j w c_i) (eq. 4.8), seen through the measured quantity
@@ -26,12 +26,18 @@ fixture_mass           K - dm w^2 (receptance: 1 / (K - (m + dm) w^2))        dm
 foundation_mode        K K_f / (K + K_f), K_f = m_f (w_f^2 - w^2 + 2j z_f w_f w)  f_f, z_f, m_f
 amplitude_dependence   Re K (1 + s_k L) + j Im K (1 + s_d L), L = ln(a / a_0)   s_k, s_d
 covariate_shift        K0(w a_T), log10 a_T = -b C2 (T - T0) / (C2 + T - T0)   b, C2
+  (temperatures also)  log10 a_T = E_a / (R ln 10) (1/T - 1/T0), T in kelvin    E_a
 =====================  =====================================================  ================
 
 ``maxwell_element`` is a candidate only when the order is fixed (or the automatic order hit
-its maximum); otherwise extra elements are already part of the baseline. ``a`` and ``T`` are
-condition covariates (any column with several levels; a_0, T0 = the median level).
-covariate_shift is the WLF form of time-temperature superposition with C1 = b C2.
+its maximum, or the loop has added an effect); otherwise extra elements are already part of
+the baseline. ``a`` and ``T`` are covariates whose sweep levels differ (values per point as
+measured; a_0, T0 = the reference sweep's mean, the sweep at the median level).
+covariate_shift is the WLF form of time-temperature superposition with C1 = b C2, and for a
+temperature also its Arrhenius form (a candidate of its own, label ``NAME, Arrhenius``); a
+temperature gets no level law. The effects are terms of one model (:mod:`.frf_terms`), so the
+loop can take a chosen effect into the baseline (:meth:`FrfDomain.augment`) and offer the
+library again on top of it (the library itself is in :mod:`.frf_library`).
 
 Starting values that do not inherit the baseline's distortion (the baseline bends its elements
 to imitate the missing effect): :func:`maxwell_from_stiffness` fits the Maxwell model globally
@@ -259,7 +265,7 @@ class FrfDomain(FrfLibrary):
                                                       self.quantity, max_iter=15).model
                     except (ValueError, np.linalg.LinAlgError):
                         pass
-        for n in orders:  # a failed fit: the seed's initial-guess rule (section 4.3.2)
+        for n in orders:  # a failed fit: the study's initial-guess rule (section 4.3.2)
             if n not in models:
                 taus = np.logspace(-0.5, 1.0, n) / wn
                 ks = np.full(n, positive(m * wn**2 - k, 0.1 * k) / n)

@@ -226,7 +226,9 @@ class ModalDomain:
         out = []
         for r in range(n):
             fr, zr, ar = values[3 * r: 3 * r + 3]
-            a_scale = max(abs(ar), 1e-300)
+            # a modal constant's size: |A| ~ |H| 2 z w_r^2 near its resonance (a start of ~0
+            # must not set a vanishing scale)
+            a_scale = max(abs(ar), h_scale * 0.02 * (2 * np.pi * fr) ** 2)
             out += [ParamSpec(f"f_{r + 1}", "Hz", fr, 0.5 * f_lo, 2.0 * f_hi, log=True,
                               at_lower="a mode below the band", at_upper="a mode above the band"),
                     ParamSpec(f"zeta_{r + 1}", "-", zr, 1e-4, 0.5, log=True,

@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from aero_dva.atomic_io import atomic_output
 from dva_offline.isolator.frf_data import (
     FrfData,
     condition_columns,
@@ -229,7 +230,7 @@ def write_stepped_sine_csv(path, frequency_hz, force, response, covariates=None)
               "response_phase_deg", *extra]
     cols = [f, np.abs(fc), np.degrees(np.angle(fc)), np.abs(rc), np.degrees(np.angle(rc))]
     cols += [np.asarray(c, dtype=float) for c in extra.values()]
-    with Path(path).open("w", newline="") as fh:
+    with atomic_output(path) as fh:  # never half a file, even if interrupted
         writer = csv.writer(fh)
         writer.writerow(header)
         for row in zip(*cols):
@@ -243,7 +244,7 @@ def write_frf_csv(path, frequency_hz, values, covariates: dict | None = None) ->
     extra = covariates or {}
     header = list(FRF_COLUMNS) + list(extra)
     cols = [f, v.real, v.imag] + [np.asarray(c, dtype=float) for c in extra.values()]
-    with Path(path).open("w", newline="") as fh:
+    with atomic_output(path) as fh:  # never half a file, even if interrupted
         writer = csv.writer(fh)
         writer.writerow(header)
         for row in zip(*cols):

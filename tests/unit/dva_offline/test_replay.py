@@ -128,6 +128,10 @@ def test_compare_matches_by_stamp_and_counts_the_unmatched():
     c = compare(a, b)
     assert (c.matched, c.max_abs_difference, c.identical) == (1, 5.0, False)
     assert compare(a, [CommandRecord(1, float("nan"), "x"), a[1]]).max_abs_difference == np.inf
+    # another controller's commands at other times: against the c2 in force at each stamp
+    held = compare(a, [CommandRecord(3, 26.0, "y"), CommandRecord(0, 5.0, "y")]).held
+    assert held == {"compared": 1, "mean_difference": 6.0, "max_abs_difference": 6.0,
+                    "rms_difference": 6.0}
 
 
 def test_rbf_commands_skip_spectra_without_a_valid_c2(flight):

@@ -77,6 +77,9 @@ SPEC = NodeSpec(
               "topic has this many subscribers", "", 0, 1000),
         Param("wait_for_nodes", [""], "... and these nodes are in the graph with all their "
               "subscriptions to played topics matched"),
+        Param("wait_for_topics", [""], "... and these topics, not played, have a publisher and "
+              "N subscribers in the graph (TOPIC or TOPIC:N, N default 1), e.g. the links "
+              "between the nodes the bag is replayed into"),
         Param("wait_timeout", 30.0, "wall time after which playing starts anyway (with a "
               "warning)", "s", 0.0, 1.0e6),
         Param("delay", 0.5, "wall time from the end of the wait to the first message: DDS "
@@ -125,6 +128,7 @@ class BagPlayer(Node):
         self._play_clock = bool(values["clock"])
         self._wait_for = int(values["wait_for_subscribers"])
         self._wait_nodes = [n for n in values["wait_for_nodes"] if n]
+        self._wait_topics = [self._topic_count(t) for t in values["wait_for_topics"] if t]
         self._wait_timeout = float(values["wait_timeout"])
         self._delay = float(values["delay"])
         self.played = self._select(values["topics"])
@@ -149,11 +153,21 @@ class BagPlayer(Node):
         self.finished = Future()
         self.done = self.finished if bool(values["exit_on_end"]) else None
         self.summary: dict = {}
+        self._played_span_ns = 0  # [ns] log time from the first to the last message played
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="bag_player", daemon=True)
         described = ", ".join(f"{n} ({self.source.topics[n].message_count})" for n in self.played)
         self.get_logger().info(f"playing {values['bag']} at rate {self.rate:g}: {described}")
         self._thread.start()
+
+    @staticmethod
+    def _topic_count(entry: str) -> tuple[str, int]:
+        name, _, count = entry.rpartition(":") if ":" in entry else (entry, "", "1")
+        try:
+            return name, int(count)
+        except ValueError:
+            raise ValueError(f"parameter 'wait_for_topics': {entry!r} is not TOPIC or "
+                             "TOPIC:N") from None
 
     def _select(self, wanted) -> list[str]:
         names = [w if w.startswith("/") else "/" + w for w in wanted if w]
@@ -162,6 +176,9 @@ class BagPlayer(Node):
         if unknown:
             raise ValueError(f"parameter 'topics': {unknown} not in the bag; its topics: "
                              f"{sorted(available)}")
+        if self._play_clock and "/clock" in names:
+            raise ValueError("parameter 'topics' names /clock while 'clock' is true (the "
+                             "player's own /clock): set clock:=false to play the recorded one")
         chosen = names or sorted(available)
         if self._play_clock and not names:
             chosen = [n for n in chosen if n != ch.CLOCK.name]  # the player's clock replaces it
@@ -220,13 +237,16 @@ class BagPlayer(Node):
                 known = len(self.get_subscriptions_info_by_topic(pub.topic_name))
                 if pub.get_subscription_count() < known:
                     missing.append(f"matching of {known} subscribers on {name}")
+        for topic, count in self._wait_topics:
+            if self.count_publishers(topic) < 1 or self.count_subscribers(topic) < count:
+                missing.append(f"a publisher and {count} subscribers on {topic}")
         return missing
 
     def _play_once(self) -> None:
         origin = self.source.start_ns  # None: a damaged bag; its first message's time then
         first_ns = None
         wall0 = 0.0
-        last_clock = None
+        last_clock = last_ns = None
         for log_ns, topic, data in self.source.messages(self.played):
             if self._stop.is_set():
                 return
@@ -247,10 +267,11 @@ class BagPlayer(Node):
                 self._clock_pub.publish(Clock(clock=conversions.ns_to_time(log_ns)))
                 self.clock_published += 1
                 last_clock = log_ns
+            last_ns = log_ns
             pub = self._pub[topic]
             pub.publish(data)
             self.counts[topic] += 1
-        self._played_span_ns = 0 if first_ns is None else (last_clock or first_ns) - first_ns
+        self._played_span_ns = 0 if first_ns is None else last_ns - first_ns
         if self.source.read_problems:
             self.get_logger().warning(
                 f"bag ends early: played up to the damage ({self.source.read_problems[-1]})")
@@ -273,7 +294,7 @@ class BagPlayer(Node):
             time.sleep(min(left, SLICE))
 
     def _report(self, outcome: str, wall: float, rounds: int) -> None:
-        span = getattr(self, "_played_span_ns", 0) / 1e9
+        span = self._played_span_ns / 1e9
         total = sum(self.counts.values())
         values = {"outcome": outcome, "messages": total, "wall_time_s": wall,
                   "bag_time_played_s": span, "rounds": rounds,

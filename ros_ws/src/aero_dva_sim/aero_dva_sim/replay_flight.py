@@ -51,10 +51,15 @@ def build_commands(args, inputs: list[str]) -> dict[str, list[str]]:
                                         "--ros-args",
                                         *ros_params(damping=args.damping, rate=20.0, **sim_time)]
     others = list(commands)
+    # The links between the nodes must be up before the first message, not only the nodes:
+    # the spectra reach the network and the recorder, the commands the recorder.
+    links = ["/dva/spectrum:2", "/dva/damper_command:1"] if args.controller == "rbf" \
+        else ["/dva/damper_command:1"]
     commands["bag_player"] = [
         executable("aero_dva_sim", "bag_player"), "--ros-args",
         *ros_params(bag=args.bag, rate=args.rate, wait_for_subscribers=1,
                  wait_for_nodes="[" + ",".join(others) + "]",
+                 wait_for_topics="[" + ",".join(f'"{t}"' for t in links) + "]", delay=1.0,
                  topics="[" + ",".join(inputs) + "]", wait_timeout=60.0),
     ]
     return commands

@@ -111,6 +111,26 @@ def stop_process(process: subprocess.Popen, timeout: float) -> int:
     return process.returncode
 
 
+def _wait_for_flight(processes: dict[str, subprocess.Popen], timeout: float,
+                     logs: Path) -> None:
+    """Wait for the simulator to end the flight. Any other node that exits before it (a
+    controller refusing its file, a recorder that cannot write) fails the run at once: the
+    flight would otherwise go on with the damper's fallback under the controller's name."""
+    deadline = time.monotonic() + timeout
+    simulator = processes["simulator"]
+    while simulator.poll() is None:
+        for name, process in processes.items():
+            if name != "simulator" and process.poll() is not None:
+                lines = (logs / f"{name}.log").read_text(errors="replace").strip().splitlines()
+                raise SystemExit(f"run_flight: error: {name} exited with {process.returncode} "
+                                 f"before the flight ended ({lines[-1] if lines else 'no output'}"
+                                 f"); see {logs / (name + '.log')}")
+        if time.monotonic() > deadline:
+            raise SystemExit(f"run_flight: error: the flight took longer than {timeout} s; "
+                             f"node logs in {logs}")
+        time.sleep(0.05)
+
+
 def run(args) -> dict:
     """Run the graph; return the summary as a dict (raises SystemExit on failure)."""
     from aero_dva.bag.flight_log_io import load_flight_log
@@ -133,16 +153,7 @@ def run(args) -> dict:
                 processes[name] = subprocess.Popen(argv, env=env, stdout=log,
                                                    stderr=subprocess.STDOUT,
                                                    preexec_fn=die_with_parent)
-        simulator = processes["simulator"]
-        try:
-            simulator.wait(timeout=args.timeout)
-        except subprocess.TimeoutExpired:
-            raise SystemExit(f"run_flight: error: the flight took longer than {args.timeout} s; "
-                             f"node logs in {logs}") from None
-        for name, process in processes.items():
-            if name != "simulator" and process.poll() is not None:
-                print(f"run_flight: warning: {name} exited early with {process.returncode}; "
-                      f"see {logs / (name + '.log')}", file=sys.stderr)
+        _wait_for_flight(processes, args.timeout, logs)
         time.sleep(0.5)  # let the recorder take the last messages in flight off the wire
     finally:
         codes = {name: stop_process(p, timeout=15.0) for name, p in reversed(processes.items())}

@@ -1,4 +1,4 @@
-"""``rbf_controller``: c2 from the scaled vibration spectra with an RBF network (seed sec. 7.2).
+"""``rbf_controller``: c2 from the scaled vibration spectra with an RBF network (study sec. 7.2).
 
 For each ``dva/spectrum`` message the network's input is the scaled magnitudes, channel-major,
 followed by the current c2 (the spectrum's ``damping`` field, the c2 applied during the

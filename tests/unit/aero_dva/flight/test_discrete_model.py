@@ -57,6 +57,10 @@ def test_a_condition_is_built_once_and_rebuilt_when_it_changes():
     assert wing.cached == 4
     wing.at(60.0, 1.2, 300.0)  # over max_conditions: the cache starts afresh
     assert wing.cached == 1
+    # a call that mixes cached and new conditions past the limit gets all of them
+    keys = [(60.0, 1.2, 300.0), *[(61.0 + i, 1.2, 300.0) for i in range(4)]]
+    assert [c.ad.shape for c in wing.conditions(keys)] == [first.ad.shape] * 5
+    assert wing.cached == 5  # one call's conditions are all kept, even past the limit
     # the maps: one step is [[Ad, Bd], [C, D]]; a hold period is h such steps
     m = wing.discretise([[70.0, 1.2, 300.0]])
     np.testing.assert_array_equal(first.ad, m.ad[0])
@@ -133,6 +137,8 @@ def test_the_hold_rule_keeps_values_within_the_quantum():
             held = dm.next_held(tuple(raw[f, p]), held, (2e-3,) * 3)
             assert tuple(got[f, p]) == held
     assert len(np.unique(got[0, :, 0])) < 50  # values were kept
+    wing = dm.DiscreteWing(MODEL, 1000.0, quantum=2e-3)
+    assert wing.held_sequence(map(tuple, raw[0]), (nan, nan, nan)) == [tuple(r) for r in got[0]]
 
 
 def test_every_simulator_flies_a_discrete_wing():

@@ -72,3 +72,19 @@ def test_cli_errors_are_one_line_exit_2(capsys):
     code = cli.main(["discrepancy", "frf", str(DMA), "--quantity", "modulus", "--columns",
                      DMA_COLUMNS, "--value-unit", "psi", "--group-by", "Set"])
     assert code == 2 and "unknown modulus value unit 'psi'" in capsys.readouterr().err
+
+
+def test_semicolons_rad_per_s_and_n_per_mm_flags(tmp_path):
+    w = 2 * np.pi * np.geomspace(1, 100, 12)
+    rows = ["omega;K_re;K_im;temp"] + [f"{x};{2.0 + 0.01 * i};{0.5};{20 + 0.01 * i}"
+                                      for i, x in enumerate(w)]
+    path = tmp_path / "export.csv"
+    path.write_text("\n".join(rows) + "\n")
+    table = table_io.read_table(path)
+    conds, grouping, info = table_io.conditions_from_table(
+        table, "stiffness", table_io.ColumnMap.parse("f=omega,re=K_re,im=K_im"),
+        frequency_unit="rad/s", value_unit="N/mm", tolerance=0.5)
+    assert len(conds) == 1 and grouping.n_conditions == 1
+    np.testing.assert_allclose(conds[0].frequency_hz, np.geomspace(1, 100, 12))
+    assert conds[0].values[0] == pytest.approx(2000.0 + 500.0j)
+    assert info["units"]["frequency"] == "rad/s (flag)"
