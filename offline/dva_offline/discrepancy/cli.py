@@ -54,24 +54,18 @@ def _conditions(args):
         data = isolator_io.read_uff58(path, quantity)
         grouping = table_io.Grouping("a single sweep (UFF 58)", (), 1, ())
         return [data], columns, grouping, {}
-    conditions, grouping, info = _naming_the_file(path, lambda: table_io.conditions_from_table(
-        table_io.read_table(path), quantity, table_io.ColumnMap.parse(args.columns),
-        args.frequency_unit, args.value_unit, args.group_by, args.covariate_tolerance, columns))
+    table = table_io.read_table(path)
+    try:
+        conditions, grouping, info = table_io.conditions_from_table(
+            table, quantity, table_io.ColumnMap.parse(args.columns), args.frequency_unit,
+            args.value_unit, args.group_by, args.covariate_tolerance, columns)
+    except ValueError as exc:  # say which file
+        raise ValueError(f"{path}: {exc}") from None
     if columns is None:
         # every covariate whose condition levels differ, except the set column itself
         skip = set(grouping.columns) if args.group_by else set()
         columns = [n for n in conditions[0].covariates if n not in skip]
     return conditions, columns, grouping, info
-
-
-def _naming_the_file(path, read):
-    """``read()``, with a ValueError about the file's contents prefixed by the file's name."""
-    try:
-        return read()
-    except ValueError as exc:
-        if str(path) in str(exc):
-            raise
-        raise ValueError(f"{path}: {exc}") from None
 
 
 def _cmd_frf(args) -> int:
@@ -154,10 +148,14 @@ def _cmd_modal(args) -> int:
                              ) from None
     columns = ([c.strip() for c in args.covariates.split(",") if c.strip()]
                if args.covariates else None)
-    raw, grouping, info = _naming_the_file(args.file, lambda: table_io.conditions_from_table(
-        table_io.read_table(args.file), args.quantity, table_io.ColumnMap.parse(args.columns),
-        args.frequency_unit, args.value_unit, args.group_by, args.covariate_tolerance, columns,
-        internal_quantity="receptance"))
+    table = table_io.read_table(args.file)
+    try:
+        raw, grouping, info = table_io.conditions_from_table(
+            table, args.quantity, table_io.ColumnMap.parse(args.columns), args.frequency_unit,
+            args.value_unit, args.group_by, args.covariate_tolerance, columns,
+            internal_quantity="receptance")
+    except ValueError as exc:  # say which file
+        raise ValueError(f"{args.file}: {exc}") from None
     conditions = [FrfData(c.frequency_hz, to_receptance(c.frequency_hz, c.values, args.quantity),
                           "receptance", c.covariates) for c in raw]
     if columns is None:
