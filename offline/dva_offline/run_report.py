@@ -167,7 +167,7 @@ def report_markdown(report: RunReport, links: Mapping[str, str]) -> str:
     if sc.get("file"):
         lines.append(f"- scenario file: `{sc['file']}`")
     if "seed" in sc:
-        lines.append(f"- excitation seed {sc['study']}")
+        lines.append(f"- excitation seed {sc['seed']}")
     if "absorber" in sc:
         lines.append(f"- absorber: {sc['absorber']}"
                      + (" (the wing without DVA)" if sc["absorber"] == "none" else ""))
