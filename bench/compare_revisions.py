@@ -45,6 +45,7 @@ BENCHMARKS = {
     "bench_wing_sim": ["--flights", "16", "--repeats", "1"],
     # new since the layout move: listed, not compared, against a base without them
     "bench_bag_player": [],
+    "bench_flight_log_read": ["--blocks", "4000"],
     "bench_discrepancy_combined": ["--cases", "1", "--only", "pairs"],
     "bench_faults": ["--trials", "1", "--only", "burst"],
 }

@@ -16,6 +16,7 @@ topics the command needs.
 from __future__ import annotations
 
 import contextlib
+import functools
 import io
 import json
 import math
@@ -41,7 +42,7 @@ ODD_NAME = "mesure n°1 — données"
 # Input formats: name -> file suffix.
 SUFFIX = {"frf": ".csv", "series": ".csv", "stepped": ".csv", "static": ".csv", "uff": ".uff",
           "wing": ".yaml", "section": ".yaml", "scenario": ".yaml", "schedule": ".json",
-          "network": ".npz", "bag": ".mcap"}
+          "network": ".npz", "bag": ".mcap", "plan": ".json"}
 CSV_FORMATS = ("frf", "series", "stepped", "static")
 
 
@@ -147,6 +148,21 @@ def _schedule_dict() -> dict:
 
     return schedule_to_dict(AirspeedSchedule(a0=-2000.0, a1=25.0, airspeed_range=(95.0, 120.0),
                                              damping_range=(0.0, 2500.0)))
+
+
+@functools.lru_cache(maxsize=1)
+def _plan_text() -> str:
+    """A small valid training plan (2 airspeeds x 3 c2), made by ``dva train plan``."""
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "plan.json"
+        subprocess.run([sys.executable, "-m", "dva_offline.cli", "train", "plan",
+                        *_SMALL_PLAN, "--out", str(path)], check=True, capture_output=True,
+                       timeout=300)
+        return path.read_text(encoding="utf-8")
+
+
+def _plan_dict() -> dict:
+    return json.loads(_plan_text())
 
 
 def _write_network(path: Path, *, nan: bool = False, header: bool = True) -> None:
@@ -298,6 +314,13 @@ WRITERS: dict[str, dict[str, Callable[[Path], None]]] = {
                                                encoding="utf-8"),
         "nan": lambda p: _json_nan(p, _schedule_dict(), "a0"),
     },
+    "plan": {
+        "syntax-error": lambda p: p.write_text('{"format": ', encoding="utf-8"),
+        "missing-keys": lambda p: p.write_text(json.dumps(_with(_plan_dict(), "dwells", ...)),
+                                               encoding="utf-8"),
+        "nan": lambda p: p.write_text(json.dumps(_with(_plan_dict(), "dwells", "airspeed",
+                                                       [math.nan] * 6)), encoding="utf-8"),
+    },
     "network": {
         "missing-keys": lambda p: _write_network(p, header=False),
         "nan": lambda p: _write_network(p, nan=True),
@@ -325,6 +348,8 @@ class Command:
     ``argv(file, out)`` builds the arguments after ``dva`` for the input ``file`` with outputs
     under the directory ``out``; ``outputs`` name what the command would create in ``out``.
     ``odd_path_ok``: a valid file at an odd path is cheap enough to run to success.
+    ``ok_kinds``: kinds of input the command must accept (a bag without flight topics is a
+    valid bag for ``dva bag info``).
     """
 
     name: str
@@ -333,8 +358,10 @@ class Command:
     argv: Callable[[str, Path], list[str]]
     outputs: tuple[str, ...] = ()
     odd_path_ok: bool = False
+    ok_kinds: tuple[str, ...] = ()  # kinds that are valid input for this command
 
 
+_SMALL_PLAN = ["--ratios", "0.8:0.81:0.01", "--factors", "1.0", "--n-damping", "3"]
 _EVAL = ["--graph", "--seeds", "1", "--mu", "0", "--reports", "none"]  # the graph's options
 
 COMMANDS: tuple[Command, ...] = (
@@ -375,8 +402,15 @@ COMMANDS: tuple[Command, ...] = (
     Command("discrepancy frf", "FILE", "frf", lambda f, o: [
         "discrepancy", "frf", f, "--elements", "1", "--plot-dir", str(o / "plots")],
         ("plots",)),
+    Command("discrepancy modal", "FILE", "frf", lambda f, o: [
+        "discrepancy", "modal", f, "--plot-dir", str(o / "plots")], ("plots",)),
     Command("discrepancy flight", "FILE", "bag", lambda f, o: [
         "discrepancy", "flight", f, "--plot-dir", str(o / "plots")], ("plots",)),
+    Command("train plan", "--wing", "wing", lambda f, o: [
+        "train", "plan", "--wing", f, *_SMALL_PLAN, "--out", str(o / "plan.json")],
+        ("plan.json",), odd_path_ok=True),
+    Command("train sweep", "--plan", "plan", lambda f, o: [
+        "train", "sweep", "--plan", f, "--out", str(o / "sweep")], ("sweep",)),
     Command("train sweep", "--scenario", "scenario", lambda f, o: [
         "train", "sweep", "--scenario", f, "--out", str(o / "sweep")], ("sweep",)),
     Command("train rbf", "BAG", "bag", lambda f, o: [
@@ -384,6 +418,14 @@ COMMANDS: tuple[Command, ...] = (
         ("net.npz", "fig.png")),
     Command("report", "RUN", "bag", lambda f, o: [
         "report", f, "--out", str(o / "report"), "--no-rrd"], ("report",)),
+    Command("replay", "BAG", "bag", lambda f, o: [
+        "replay", f, "--controller", "fixed", "--offline", "--out", str(o / "replay")],
+        ("replay",)),
+    Command("bag info", "BAG", "bag", lambda f, o: ["bag", "info", f],
+            ok_kinds=("missing-topics",)),
+    Command("bag recover", "BAG", "bag", lambda f, o: [
+        "bag", "recover", f, "--out", str(o / "recovered")], ("recovered",),
+        ok_kinds=("missing-topics",)),
     Command("evaluate", "--scenario", "scenario", lambda f, o: [
         "evaluate", "--controllers", "none", "--scenario", f, "--out", str(o / "eval"), *_EVAL],
         ("eval",)),
@@ -486,7 +528,7 @@ def build_cases(root: Path, commands: Iterable[Command] = COMMANDS,
                     files.write(command.fmt, "binary", path)
             else:
                 files.write(command.fmt, kind, path)
-                expect_ok = False
+                expect_ok = kind in command.ok_kinds
             out_dir = case_dir / "out"
             out_dir.mkdir()
             cases.append(CliCase(command, kind, path, out_dir, expect_ok))

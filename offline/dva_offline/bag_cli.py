@@ -49,6 +49,11 @@ def _info(args) -> int:
     from aero_dva.bag.bag_recovery import bag_info
 
     info = bag_info(args.bag)
+    if info.damage is not None and info.damage.offset == 0 and info.message_count == 0:
+        # Not a damaged bag but no bag at all (as `dva bag recover` says too).
+        size = info.damage.file.stat().st_size if info.damage.file.is_file() else 0
+        raise ValueError(f"{info.damage.file}: " + ("empty (0 bytes): nothing was recorded"
+                                                     if size == 0 else info.damage.reason))
     if args.json:
         print(json.dumps(info.to_dict()))
         return 0

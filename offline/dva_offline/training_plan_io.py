@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from aero_dva.atomic_io import atomic_output
+from aero_dva.text_input import read_text_input
 from dva_offline.training_plan import PlanSettings, TrainingPlan
 
 __all__ = ["FILE_FORMAT", "PLAN_FILE", "load_plan", "plan_from_dict", "plan_to_dict",
@@ -104,10 +105,11 @@ def save_plan(plan: TrainingPlan, path, wing: str = "") -> Path:
 def load_plan(path) -> tuple[TrainingPlan, str]:
     """(plan, wing file name it was made for) from ``path``."""
     path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"no training plan file {path}")
+    text = read_text_input(path, "training plan")  # refuses binary and oversized files
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise FileNotFoundError(f"no training plan file {path}") from None
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
         raise ValueError(f"training plan {path}: not JSON ({exc})") from None
     return plan_from_dict(data, f"training plan {path}"), str(data.get("wing", ""))

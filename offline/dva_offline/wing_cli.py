@@ -295,9 +295,9 @@ def _design(args) -> int:
     tables["table_6_2"] = _rows(dd.mass_study(wing, rho, aero=aero),
                                 {f"{k:g}": v for k, v in dd.STUDY_TABLE_6_2.items()})
     steps.update()
-    seed63 = {f"constant DVA({i + 1})": row[2] for i, row in enumerate(dd.STUDY_TABLE_6_3)}
-    seed63["tunable DVA"] = dd.SEED_TUNED_RATIO
-    tables["table_6_3"] = _rows(dd.constant_absorber_study(wing, rho, aero=aero), seed63)
+    study63 = {f"constant DVA({i + 1})": row[2] for i, row in enumerate(dd.STUDY_TABLE_6_3)}
+    study63["tunable DVA"] = dd.SEED_TUNED_RATIO
+    tables["table_6_3"] = _rows(dd.constant_absorber_study(wing, rho, aero=aero), study63)
     steps.update()
     studymx = {f"Maxwell DVA({i + 1})": row[3] for i, row in enumerate(dd.SEED_MAXWELL_DESIGNS)}
     tables["maxwell"] = _rows(dd.maxwell_study(wing, rho, aero=aero), studymx)
@@ -323,9 +323,9 @@ def _design(args) -> int:
     return 0
 
 
-def _rows(results, seed: dict) -> list[dict]:
+def _rows(results, study: dict) -> list[dict]:
     return [{"label": r.label, "critical_airspeed": _finite(r.critical_airspeed),
-             "ratio": _finite(r.ratio), "seed": seed.get(r.label),
+             "ratio": _finite(r.ratio), "study": study.get(r.label),
              "setting": None if r.setting is None else
              {"stiffness": r.setting.stiffness, "damping": r.setting.damping}}
             for r in results]

@@ -55,9 +55,12 @@ def _conditions(args):
         grouping = table_io.Grouping("a single sweep (UFF 58)", (), 1, ())
         return [data], columns, grouping, {}
     table = table_io.read_table(path)
-    conditions, grouping, info = table_io.conditions_from_table(
-        table, quantity, table_io.ColumnMap.parse(args.columns), args.frequency_unit,
-        args.value_unit, args.group_by, args.covariate_tolerance, columns)
+    try:
+        conditions, grouping, info = table_io.conditions_from_table(
+            table, quantity, table_io.ColumnMap.parse(args.columns), args.frequency_unit,
+            args.value_unit, args.group_by, args.covariate_tolerance, columns)
+    except ValueError as exc:  # say which file
+        raise ValueError(f"{path}: {exc}") from None
     if columns is None:
         # every covariate whose condition levels differ, except the set column itself
         skip = set(grouping.columns) if args.group_by else set()
@@ -146,10 +149,13 @@ def _cmd_modal(args) -> int:
     columns = ([c.strip() for c in args.covariates.split(",") if c.strip()]
                if args.covariates else None)
     table = table_io.read_table(args.file)
-    raw, grouping, info = table_io.conditions_from_table(
-        table, args.quantity, table_io.ColumnMap.parse(args.columns), args.frequency_unit,
-        args.value_unit, args.group_by, args.covariate_tolerance, columns,
-        internal_quantity="receptance")
+    try:
+        raw, grouping, info = table_io.conditions_from_table(
+            table, args.quantity, table_io.ColumnMap.parse(args.columns), args.frequency_unit,
+            args.value_unit, args.group_by, args.covariate_tolerance, columns,
+            internal_quantity="receptance")
+    except ValueError as exc:  # say which file
+        raise ValueError(f"{args.file}: {exc}") from None
     conditions = [FrfData(c.frequency_hz, to_receptance(c.frequency_hz, c.values, args.quantity),
                           "receptance", c.covariates) for c in raw]
     if columns is None:

@@ -24,12 +24,14 @@ level is their mean. Sweeps with fewer than ``MIN_POINTS`` points are dropped an
 from __future__ import annotations
 
 import csv
+from array import array
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from dva_offline.isolator.frf_data import MIN_POINTS, FrfData, condition_columns
+from dva_offline.isolator.isolator_io import MAX_ROWS
 
 FREQUENCY_UNITS = {"hz": 1.0, "khz": 1e3, "rad/s": 1.0 / (2 * np.pi), "1/s": 1.0}
 # factor to SI per quantity family; the SI unit of each family is the first entry
@@ -109,41 +111,65 @@ def _is_number(cell: str) -> bool:
     return True
 
 
+def _text_lines(path: Path):
+    """The file's lines that are neither blank nor comments, read one at a time."""
+    with path.open(newline="", encoding="utf-8-sig") as fh:
+        for line in fh:
+            if line.strip() and not line.lstrip().startswith("#"):
+                yield line.rstrip("\r\n")
+
+
 def read_table(path) -> Table:
-    """Read a numeric CSV with a header row and an optional units row (module docstring)."""
+    """Read a numeric CSV with a header row and an optional units row (module docstring).
+
+    Read row by row, at most :data:`~dva_offline.isolator.isolator_io.MAX_ROWS` data rows: a
+    larger file is refused there, not read to its end. Errors name the file."""
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such file")
-    with path.open(newline="", encoding="utf-8-sig") as fh:
-        lines = [ln for ln in fh.read().splitlines()
-                 if ln.strip() and not ln.lstrip().startswith("#")]
-    if not lines:
+    try:
+        return _read_rows(path)
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{path}: not UTF-8 text (byte at offset {exc.start}); a CSV file "
+                         "is expected") from None
+    except csv.Error as exc:  # e.g. NUL bytes: a binary file
+        raise ValueError(f"{path}: not CSV text ({exc})") from None
+
+
+def _read_rows(path: Path) -> Table:
+    lines = _text_lines(path)
+    first = next(lines, None)
+    if first is None:
         raise ValueError(f"{path}: file is empty")
-    delim = _sniff_delimiter(lines[0])
-    rows = list(csv.reader(lines, delimiter=delim))
-    header = [name.strip() for name in rows[0]]
+    delim = _sniff_delimiter(first)
+    header = [name.strip() for name in next(csv.reader([first], delimiter=delim))]
     if len(set(header)) != len(header):
         raise ValueError(f"{path}: duplicate column names in header {header}")
-    body = rows[1:]
-    units = {}
-    if body and not all(_is_number(c) for c in body[0] if c.strip()):
-        units = {name: cell.strip() for name, cell in zip(header, body[0])}
-        body = body[1:]
-    if not body:
-        raise ValueError(f"{path}: no data rows")
-    data = np.empty((len(body), len(header)))
-    for i, row in enumerate(body):
-        line = i + 2 + bool(units)
+    units: dict = {}
+    values = array("d")  # flat, row after row: 8 bytes a value
+    rows = 0
+    for i, row in enumerate(csv.reader(lines, delimiter=delim)):
+        if i == 0 and not all(_is_number(c) for c in row if c.strip()):
+            units = {name: cell.strip() for name, cell in zip(header, row)}
+            continue
+        line = i + 2
         if len(row) != len(header):
             raise ValueError(f"{path}: line {line} has {len(row)} values, header has "
                              f"{len(header)}")
-        for j, cell in enumerate(row):
+        if rows == MAX_ROWS:
+            raise ValueError(f"{path}: more than {MAX_ROWS} data rows; at most that many are "
+                             "read (decimate or split the file)")
+        for name, cell in zip(header, row):
             try:
-                data[i, j] = float(cell)
+                values.append(float(cell))
             except ValueError:
-                raise ValueError(f"{path}: line {line}, column {header[j]!r}: {cell!r} is not "
-                                 "a number") from None
-    return Table({name: data[:, j] for j, name in enumerate(header)}, units, len(body))
+                raise ValueError(f"{path}: line {line}, column {name!r}: {cell[:40]!r} is "
+                                 "not a number") from None
+        rows += 1
+    if not rows:
+        raise ValueError(f"{path}: no data rows")
+    data = np.frombuffer(values, dtype=float).reshape(rows, len(header))
+    return Table({name: data[:, j].copy() for j, name in enumerate(header)}, units, rows)
 
 
 def _factor(unit: str, table: dict, what: str) -> float:
