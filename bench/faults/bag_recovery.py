@@ -63,6 +63,8 @@ def recover(bag: Path, work: Path) -> Recovered:
                                  str(bag), "--out", str(copy)], capture_output=True, text=True,
                                 timeout=300)
         if result.returncode != 0:
+            if "nothing to recover" in result.stderr:  # killed before its first flush
+                return Recovered([], "dva bag recover (nothing written yet)")
             raise RuntimeError(f"dva bag recover {bag} failed: {result.stderr.strip()}")
         return Recovered(read_indexes(copy), "dva bag recover")
     return Recovered(read_indexes(bag, allow_truncated=True), "reader, allow_truncated")
