@@ -144,7 +144,7 @@ def main() -> int:
               f"{final['commands_accepted']} commands")
         factor = rbf["sim"] / rbf["wall"]
         print(f"graph, spectrum + rbf_controller (events): {rbf['sim']:.2f} s sim in "
-              f"{rbf['wall']:.3f} s wall = {factor:.1f}x real time, ratio to the engine alone "
+              f"{rbf['wall']:.3f} s wall = {factor:.1f}x real time, ratio to the runtime alone "
               f"{factor / (sim_s / wall_s):.3f}, to the schedule graph "
               f"{factor / (new['sim'] / new['wall']):.3f}; CPU of all nodes incl. start-up "
               f"{rbf['cpu']:.1f} s; target >= 20x: {'met' if factor >= 20 else 'NOT met'}")

@@ -6,7 +6,7 @@ In the same run:
   (0.8 .. 1.2 U_cr) x 100 values of c2 (0 .. 2500 N s/m), leading-edge objective, sampled
   system at 1 kHz with 1 kN per sample; wall time (median of repeats) with and without the
   ``minimize_scalar`` refinement (target: under 2 s);
-- simulated route (the seed's): :func:`aero_dva.control.optimal_damping.simulated_rms` on a small
+- simulated route (the study's): :func:`aero_dva.control.optimal_damping.simulated_rms` on a small
   subset of (airspeed, c2) pairs, each flown at constant condition, settled, then ``--duration``
   seconds kept; wall time per pair, the speed-up of the exact route per pair, the agreement
   in standard errors, and the simulated time a 1 % standard error would need.

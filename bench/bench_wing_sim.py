@@ -7,7 +7,7 @@ Run:  .venv/bin/python bench/bench_wing_sim.py [--flights 64]
 on a shared, busy machine the wall clock mostly measures the other processes.
 
 Prints (best of ``--repeats``):
-- the seed's flight (30 s ramp 0.8 -> 1.2 U_cr at 1 kHz, Maxwell DVA) with c2 held (ch. 6) and
+- the study's flight (30 s ramp 0.8 -> 1.2 U_cr at 1 kHz, Maxwell DVA) with c2 held (ch. 6) and
   with a c2 schedule (ch. 7): wall time and real-time factor for one flight (target >= 1000x);
 - a batch of flights vs a loop of single flights: flights per second and their ratio
   (target >= 10x);

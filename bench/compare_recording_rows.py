@@ -28,8 +28,11 @@ REPO = Path(__file__).resolve().parents[1]
 # Row label, then: bench_batch_recording "blocks sim wall cpu ...", bench_sweep_recording
 # "sim wall cpu ...".
 ROW = re.compile(r"^\s*(record: [^\d]+?|/dev/shm: [^\d]+?|dict|rosbags|bagwriter|numpy|samples"
-                 r"|samples-nocrc)\s+(\d+)\s+([\d.]+)\s+([\d.]+)\s+([\d.]+)")
-COLUMNS = {"bench_batch_recording": (4, 5), "bench_sweep_recording": (3, 4)}
+                 r"|samples-nocrc|rosbags Reader|load_flight_log)\s+(\d+)\s+([\d.]+)"
+                 r"(?:\s+([\d.]+))?(?:\s+([\d.]+))?")
+# Columns (wall, cpu) of a row; bench_flight_log_read times CPU only.
+COLUMNS = {"bench_batch_recording": (4, 5), "bench_sweep_recording": (3, 4),
+           "bench_flight_log_read": (None, 3)}
 START_UP = re.compile(r"^start-up cost: (-?[\d.]+) s CPU")
 
 
@@ -39,7 +42,8 @@ def rows(output: str, bench: str) -> dict[str, tuple[float, float]]:
     for line in output.splitlines():
         match = ROW.match(line)
         if match:
-            found[match.group(1).strip()] = (float(match.group(wall)), float(match.group(cpu)))
+            found[match.group(1).strip()] = (
+                float(match.group(wall)) if wall else float("nan"), float(match.group(cpu)))
         match = START_UP.match(line)
         if match:  # CPU only
             found["start-up (first recording)"] = (float("nan"), float(match.group(1)))

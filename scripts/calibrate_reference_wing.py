@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Calibrate the reference wing toward the seed's chapter-6 ratios (docs/wing.md, Calibration).
+"""Calibrate the reference wing toward the study's chapter-6 ratios (docs/wing.md, Calibration).
 
 Run (one process; it is long, so nice it on a shared machine):
 
@@ -12,7 +12,7 @@ Every evaluation is appended to the checkpoint (JSON lines) as soon as it is don
 same command again resumes: earlier candidates are replayed from the file instead of being
 evaluated again (same ``--seed``). The best candidate so far is written to ``--candidate`` as
 a wing file whenever it improves, and at the end it is re-evaluated with the exact settings of
-``dva wing design`` and printed next to the seed and the current reference wing. The search
+``dva wing design`` and printed next to the study and the current reference wing. The search
 itself is :mod:`dva_offline.wing_calibration`.
 """
 from __future__ import annotations
@@ -57,10 +57,10 @@ def _fmt(x: float) -> str:
 
 
 def report(best: wc.Evaluation, current: dict) -> str:
-    """Ratios of ``best`` next to the seed's and the current reference wing's."""
-    lines = [f"{'seed result':40s} {'seed':>6s} {'current':>7s} {'candidate':>9s}"]
-    for key, seed in wc.SEED_TARGETS.items():
-        lines.append(f"{key:40s} {seed:6.3f} {_fmt(current[key]):>7s} "
+    """Ratios of ``best`` next to the study's and the current reference wing's."""
+    lines = [f"{'study result':40s} {'study':>6s} {'current':>7s} {'candidate':>9s}"]
+    for key, target in wc.STUDY_TARGETS.items():
+        lines.append(f"{key:40s} {target:6.3f} {_fmt(current[key]):>7s} "
                      f"{_fmt(best.ratios[key]):>9s}")
     cur = wc.calibration_cost(current)
     new = wc.calibration_cost(best.ratios, best.flutter_frequency)
@@ -138,7 +138,7 @@ def main(argv=None) -> int:
     if args.no_final_check or not best.ratios:
         return 0
     exact = wc.evaluate(best.params, best.pitch_damping, fast=False, phase="final")
-    current = wc.seed_ratios(reference.wing, reference.aero, fast=False)
+    current = wc.study_ratios(reference.wing, reference.aero, fast=False)
     text = report(exact, current)
     print(text, flush=True)
     if args.candidate is not None:

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # The main job (run by ./run.sh after setup, in the project's ROS 2 environment):
-#  1. fit the airspeed schedule c2 = a0 + a1 U (seed eq. 7.1) to the c2 that minimises the
+#  1. fit the airspeed schedule c2 = a0 + a1 U (Zhang (2006) eq. 7.1) to the c2 that minimises the
 #     exact stationary leading-edge RMS of the default (chapter-6) wing with its Maxwell DVA;
-#  2. fly the seed's ramp (0.8 -> 1.2 U_cr in 30 s, 1 kN white-noise aileron force) through the
+#  2. fly the study's ramp (0.8 -> 1.2 U_cr in 30 s, 1 kN white-noise aileron force) through the
 #     node graph -- simulator, airspeed_controller, mcap_recorder as separate processes over DDS
 #     on sim time -- and print the summary read back from the recorded MCAP bag.
 # Extra arguments go to run_flight (see: ros2 run aero_dva_sim run_flight --help).

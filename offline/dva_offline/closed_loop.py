@@ -1,11 +1,11 @@
-"""Closed-loop flights in one process: the simulator node's engine with a controller in the loop.
+"""Closed-loop flights in one process: the simulator node's runtime with a controller in the loop.
 
-:class:`~aero_dva.flight.flight_runtime.FlightRuntime` (the simulator node's engine) flies the
+:class:`~aero_dva.flight.flight_runtime.FlightRuntime` (the simulator node's runtime) flies the
 scenario block by block (50 samples); after every block the controller sees what the graph's
 controller would receive for that block and may command a c2, which the damper applies from
 the next block on: the graph with its command lag bound at one block (``run_flight
 --max-command-lag 0.05``), without DDS and processes, so a flight takes a fraction of a second.
-The same seed gives the same aileron force whatever the controller (the force is drawn per
+The same the study gives the same aileron force whatever the controller (the force is drawn per
 block from the scenario's generator), so flights of different controllers are paired.
 
 Controllers (the nodes' arithmetic on the nodes' inputs):

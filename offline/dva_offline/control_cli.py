@@ -1,4 +1,4 @@
-"""``dva control``: optimal damper c2 versus airspeed and the airspeed schedule (seed sec. 7.1).
+"""``dva control``: optimal damper c2 versus airspeed; the airspeed schedule (Zhang (2006) 7.1).
 
 Subcommands::
 
@@ -7,14 +7,14 @@ Subcommands::
                              schedule file
 
 The objective is the exact stationary RMS of the wing's response (leading edge by default, the
-seed's choice; or plunge, or rotation = pitch) to a white aileron force of ``--force-std`` N
+the study's choice; or plunge, or rotation = pitch) to a white aileron force of ``--force-std`` N
 per sample at ``--sample-rate`` Hz, held over each sample as in the simulator. Airspeeds are
 in m/s, or ratios of the bare wing's critical airspeed U_cr with ``--relative``; c2 in N s/m.
 
-Default fit range of ``schedule``: the seed fits eq. 7.1 on U = 115 to 120 m/s, the near-linear
+Default fit range of ``schedule``: the study fits eq. 7.1 on U = 115 to 120 m/s, the near-linear
 top end of its optimal-c2 curve where the wing is about to become unstable. The exact
 stationary RMS exists only where the wing is stable, so the default here is the top
-0.05 U_cr (the width of the seed's 5 m/s at U_cr ~ 100 m/s) of the contiguous range of
+0.05 U_cr (the width of the study's 5 m/s at U_cr ~ 100 m/s) of the contiguous range of
 airspeeds at which some c2 of the grid keeps the wing stable: [U_s - 0.05 U_cr, U_s].
 """
 
@@ -30,16 +30,16 @@ import numpy as np
 
 __all__ = ["register"]
 
-DEFAULT_AIRSPEEDS = "0.8:1.2:201"  # ratios of U_cr (the seed's fig. 7.4 range, 0.002 U_cr step)
+DEFAULT_AIRSPEEDS = "0.8:1.2:201"  # ratios of U_cr (the study's fig. 7.4 range, 0.002 U_cr step)
 DEFAULT_C2 = "0:2500:101"  # [N s/m] the simulator's default damper range
-DEFAULT_CURVES = "0.5,1.0,1.06,1.12"  # U / U_cr of the seed's fig. 7.1-7.3
+DEFAULT_CURVES = "0.5,1.0,1.06,1.12"  # U / U_cr of the study's fig. 7.1-7.3
 FIT_WIDTH = 0.05  # [U_cr] width of the default fit range
 SCHEDULE_DESCRIPTION = (
     "Fit eq. 7.1, c2 = a0 + a1 U, by least squares to the optimal c2 and write it as the "
-    "airspeed_controller's schedule file. Default fit range: the seed fits U = 115 to 120 m/s, "
+    "airspeed_controller's schedule file. Default fit range: the study fits U = 115 to 120 m/s, "
     "the near-linear top end of its optimal-c2 curve, just below and beyond its stability "
     "limit. The exact stationary RMS exists only where the wing is stable, so the default is "
-    f"the top {FIT_WIDTH} U_cr (the seed's 5 m/s at U_cr ~ 100 m/s) of the contiguous range of "
+    f"the top {FIT_WIDTH} U_cr (the study's 5 m/s at U_cr ~ 100 m/s) of the contiguous range of "
     "airspeeds at which some c2 of the grid keeps the wing stable: [U_s - 0.05 U_cr, U_s]."
 )
 
@@ -80,7 +80,7 @@ def _common(p: argparse.ArgumentParser) -> None:
                    help="air density [kg/m^3] (default: the wing file's)")
     p.add_argument("--objective", choices=("leading_edge", "plunge", "rotation"),
                    default="leading_edge",
-                   help="RMS to minimise (default leading_edge, the seed's choice)")
+                   help="RMS to minimise (default leading_edge, the study's choice)")
     p.add_argument("--airspeeds", metavar="START:STOP:N", default=None,
                    help="airspeed grid [m/s], or ratios U/U_cr with --relative "
                         f"(default: ratios {DEFAULT_AIRSPEEDS})")
@@ -109,7 +109,8 @@ def register(subparsers) -> None:
 
     o = sub.add_parser("optimal-c2", help="optimal c2 and minimum RMS vs airspeed (fig. 7.4)",
                        description="Optimal c2 minimising the exact stationary RMS of the "
-                                   "objective at each airspeed of the grid (seed fig. 7.1-7.4).")
+                                   "objective at each airspeed of the grid (Zhang (2006) "
+                                   "fig. 7.1-7.4).")
     _common(o)
     o.add_argument("--curves", metavar="R1,R2,...", default=DEFAULT_CURVES,
                    help="U/U_cr of the RMS-versus-c2 curves in the plot "

@@ -1,6 +1,6 @@
-"""Evaluation flights of seed sec. 7.1.3 / 7.2.4: the numbers, without files or processes.
+"""Evaluation flights of Zhang (2006) sec. 7.1.3 / 7.2.4: the numbers, without files or processes.
 
-The seed flies the ramp 0.8 -> 1.2 U_cr in 30 s under a 1 kN white aileron force, with the air
+The study flies the ramp 0.8 -> 1.2 U_cr in 30 s under a 1 kN white aileron force, with the air
 density varying as rho0 (1 + mu sin 2 pi t) (eq. 7.2), mu = 0, 0.05, 0.1, and reads off the
 airspeed at which the response starts to grow quickly: one flight per case. Here every case
 (controller x mu) is flown with several excitation seeds, and the divergence airspeed ratio
@@ -41,8 +41,8 @@ __all__ = [
 CONTROLLERS = ("none", "fixed", "schedule", "rbf")
 CONTROLLER_LABELS = {"none": "no DVA", "fixed": "best fixed c2", "schedule": "airspeed schedule",
                      "rbf": "RBF network"}
-# The seed's single flights (U_div / U_cr): fig. 7.5-7.7 (schedule), fig. 7.13, 7.15, 7.16 (RBF
-# network). Without DVA the wing flutters at U_cr by definition (fig. 6.4); the seed flies no
+# The study's single flights (U_div / U_cr): fig. 7.5-7.7 (schedule), fig. 7.13, 7.15, 7.16 (RBF
+# network). Without DVA the wing flutters at U_cr by definition (fig. 6.4); the study flies no
 # fixed-c2 Maxwell DVA in chapter 7.
 SEED_RATIOS = {
     "none": {0.0: 1.00},
@@ -134,7 +134,7 @@ def divergence_airspeed_sliding(airspeed, response, sample_rate: float, window: 
     Same definition (RMS of the response over ``window`` seconds above ``factor`` times the
     median RMS of the non-overlapping windows of the first ``baseline_fraction`` of the flight,
     and above for every later window; U at the end of the first such window), but the windows
-    start every ``hop`` seconds instead of every ``window``: on the seed's ramp (0.4 U_cr in
+    start every ``hop`` seconds instead of every ``window``: on the study's ramp (0.4 U_cr in
     30 s) 1 s windows quantise U_div / U_cr to steps of 0.013, coarser than the differences
     between controllers. With ``hop == window`` the result equals the original exactly.
 
@@ -263,7 +263,7 @@ class CaseStats:
     ratios: tuple[float, ...]
     mean_rms: float
     mean_damping: float
-    seed_ratio: float | None
+    study_ratio: float | None
 
     @property
     def standard_error(self) -> float:
@@ -280,7 +280,7 @@ class CaseStats:
         return out
 
 
-def _seed_ratio(controller: str, mu: float) -> float | None:
+def _study_ratio(controller: str, mu: float) -> float | None:
     for m, value in SEED_RATIOS.get(controller, {}).items():
         if abs(m - mu) < 1e-9:
             return value
@@ -332,7 +332,7 @@ def aggregate(records: Iterable[Mapping],
             ratios=tuple(float(r) for r in diverged),
             mean_rms=mean(rms),
             mean_damping=math.nan if controller == "none" else mean(damping),  # no absorber
-            seed_ratio=_seed_ratio(controller, mu)))
+            study_ratio=_study_ratio(controller, mu)))
     return stats
 
 
@@ -341,8 +341,8 @@ def _fmt(value: float, spec: str = ".3f") -> str:
 
 
 def markdown_table(stats: Sequence[CaseStats]) -> str:
-    """The evaluation table: U_div / U_cr per controller x mu next to the seed's figure."""
-    lines = ["| controller | mu | flights | diverged | mean | std | min | max | seed (1 flight) "
+    """The evaluation table: U_div / U_cr per controller x mu next to the study's figure."""
+    lines = ["| controller | mu | flights | diverged | mean | std | min | max | study (1 flight) "
              "| mean LE RMS [mm] | mean c2 [N s/m] |",
              "|---|---|---|---|---|---|---|---|---|---|---|"]
     for s in stats:
@@ -354,12 +354,12 @@ def markdown_table(stats: Sequence[CaseStats]) -> str:
         lines.append(
             f"| {CONTROLLER_LABELS.get(s.controller, s.controller)} | {s.mu:g} | "
             f"{s.n_flights} | {diverged} | {_fmt(s.mean)} | {_fmt(s.std)} | {_fmt(s.min)} | "
-            f"{_fmt(s.max)} | {_fmt(s.seed_ratio, '.2f')} | {_fmt(s.mean_rms * 1e3, '.3f')} | "
+            f"{_fmt(s.max)} | {_fmt(s.study_ratio, '.2f')} | {_fmt(s.mean_rms * 1e3, '.3f')} | "
             f"{_fmt(s.mean_damping, '.0f')} |")
     return "\n".join(lines)
 
 
-# -- the seed's key claim -----------------------------------------------------------------------
+# -- the study's key claim -----------------------------------------------------------------------
 
 @dataclass(frozen=True)
 class KeyResult:
@@ -384,7 +384,7 @@ class KeyResult:
 
 
 def compare_rbf_with_schedule(stats: Sequence[CaseStats]) -> list[KeyResult]:
-    """The seed's key claim per mu > 0: under density variation the network beats the schedule.
+    """The study's key claim per mu > 0: under density variation the network beats the schedule.
 
     Flights that did not diverge are left out of the means (they would only raise them), so a
     case with such flights is compared conservatively; the table shows their number.

@@ -5,7 +5,7 @@ Flies the study's ramp (0.8 -> 1.2 U_cr in 30 s, 1 kN white aileron force) for t
 ``oracle`` (c2*(U, rho) at the true airspeed and density: the upper bound) in six density cases
 (constant rho0, x0.9, x1.1; mu = 0.1 with a 20 s period, at 1 Hz, and near twice the flutter
 frequency), each with the same excitation seeds, so the controllers meet the same gusts. All
-in one process (the simulator node's engine with the nodes' arithmetic in the loop, command lag
+in one process (the simulator node's runtime with the nodes' arithmetic in the loop, command lag
 one block; docs/evaluation.md). Reports per (controller, case) the mean divergence airspeed
 U_div/U_cr and the leading-edge RMS below flutter (``--rms-range``) as a ratio to the best
 fixed c2 on the same seed, with paired 95 % intervals, and the eigenvalue and Floquet
@@ -36,7 +36,7 @@ def register(subparsers) -> None:
     """Add the ``evaluate`` command."""
     p = subparsers.add_parser(
         "evaluate", help="paired evaluation flights: best fixed c2, schedule, RBF, oracle x "
-                         "density cases x seeds; differences with 95 % intervals",
+                         "density cases x seeds; differences with 95 %% intervals",
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", metavar="DIR",
                    help="evaluation directory (default runs/evaluation_<UTC time>)")

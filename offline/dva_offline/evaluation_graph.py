@@ -9,7 +9,7 @@ its record is saved as soon as it ends, so an interrupted evaluation resumes whe
 
 The schedule, the fixed c2 and the network are made by :mod:`dva_offline.evaluation_inputs`
 when not given. Slow (10-20 s of wall time per 30 s flight) but the real thing; the batch
-evaluation (``dva evaluate``, :mod:`dva_offline.evaluation_flights`) flies the same engine and
+evaluation (``dva evaluate``, :mod:`dva_offline.evaluation_flights`) flies the same runtime and
 controllers in one process.
 """
 from __future__ import annotations

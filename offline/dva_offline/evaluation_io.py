@@ -137,7 +137,7 @@ def plot_traces(path, mu: float, runs: Mapping[str, object], u_cr: float) -> Pat
 
 
 def plot_summary(path, stats: Sequence[CaseStats]) -> Path:
-    """Divergence airspeed ratio versus mu per controller: mean, std bar, min..max, seed."""
+    """U_div / U_cr versus mu per controller: mean, std, min..max, the study's flight."""
     plt = _plt()
     fig, ax = plt.subplots(figsize=(7, 4.5))
     for k, controller in enumerate(c for c in CONTROLLERS if any(s.controller == c
@@ -151,10 +151,10 @@ def plot_summary(path, stats: Sequence[CaseStats]) -> Path:
         color = line[0].get_color()
         ax.vlines(mu, [s.min for s in rows], [s.max for s in rows], color=color, lw=4,
                   alpha=0.25)
-        seed = [(s.mu, s.seed_ratio) for s in rows if s.seed_ratio is not None]
+        seed = [(s.mu, s.study_ratio) for s in rows if s.study_ratio is not None]
         if seed:
             ax.plot(*zip(*seed), marker="*", ms=11, ls=":", color=color, alpha=0.8)
-    ax.plot([], [], "k*", ls=":", label="seed (one flight)")
+    ax.plot([], [], "k*", ls=":", label="study (one flight)")
     ax.set_xlabel("density variation mu (eq. 7.2)")
     ax.set_ylabel("U_div / U_cr")
     ax.set_title("divergence airspeed: mean +- std (bars: min..max over seeds)", fontsize=10)

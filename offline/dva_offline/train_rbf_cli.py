@@ -23,8 +23,8 @@ __all__ = ["register"]
 
 TOPICS = {
     ch.ACCELERATION.absolute(): "the spectra's accelerations",
-    ch.DISPLACEMENT.absolute(): "the measured leading-edge RMS; `dva train sweep "
-                                "--no-displacement` leaves it out",
+    ch.DISPLACEMENT.absolute(): "the measured leading-edge RMS of the windows; `dva train "
+                                "sweep --no-displacement` leaves it out",
     ch.FLIGHT_CONDITION.absolute(): "the airspeed and density",
     ch.DAMPER_STATE.absolute(): "the applied c2",
 }

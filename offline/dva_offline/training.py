@@ -72,7 +72,7 @@ __all__ = [
 
 #: Acceleration channels of a FlightLog, in its row order (the wing model's outputs).
 ACCELERATION_CHANNELS = ACCELERATION_NAMES
-#: Spectrum channels of the seed's network (translational, rotational), as the spectrum node.
+#: Spectrum channels of the study's network (translational, rotational), as the spectrum node.
 CHANNELS = ("plunge", "pitch")
 LEADING_EDGE = 2  # row of the leading-edge displacement in FlightLog.displacements
 #: Candidate spreads in min-max scaled input space (33 inputs: distances of order 0.1 .. 1).

@@ -1,21 +1,21 @@
-"""Calibration of the reference wing toward the seed's chapter-6 critical-airspeed ratios.
+"""Calibration of the reference wing toward the study's chapter-6 critical-airspeed ratios.
 
-The seed prints no wing parameters, only ratios ``U / U_cr`` of tuned and constant absorbers
+The study prints no wing parameters, only ratios ``U / U_cr`` of tuned and constant absorbers
 (tables 6.1-6.3, section 6.3.2) and their trends. This module searches wing *shapes* for the
 ones that reproduce them:
 
 - :data:`BOUNDS`: eight free parameters in physically sensible ranges (edges of the chord
-  around the seed's DVA positions, elastic axis, radius of gyration, frequency ratio, wind-off
+  around the study's DVA positions, elastic axis, radius of gyration, frequency ratio, wind-off
   damping, effective span, lift slope), plus the pitch-damping reading of eq. 6.2/6.4 as a
   categorical choice (:data:`PITCH_DAMPING_VARIANTS`);
 - :func:`build_wing`: a shape -> :class:`WingParameters` whose stiffnesses are scaled so that
   the bare wing flutters at exactly ``U_cr = 100 m/s`` (``K -> s^2 K``, ``beta -> beta / s``
   scales every eigenvalue and ``U_cr`` by ``s``; the mass, 1000 kg, and the DVA masses and
-  positions stay the seed's);
-- :func:`seed_ratios`: the thirteen ratios of the seed on that wing (fast settings by default,
+  positions stay the study's);
+- :func:`study_ratios`: the thirteen ratios of the study on that wing (fast settings by default,
   the exact ``dva wing design`` settings with ``fast=False``);
 - :func:`calibration_cost`: squared errors in units of 0.01 plus a hinge penalty on every
-  ordering the seed states (table 6.1 front tip > front middle > rear tip > rear middle, table
+  ordering the study states (table 6.1 front tip > front middle > rear tip > rear middle, table
   6.2 heavier is better, table 6.3 tuned > DVA(2) > DVA(3) > DVA(1) > 1, Maxwell design 2 >
   tuned passive > Maxwell design 1), so that a wing with small errors but a wrong trend does
   not win;
@@ -46,7 +46,7 @@ __all__ = [
     "BOUNDS",
     "ORDERINGS",
     "PITCH_DAMPING_VARIANTS",
-    "SEED_TARGETS",
+    "STUDY_TARGETS",
     "Bound",
     "Cost",
     "Evaluation",
@@ -56,7 +56,7 @@ __all__ = [
     "from_unit",
     "params_from_wing",
     "search",
-    "seed_ratios",
+    "study_ratios",
     "to_unit",
 ]
 
@@ -65,7 +65,7 @@ AIR_DENSITY = 1.2  # [kg/m^3]
 TARGET_UCR = 100.0  # [m/s] DESIGN.md / section 7.1.1
 FRONT_TIP = dd.SEED_POSITIONS["front_tip"]
 REAR_TIP = dd.SEED_POSITIONS["rear_tip"]
-FLUTTER_BAND = (5.0, 20.0)  # [Hz] the seed's spectra (ch. 7)
+FLUTTER_BAND = (5.0, 20.0)  # [Hz] the study's spectra (ch. 7)
 UNIT = 0.01  # errors are counted in units of 0.01 of U / U_cr
 RANK_MARGIN = 0.003  # an ordering counts as right only with this margin
 RANK_WEIGHT = 10.0
@@ -98,7 +98,7 @@ NAMES = tuple(b.name for b in BOUNDS)
 
 PITCH_DAMPING_VARIANTS = ("thin_airfoil", "printed_6_2")
 
-SEED_TARGETS = {
+STUDY_TARGETS = {
     "6.1 rear_tip": 1.07,
     "6.1 rear_middle": 1.06,
     "6.1 front_middle": 1.09,
@@ -106,13 +106,13 @@ SEED_TARGETS = {
     "6.2 m1/m=0.01": 1.08,
     "6.2 m1/m=0.02": 1.10,
     "6.2 m1/m=0.03": 1.12,
-    "6.3 DVA(1)": dd.SEED_TABLE_6_3[0][2],
-    "6.3 DVA(2)": dd.SEED_TABLE_6_3[1][2],
-    "6.3 DVA(3)": dd.SEED_TABLE_6_3[2][2],
+    "6.3 DVA(1)": dd.STUDY_TABLE_6_3[0][2],
+    "6.3 DVA(2)": dd.STUDY_TABLE_6_3[1][2],
+    "6.3 DVA(3)": dd.STUDY_TABLE_6_3[2][2],
     "Maxwell design 1": dd.SEED_MAXWELL_DESIGNS[0][3],
     "Maxwell design 2": dd.SEED_MAXWELL_DESIGNS[1][3],
 }
-"""The seed's ratios ``U / U_cr`` (the front-tip, ``m1/m = 0.04`` tuned value is shared by the
+"""The study's ratios ``U / U_cr`` (the front-tip, ``m1/m = 0.04`` tuned value is shared by the
 three tables and the text: 1.14 / 1.141)."""
 
 _TIP = "front_tip m1/m=0.04 (tables 6.1-6.3)"
@@ -130,7 +130,7 @@ ORDERINGS = (
     ("6.3.2", "Maxwell design 2", _TIP),
     ("6.3.2", _TIP, "Maxwell design 1"),
 )
-"""``(table, better, worse)``: the seed's trends, each ``better > worse + RANK_MARGIN``."""
+"""``(table, better, worse)``: the study's trends, each ``better > worse + RANK_MARGIN``."""
 
 
 # -- parameter space ------------------------------------------------------------------------
@@ -231,7 +231,7 @@ def build_wing(params: dict, pitch_damping: str = "thin_airfoil", density: float
     return wing, aero, flutter_speed(AeroelasticModel(wing, None, aero), density)
 
 
-# -- the seed's ratios on one wing ----------------------------------------------------------
+# -- the study's ratios on one wing ----------------------------------------------------------
 def _best_passive(model, density):
     """``u -> best minimum damping ratio`` over ``(k1, c1)``: a 12 x 12 log grid, then
     Nelder-Mead to 1e-3 in ``log k1, log c1`` (coarser than ``optimise_passive``, whose 24 x 24
@@ -257,7 +257,7 @@ def _best_passive(model, density):
 
 def _tuned(wing, absorber, aero, density, u_cr, fast, **kwargs) -> float:
     model = AeroelasticModel(wing, absorber, aero)
-    if fast:  # every seed ratio lies in 1.0-1.15: bracket there, coarser
+    if fast:  # every study ratio lies in 1.0-1.15: bracket there, coarser
         if isinstance(absorber, PassiveAbsorber):
             best = _best_passive(model, density)
         else:
@@ -278,13 +278,13 @@ def _tuned(wing, absorber, aero, density, u_cr, fast, **kwargs) -> float:
     return tc.airspeed / u_cr
 
 
-def seed_ratios(wing: WingParameters, aero=None, density: float = AIR_DENSITY,
+def study_ratios(wing: WingParameters, aero=None, density: float = AIR_DENSITY,
                 fast: bool = True) -> dict:
-    """The twelve ratios of :data:`SEED_TARGETS` on ``wing`` (NaN where nothing flutters).
+    """The twelve ratios of :data:`STUDY_TARGETS` on ``wing`` (NaN where nothing flutters).
 
     ``fast=False`` uses the settings of ``dva wing design`` (bracketing grid of 16 over
     0.5-2 U_cr, ``xtol = 1e-7``, ``optimise_passive``); ``fast=True`` brackets on 5 points
-    over 0.95-1.6 U_cr (every seed ratio lies there) with a coarser passive optimiser
+    over 0.95-1.6 U_cr (every study ratio lies there) with a coarser passive optimiser
     (:func:`_best_passive`), about 4 times faster and within ~1e-4 of the exact ratios on the
     reference wing (``tests/unit/dva_offline/test_wing_calibration.py``).
     """
@@ -302,7 +302,7 @@ def seed_ratios(wing: WingParameters, aero=None, density: float = AIR_DENSITY,
     out[_TIP] = passive(0.04, FRONT_TIP)
     for r in (0.01, 0.02, 0.03):
         out[f"6.2 m1/m={r:g}"] = passive(r, FRONT_TIP)
-    for i, (k1, c1, _) in enumerate(dd.SEED_TABLE_6_3):
+    for i, (k1, c1, _) in enumerate(dd.STUDY_TABLE_6_3):
         model = AeroelasticModel(wing, PassiveAbsorber(0.04 * m, k1, c1, FRONT_TIP), aero)
         try:
             u = flutter_speed(model, density, (0.0, 4.0 * u_cr)).critical_airspeed
@@ -325,7 +325,7 @@ class Cost:
     ----------
     total : float
     squared_error : float
-        Sum over :data:`SEED_TARGETS` of ``((ratio - seed) / 0.01)^2``; a missing ratio
+        Sum over :data:`STUDY_TARGETS` of ``((ratio - seed) / 0.01)^2``; a missing ratio
         counts :data:`NAN_PENALTY`.
     ranking : float
         ``RANK_WEIGHT * ((RANK_MARGIN - (better - worse)) / 0.01)^2`` summed over the violated
@@ -333,7 +333,7 @@ class Cost:
     frequency : float
         ``(distance of the flutter frequency outside 5-20 Hz / 1 Hz)^2``.
     max_error : float
-        Largest ``|ratio - seed|`` (inf if a ratio is missing).
+        Largest ``|ratio - study|`` (inf if a ratio is missing).
     wrong_trends : tuple of str
         The violated orderings, e.g. ``"6.1: 6.1 front_middle > 6.1 rear_tip"``.
     """
@@ -347,19 +347,19 @@ class Cost:
 
 
 def calibration_cost(ratios: dict, flutter_frequency: float = 10.0) -> Cost:
-    """Cost of ``ratios`` (keys of :data:`SEED_TARGETS`) against the seed; lower is better."""
-    missing = [k for k in SEED_TARGETS if k not in ratios]
+    """Cost of ``ratios`` (keys of :data:`STUDY_TARGETS`) against the study; lower is better."""
+    missing = [k for k in STUDY_TARGETS if k not in ratios]
     if missing:
         raise ValueError(f"ratios lack {missing}")
     sq, worst = 0.0, 0.0
-    for key, seed in SEED_TARGETS.items():
+    for key, target in STUDY_TARGETS.items():
         r = float(ratios[key])
         if math.isnan(r):
             sq += NAN_PENALTY
             worst = math.inf
         else:
-            sq += ((r - seed) / UNIT) ** 2
-            worst = max(worst, abs(r - seed))
+            sq += ((r - target) / UNIT) ** 2
+            worst = max(worst, abs(r - target))
     rank, wrong = 0.0, []
     for table, better, worse in ORDERINGS:
         a = float(ratios[better])
@@ -412,14 +412,14 @@ REJECTED_COST = 1.0e6
 
 def evaluate(params: dict, pitch_damping: str = "thin_airfoil", fast: bool = True,
              phase: str = "") -> Evaluation:
-    """Build the wing of ``params``, compute its seed ratios and their cost."""
+    """Build the wing of ``params``, compute its study ratios and their cost."""
     t0 = time.perf_counter()
     try:
         wing, aero, res = build_wing(params, pitch_damping)
     except ValueError as exc:
         return Evaluation(dict(params), pitch_damping, REJECTED_COST, {}, float("nan"),
                           math.inf, (), f"rejected: {exc}", phase, time.perf_counter() - t0)
-    ratios = seed_ratios(wing, aero, fast=fast)
+    ratios = study_ratios(wing, aero, fast=fast)
     cost = calibration_cost(ratios, res.flutter_frequency)
     return Evaluation(dict(params), pitch_damping, cost.total, ratios, res.flutter_frequency,
                       cost.max_error, cost.wrong_trends, "", phase, time.perf_counter() - t0)
@@ -438,7 +438,7 @@ def search(*, seed: int = 0, n_random: int = 200, max_evaluations: int | None = 
     Parameters
     ----------
     seed : int
-        Seed of the random phase (``numpy.random.default_rng``); the same seed gives the same
+        Seed of the random phase (``numpy.random.default_rng``); the same the study gives the same
         candidates, so a resumed run (``history``) replays them from the memo.
     n_random : int
         Candidates of the random phase that flutter (uniform in the unit cube, variants

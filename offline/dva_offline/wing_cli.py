@@ -1,4 +1,4 @@
-"""``dva wing``: modal analysis, flutter, DVA design and ramp flights of the wing (seed ch. 6).
+"""``dva wing``: modal analysis, flutter, DVA design and ramp flights of the wing (study ch. 6).
 
 Subcommands::
 
@@ -52,7 +52,7 @@ def _common(p: argparse.ArgumentParser, section: bool = True) -> None:
     p.add_argument("--aero", choices=("quasi-steady", "theodorsen", "wagner"), default=None,
                    help="aerodynamic model (default: the wing file's, else quasi-steady)")
     p.add_argument("--pitch-damping", choices=("thin_airfoil", "printed_6_2"), default=None,
-                   help="reading of the seed's pitch-rate couple (quasi-steady)")
+                   help="reading of the study's pitch-rate couple (quasi-steady)")
     p.add_argument("--density", type=float, default=None, help="air density [kg/m^3]")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     _absorber_options(p)
@@ -290,17 +290,17 @@ def _design(args) -> int:
     steps = tqdm(total=4, desc="design studies", file=sys.stderr)
     u_cr = dd.bare_critical_airspeed(wing, rho, aero)
     tables = {}
-    tables["table_6_1"] = _rows(dd.position_study(wing, rho, aero=aero), dd.SEED_TABLE_6_1)
+    tables["table_6_1"] = _rows(dd.position_study(wing, rho, aero=aero), dd.STUDY_TABLE_6_1)
     steps.update()
     tables["table_6_2"] = _rows(dd.mass_study(wing, rho, aero=aero),
-                                {f"{k:g}": v for k, v in dd.SEED_TABLE_6_2.items()})
+                                {f"{k:g}": v for k, v in dd.STUDY_TABLE_6_2.items()})
     steps.update()
-    seed63 = {f"constant DVA({i + 1})": row[2] for i, row in enumerate(dd.SEED_TABLE_6_3)}
-    seed63["tunable DVA"] = dd.SEED_TUNED_RATIO
-    tables["table_6_3"] = _rows(dd.constant_absorber_study(wing, rho, aero=aero), seed63)
+    study63 = {f"constant DVA({i + 1})": row[2] for i, row in enumerate(dd.STUDY_TABLE_6_3)}
+    study63["tunable DVA"] = dd.SEED_TUNED_RATIO
+    tables["table_6_3"] = _rows(dd.constant_absorber_study(wing, rho, aero=aero), study63)
     steps.update()
-    seedmx = {f"Maxwell DVA({i + 1})": row[3] for i, row in enumerate(dd.SEED_MAXWELL_DESIGNS)}
-    tables["maxwell"] = _rows(dd.maxwell_study(wing, rho, aero=aero), seedmx)
+    studymx = {f"Maxwell DVA({i + 1})": row[3] for i, row in enumerate(dd.SEED_MAXWELL_DESIGNS)}
+    tables["maxwell"] = _rows(dd.maxwell_study(wing, rho, aero=aero), studymx)
     steps.update()
     steps.close()
     if args.plot:
@@ -317,15 +317,15 @@ def _design(args) -> int:
                "bare_critical_airspeed": u_cr, **tables}
     lines = [f"bare wing critical airspeed: {u_cr:.4f} m/s"]
     for name, rows in tables.items():
-        lines.append(f"{name}:  label  project  seed")
-        lines += [f"  {r['label']:22s} {r['ratio']:.4f}  {r['seed']}" for r in rows]
+        lines.append(f"{name}:  label  project  study")
+        lines += [f"  {r['label']:22s} {r['ratio']:.4f}  {r['study']}" for r in rows]
     _emit(args, payload, lines)
     return 0
 
 
-def _rows(results, seed: dict) -> list[dict]:
+def _rows(results, study: dict) -> list[dict]:
     return [{"label": r.label, "critical_airspeed": _finite(r.critical_airspeed),
-             "ratio": _finite(r.ratio), "seed": seed.get(r.label),
+             "ratio": _finite(r.ratio), "study": study.get(r.label),
              "setting": None if r.setting is None else
              {"stiffness": r.setting.stiffness, "damping": r.setting.damping}}
             for r in results]

@@ -12,7 +12,7 @@ __all__ = ["plot_flight", "plot_modal", "plot_tuned"]
 
 
 def plot_modal(result, path, critical_airspeed=None) -> None:
-    """Natural frequencies and damping ratios versus airspeed (seed fig. 6.2)."""
+    """Natural frequencies and damping ratios versus airspeed (Zhang (2006) fig. 6.2)."""
     fig, (ax_f, ax_z) = plt.subplots(2, 1, sharex=True, figsize=(7, 6))
     for i, label in enumerate(result.labels):
         style = "-" if label == "rotational" else "--"

@@ -69,7 +69,7 @@ def design():
 def network_file(design, tmp_path_factory):
     """An RBF network (eq. 7.4-7.5, OLS) trained on simulated test points: 2 s windows of
     plunge and pitch accelerations at several airspeeds and c2 values, labelled with the
-    damping-optimal c2 of the airspeed (a miniature of the seed's sec. 7.2.1 experiment; each
+    damping-optimal c2 of the airspeed (a miniature of the study's sec. 7.2.1 experiment; each
     point starts from rest, and settings unstable at an airspeed are skipped, as an experiment
     would have to)."""
     config = load_runtime_config({})

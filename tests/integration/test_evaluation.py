@@ -9,11 +9,13 @@ import pytest
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
-# A short, fast ramp: 0.8 -> 1.3 U_cr in 10 s (the seed's is 0.8 -> 1.2 in 30 s), so the wing
-# without DVA (U_cr) and with the best fixed c2 (1.15 U_cr) both diverge within it.
+# A short, fast ramp: 0.8 -> 1.3 U_cr in 15 s (the study's is 0.8 -> 1.2 in 30 s), so the wing
+# without DVA (U_cr) and with the best fixed c2 (1.15 U_cr) both diverge within it. (In 10 s the
+# chapter-6 bare wing, growing at 3.4 1/s at 1.05 U_cr, reaches the simulator's stop inside the
+# last, partial 1 s window of the divergence test, which then sees no divergence.)
 SCENARIO = """\
 name: short_ramp
-duration: 10.0
+duration: 15.0
 sample_rate: 1000.0
 block_size: 50
 airspeed: {kind: ramp, start_ratio: 0.8, end_ratio: 1.3}

@@ -13,7 +13,7 @@ from aero_dva.bag.flight_log_io import load_flight_log
 
 from .conftest import ros2_run_path
 
-# 3 airspeeds x 2 c2 x 1 s, all stable: a small copy of the seed's stepped sweep.
+# 3 airspeeds x 2 c2 x 1 s, all stable: a small copy of the study's stepped sweep.
 SWEEP = """\
 name: mini_sweep
 duration: auto

@@ -1,6 +1,6 @@
-"""Airspeed schedule of the tunable damper, ``c2 = a0 + a1 U`` (seed eq. 7.1).
+"""Airspeed schedule of the tunable damper, ``c2 = a0 + a1 U`` (Zhang (2006) eq. 7.1).
 
-The seed fits eq. 7.1 by least squares to the optimal c2 of fig. 7.4 over the airspeeds where
+The study fits eq. 7.1 by least squares to the optimal c2 of fig. 7.4 over the airspeeds where
 that curve is almost linear (U = 115 to 120 m/s) and flies the schedule over the whole ramp
 (0.8 to 1.2 Ucr). Evaluation therefore extrapolates the line outside the fitted airspeed range
 by default (``extrapolate=False`` holds the end values instead), and always clamps the result
@@ -73,7 +73,7 @@ class AirspeedSchedule:
         airspeed : float or array_like
             [m/s] true airspeed U, finite and >= 0.
         extrapolate : bool
-            If True (the seed's use) the line continues outside ``airspeed_range``; if False
+            If True (the study's use) the line continues outside ``airspeed_range``; if False
             the airspeed is first clamped to ``airspeed_range``.
 
         Returns

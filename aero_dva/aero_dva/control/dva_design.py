@@ -1,6 +1,6 @@
 """DVA design: absorber settings that maximise the minimum damping ratio (seed 6.2.2-6.3.2).
 
-The seed's objective at a given airspeed is the *minimum damping ratio* over all modes
+The study's objective at a given airspeed is the *minimum damping ratio* over all modes
 (:func:`~aero_dva.wing.modal.min_damping_ratio`); the best setting maximises it. A *tuned*
 absorber takes its best setting at every airspeed, and its critical airspeed is where the best
 minimum damping ratio crosses zero:
@@ -31,9 +31,9 @@ from aero_dva.wing.model import N_FEATURES, AeroelasticModel
 __all__ = [
     "SEED_MAXWELL_DESIGNS",
     "SEED_POSITIONS",
-    "SEED_TABLE_6_1",
-    "SEED_TABLE_6_2",
-    "SEED_TABLE_6_3",
+    "STUDY_TABLE_6_1",
+    "STUDY_TABLE_6_2",
+    "STUDY_TABLE_6_3",
     "SEED_TUNED_RATIO",
     "CriticalRatio",
     "DEFAULT_DAMPING_BOUNDS",
@@ -270,21 +270,21 @@ def tuned_critical_airspeed(model, density: float, airspeed_range, n_grid: int =
     raise NoFlutterError(f"the tuned absorber is stable up to {high:g} m/s")
 
 
-# -- the seed's chapter-6 studies ---------------------------------------------------------------
+# -- the study's chapter-6 studies ---------------------------------------------------------------
 
 SEED_POSITIONS = {"rear_tip": -0.27, "rear_middle": -0.15, "front_middle": 0.80, "front_tip": 1.53}
 """[m] DVA positions of table 6.1 / fig. 6.10 from the gravity centre, positive toward the
-leading edge. The seed's captions print 0.27, 0.15, -0.8, -1.53 for rear tip .. front tip, i.e.
+leading edge. The study's captions print 0.27, 0.15, -0.8, -1.53 for rear tip .. front tip, i.e.
 with the opposite sign to its own eq. 6.11 (where ``w - l_a alpha`` makes positive ``l_a`` point
 to the leading edge); the labels decide, so the signs are flipped here."""
 
-SEED_TABLE_6_1 = {"rear_tip": 1.07, "rear_middle": 1.06, "front_middle": 1.09, "front_tip": 1.14}
+STUDY_TABLE_6_1 = {"rear_tip": 1.07, "rear_middle": 1.06, "front_middle": 1.09, "front_tip": 1.14}
 """Critical airspeed ratio of the tuned passive DVA (m1/m = 0.04) by position."""
 
-SEED_TABLE_6_2 = {0.01: 1.08, 0.02: 1.10, 0.03: 1.12, 0.04: 1.14}
+STUDY_TABLE_6_2 = {0.01: 1.08, 0.02: 1.10, 0.03: 1.12, 0.04: 1.14}
 """Critical airspeed ratio of the tuned passive DVA at the front tip by mass ratio."""
 
-SEED_TABLE_6_3 = (
+STUDY_TABLE_6_3 = (
     (29.38e3, 1.88e3, 1.02),
     (91.56e3, 0.86e3, 1.074),
     (123.16e3, 0.59e3, 1.04),
@@ -349,7 +349,7 @@ def position_study(wing, density: float, positions=None, mass_ratio: float = 0.0
 
 
 def mass_study(wing, density: float, position: float = SEED_POSITIONS["front_tip"],
-               mass_ratios=tuple(SEED_TABLE_6_2), aero=None) -> list[CriticalRatio]:
+               mass_ratios=tuple(STUDY_TABLE_6_2), aero=None) -> list[CriticalRatio]:
     """Table 6.2: tuned passive DVA at ``position`` with several mass ratios ``m1/m``."""
     u_cr = bare_critical_airspeed(wing, density, aero)
     out = []
@@ -359,7 +359,7 @@ def mass_study(wing, density: float, position: float = SEED_POSITIONS["front_tip
     return out
 
 
-def constant_absorber_study(wing, density: float, absorbers=SEED_TABLE_6_3,
+def constant_absorber_study(wing, density: float, absorbers=STUDY_TABLE_6_3,
                             position: float = SEED_POSITIONS["front_tip"],
                             mass_ratio: float = 0.04, aero=None) -> list[CriticalRatio]:
     """Table 6.3: constant passive DVAs ``(k1, c1, ...)`` and the tuned one."""

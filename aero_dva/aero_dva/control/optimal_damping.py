@@ -1,6 +1,6 @@
-"""Optimal tunable damping ``c2`` versus airspeed for an RMS objective (seed section 7.1.1).
+"""Optimal tunable damping ``c2`` versus airspeed for an RMS objective (Zhang (2006) sec. 7.1.1).
 
-The seed's chapter-7 objective is the RMS of the vibration response under the random aileron
+The study's chapter-7 objective is the RMS of the vibration response under the random aileron
 force (1 kN standard deviation, 1 kHz): of the plunge (fig. 7.1), the rotation (fig. 7.2) or, its
 choice, the leading edge (fig. 7.3), which weights both and is easy to measure. At each airspeed
 the optimal ``c2`` minimises that RMS (fig. 7.4).
@@ -20,7 +20,7 @@ overhead of separate ``minimize_scalar`` calls would outweigh the whole grid; se
 improves on the grid value. An airspeed at which no grid value of ``c2`` is stable has no
 optimum (NaN, minimum RMS ``inf``).
 
-Simulated route (:func:`simulated_rms`), as the seed did
+Simulated route (:func:`simulated_rms`), as the study did
 --------------------------------------------------------
 Each pair is flown at constant airspeed and ``c2`` with :func:`~aero_dva.flight.batch_simulator.
 simulate_flights` (white Gaussian force held over each sample); a settling time is discarded
@@ -55,7 +55,7 @@ __all__ = [
 ]
 
 OBJECTIVES = ("leading_edge", "plunge", "rotation")
-"""Objectives: RMS of the leading-edge (seed's choice), plunge or pitch (rotation) response."""
+"""Objectives: RMS of the leading edge (the study's choice), plunge or pitch (rotation)."""
 
 RMS_OUTPUTS = ("plunge", "pitch", "leading_edge")
 """Displacement outputs kept in the RMS surfaces, in this order: [m], [rad], [m]."""
@@ -104,7 +104,7 @@ def _grid(damping_grid, minimum: int = 3) -> np.ndarray:
 
 @dataclass(frozen=True)
 class OptimalDamping:
-    """Optimal ``c2`` versus airspeed (seed fig. 7.1-7.4).
+    """Optimal ``c2`` versus airspeed (Zhang (2006) fig. 7.1-7.4).
 
     Attributes
     ----------
@@ -335,7 +335,7 @@ def optimal_damping(model: AeroelasticModel, airspeeds, damping_grid, density: f
     density : float
         [kg/m^3]
     objective : {"leading_edge", "plunge", "rotation"}
-        Which RMS to minimise (seed fig. 7.3, 7.1, 7.2).
+        Which RMS to minimise (Zhang (2006) fig. 7.3, 7.1, 7.2).
     force_std : float
         [N] aileron force standard deviation per sample (the seed: 1000 N).
     sample_rate : float
@@ -465,7 +465,7 @@ def simulated_rms(model: AeroelasticModel, airspeeds, damping_grid, density: flo
                   flights: int = 1, objective: str = "leading_edge",
                   force_std: float = 1000.0, sample_rate: float = 1000.0,
                   progress=None) -> SimulatedRMS:
-    """RMS of constant-condition flights (the seed's route) with the exact values beside.
+    """RMS of constant-condition flights (the study's route) with the exact values beside.
 
     Parameters
     ----------

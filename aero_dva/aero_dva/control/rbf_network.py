@@ -1,10 +1,10 @@
-"""Gaussian radial basis function network trained by orthogonal least squares (seed eq. 7.4-7.5).
+"""Gaussian RBF network trained by orthogonal least squares (Zhang (2006) eq. 7.4-7.5).
 
 Hidden neuron ``j`` responds to an input ``p`` with ``a_j = exp(-(b ||w_j - p||)^2)``
 (eq. 7.4 with the transfer function of eq. 7.5); the output layer is linear with a bias,
 ``y = sum_j LW_j a_j + b2`` (fig. 7.10). All neurons share ``b = sqrt(ln 2) / spread``, so a
 neuron's response falls to 1/2 at distance ``spread`` from its centre (the convention of the
-radial basis tools the seed cites). Distances are measured between *scaled* inputs,
+radial basis tools the study cites). Distances are measured between *scaled* inputs,
 ``(x - input_offset) / input_scale``, because the 33 inputs mix scaled spectra (order 0.1)
 with the damper coefficient (order 10^3 N s/m).
 
@@ -40,7 +40,7 @@ __all__ = [
     "train_rbf_ols",
 ]
 
-#: Inputs of the seed's network: 2 channels x 16 scaled spectrum values (5..20 Hz) + current c2.
+#: Inputs of the study's network: 2 channels x 16 scaled spectrum values (5..20 Hz) + current c2.
 SPECTRUM_INPUT_DIM = 33
 
 _LN2_SQRT = float(np.sqrt(np.log(2.0)))
@@ -141,7 +141,7 @@ def fit_input_scaling(inputs) -> InputScaling:
 
 @dataclass(frozen=True)
 class RBFNetwork:
-    """Two-layer Gaussian RBF network with a linear output (seed eq. 7.4-7.5, fig. 7.10).
+    """Two-layer Gaussian RBF network with a linear output (Zhang (2006) eq. 7.4-7.5, fig. 7.10).
 
     Attributes
     ----------
@@ -522,7 +522,7 @@ def spectrum_input_names(
     -------
     names, units : tuple of str
         ``"<channel>_<f>Hz"`` per channel and frequency (channel-major, unit "1"), then
-        ``"damping"`` (unit "N s/m"): 33 entries for the seed's network.
+        ``"damping"`` (unit "N s/m"): 33 entries for the study's network.
     """
     freqs = np.arange(5.0, 21.0) if frequencies is None else np.asarray(frequencies, float)
     names = [f"{c}_{f:g}Hz" for c in channel_names for f in freqs] + ["damping"]

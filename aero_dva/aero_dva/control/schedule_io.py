@@ -1,6 +1,6 @@
-"""JSON file format of the airspeed schedule (seed eq. 7.1), read by the airspeed controller.
+"""JSON file of the airspeed schedule (Zhang (2006) eq. 7.1), read by the airspeed controller.
 
-Example (SI units; the units object is checked on load so a file written in the seed's
+Example (SI units; the units object is checked on load so a file written in the study's
 N-s/mm is refused rather than misread)::
 
     {

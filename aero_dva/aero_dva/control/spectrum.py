@@ -1,6 +1,6 @@
-"""Scaled magnitude spectra of acceleration windows (seed eq. 7.3).
+"""Scaled magnitude spectra of acceleration windows (Zhang (2006) eq. 7.3).
 
-The spectrum-based controller of the seed (section 7.2) looks at the magnitude of the wing's
+The spectrum-based controller of the study (section 7.2) looks at the magnitude of the wing's
 acceleration spectrum at 5..20 Hz in 1 Hz steps over a 2 s window sampled at 1 kHz, per channel,
 each channel divided by its sum over those frequencies (eq. 7.3, ``p_i = P_i / sum_i P_i``).
 
@@ -35,7 +35,7 @@ __all__ = [
     "scaled_spectrum",
 ]
 
-#: [Hz] the seed's band: 5..20 Hz in 1 Hz steps (section 7.2.1).
+#: [Hz] the study's band: 5..20 Hz in 1 Hz steps (section 7.2.1).
 DEFAULT_FREQUENCIES = np.arange(5.0, 21.0, 1.0)
 DEFAULT_FREQUENCIES.setflags(write=False)
 
@@ -50,7 +50,7 @@ def _frozen(array: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class ScaledSpectrum:
-    """Scaled magnitude spectrum of one window (seed eq. 7.3).
+    """Scaled magnitude spectrum of one window (Zhang (2006) eq. 7.3).
 
     Attributes
     ----------
@@ -153,7 +153,7 @@ def _scale(
 def scaled_spectrum(
     samples, sample_rate: float, frequencies=DEFAULT_FREQUENCIES, window: str = "rectangular"
 ) -> ScaledSpectrum:
-    """Scaled magnitude spectra of a window of samples (seed eq. 7.3).
+    """Scaled magnitude spectra of a window of samples (Zhang (2006) eq. 7.3).
 
     Parameters
     ----------
@@ -165,7 +165,7 @@ def scaled_spectrum(
         [Hz] frequencies to evaluate, strictly between 0 and ``sample_rate / 2``.
         Default 5..20 Hz in 1 Hz steps.
     window : {"rectangular", "hann"}
-        Window function applied before the DFT (the seed does not window: rectangular).
+        Window function applied before the DFT (the study does not window: rectangular).
 
     Returns
     -------

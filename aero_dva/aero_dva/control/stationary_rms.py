@@ -1,6 +1,6 @@
-"""Exact stationary RMS response of the wing to white-noise aileron force (seed section 7.1.1).
+"""Exact stationary RMS response of the wing to white-noise aileron force (the study's sec. 7.1.1).
 
-The seed's control objective is the RMS of the vibration response, which it estimated from
+The study's control objective is the RMS of the vibration response, which it estimated from
 long simulations. For a linear model driven by white noise the stationary RMS has an exact
 value; this module computes it in two settings.
 

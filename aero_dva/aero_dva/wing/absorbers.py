@@ -1,7 +1,7 @@
-"""Dynamic vibration absorbers (DVA) attached to the wing (seed eq. 6.10-6.16).
+"""Dynamic vibration absorbers (DVA) attached to the wing (Zhang (2006) eq. 6.10-6.16).
 
 Both absorbers are a mass ``m1`` moving vertically (displacement ``x1``, positive down like the
-plunge ``w``) and attached at ``position`` ``l_a`` from the wing's gravity centre. The seed's
+plunge ``w``) and attached at ``position`` ``l_a`` from the wing's gravity centre. The study's
 eq. 6.11 fixes the kinematics: the attachment point moves ``w - l_a * alpha``, so with pitch
 ``alpha`` positive nose up, ``l_a`` is positive toward the leading edge.
 
@@ -11,7 +11,7 @@ eq. 6.11 fixes the kinematics: the attachment point moves ``w - l_a * alpha``, s
   massless, so the element adds one first-order state. ``c2 = inf`` locks the damper (stiffness
   ``k1 + k2``); ``c2 = 0`` frees it (stiffness ``k1``).
 
-Units are SI inside (N/m, N s/m). The seed prints N/mm and N-s/mm: convert with
+Units are SI inside (N/m, N s/m). The study prints N/mm and N-s/mm: convert with
 :data:`N_PER_MM` and :data:`NS_PER_MM` at the boundary.
 """
 
@@ -32,7 +32,7 @@ NS_PER_MM = 1.0e3
 
 @dataclass(frozen=True)
 class PassiveAbsorber:
-    """Mass on a parallel spring and damper (seed eq. 6.10-6.12).
+    """Mass on a parallel spring and damper (Zhang (2006) eq. 6.10-6.12).
 
     Parameters
     ----------

@@ -1,14 +1,14 @@
 """Aerodynamic models of the pitch-plunge section, written about the gravity centre.
 
-Coordinates follow the seed (eq. 6.1-6.6): plunge ``w`` [m] of the gravity centre, positive
+Coordinates follow the study (eq. 6.1-6.6): plunge ``w`` [m] of the gravity centre, positive
 down; pitch ``alpha`` [rad], positive nose up; lift positive up. The chord ``c`` has its leading
 edge ``c0`` ahead of the gravity centre. Forces are per unit span, multiplied by ``span``.
 
 Every model is expressed as generalized forces ``-(rho Ma q'' + rho U Da q' + rho U^2 Ka q)``
 on ``q = [w, alpha]`` plus, for the finite-state model, lag states:
 
-- :class:`QuasiSteadyAero` -- the seed's eq. 6.2/6.4: circulatory lift at the quarter chord
-  driven by the downwash at the three-quarter chord, plus a pitch-rate couple. The seed prints
+- :class:`QuasiSteadyAero` -- the study's eq. 6.2/6.4: circulatory lift at the quarter chord
+  driven by the downwash at the three-quarter chord, plus a pitch-rate couple. The study prints
   that couple three ways: eq. 6.4 and 6.6 give ``pi rho U c^3 / 16`` (thin-airfoil theory,
   the default ``pitch_damping="thin_airfoil"``); eq. 6.2 prints ``(pi/8) dCL/dalpha`` inside
   the bracket, which has no length dimension; with the missing ``c^2`` restored it is
@@ -46,12 +46,12 @@ PITCH_DAMPING_CHOICES = ("thin_airfoil", "printed_6_2")
 
 @dataclass(frozen=True)
 class QuasiSteadyAero:
-    """The seed's quasi-steady aerodynamics (eq. 6.2, 6.4, 6.6).
+    """The study's quasi-steady aerodynamics (eq. 6.2, 6.4, 6.6).
 
     Parameters
     ----------
     pitch_damping : {"thin_airfoil", "printed_6_2"}
-        Which reading of the seed's pitch-rate couple to use (see the module docstring).
+        Which reading of the study's pitch-rate couple to use (see the module docstring).
     """
 
     pitch_damping: str = "thin_airfoil"

@@ -1,4 +1,4 @@
-"""Modal analysis versus airspeed with mode tracking (seed section 6.1.2, fig. 6.2).
+"""Modal analysis versus airspeed with mode tracking (Zhang (2006) section 6.1.2, fig. 6.2).
 
 Each eigenvalue ``lambda`` of the system matrix gives a natural frequency ``|lambda|/(2 pi)``
 [Hz] and a damping ratio ``-Re(lambda)/|lambda|``; a real eigenvalue has damping ratio +1

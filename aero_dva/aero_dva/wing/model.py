@@ -1,6 +1,6 @@
-"""Pitch-plunge wing with an optional DVA, assembled into state-space form (seed eq. 6.1-6.16).
+"""Pitch-plunge wing with an optional DVA in state-space form (Zhang (2006) eq. 6.1-6.16).
 
-Conventions (seed eq. 6.1, 6.11; REP 103 units)
+Conventions (Zhang (2006) eq. 6.1, 6.11; REP 103 units)
 -----------------------------------------------
 - ``w`` [m]: plunge of the gravity centre, positive down; ``alpha`` [rad]: pitch, positive nose
   up; the aileron force ``f_a`` [N] is positive down.
@@ -62,7 +62,7 @@ FEATURE_NAMES = ("one", "U", "rho*U", "rho*U^2", "k1", "c_damper", "maxwell_rate
 
 @dataclass(frozen=True)
 class WingParameters:
-    """Structural and geometric parameters of the pitch-plunge wing (seed eq. 6.1-6.4).
+    """Structural and geometric parameters of the pitch-plunge wing (Zhang (2006) eq. 6.1-6.4).
 
     Parameters
     ----------
@@ -89,8 +89,8 @@ class WingParameters:
     lift_slope : float
         ``dC_L/dalpha`` [1/rad].
     span : float
-        [m] The seed's forces are per unit span while its masses are totals; ``span``
-        multiplies the aerodynamic forces (1.0 reproduces the printed equations). The seed is
+        [m] The study's forces are per unit span while its masses are totals; ``span``
+        multiplies the aerodynamic forces (1.0 reproduces the printed equations). The study is
         inconsistent about its airspeeds (figure list: U_cr ~ 800 m/s; section 7.1.1:
         ~100 m/s); the reference wing keeps 100 m/s with an effective span (docs/wing.md).
     """

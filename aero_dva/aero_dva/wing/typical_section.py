@@ -11,7 +11,7 @@ in the usual nondimensional form:
 - ``elastic_axis`` ``a``: elastic axis aft of mid-chord, in semichords,
 - ``pitch_frequency`` ``omega_alpha`` [rad/s] and ``air_density`` ``rho`` [kg/m^3].
 
-:func:`section_to_wing` turns it into the seed's gravity-centre form (per metre of span,
+:func:`section_to_wing` turns it into the study's gravity-centre form (per metre of span,
 thin-airfoil lift slope ``2 pi``, no structural damping), so the same solvers apply.
 """
 

@@ -1,4 +1,4 @@
-"""Domain 1: frequency responses of isolators and viscoelastic mounts (seed chapters 3-5).
+"""Domain 1: frequency responses of isolators and viscoelastic mounts (Zhang (2006) chapters 3-5).
 
 Baseline: the general Maxwell model of the isolator tool, K(w) = k + j w c +
 sum_i j w c_i k_i / (k_i + j w c_i) (eq. 4.8), seen through the measured quantity
@@ -265,7 +265,7 @@ class FrfDomain(FrfLibrary):
                                                       self.quantity, max_iter=15).model
                     except (ValueError, np.linalg.LinAlgError):
                         pass
-        for n in orders:  # a failed fit: the seed's initial-guess rule (section 4.3.2)
+        for n in orders:  # a failed fit: the study's initial-guess rule (section 4.3.2)
             if n not in models:
                 taus = np.logspace(-0.5, 1.0, n) / wn
                 ks = np.full(n, positive(m * wn**2 - k, 0.1 * k) / n)

@@ -6,7 +6,7 @@ time-temperature superposition with universal WLF constants referred to a glass 
 a Duffing oscillator by harmonic balance), not with the loop's candidate formulas, and the
 loop never sees the labels.
 
-Base systems: the M-M-V systems of the seed's Table 4.1 (m = 1 kg) and the identified mounts
+Base systems: the M-M-V systems of the study's Table 4.1 (m = 1 kg) and the identified mounts
 of Table 5.6 (m = 1.041 kg), each parameter perturbed by a random factor exp(N(0, 0.05^2)).
 Frequencies: ``n_points`` log-spaced points from 3 to 300 Hz per condition. Noise:
 H_meas = H (1 + eps), eps complex normal with E|eps|^2 = sigma^2 (each part sigma / sqrt(2)),
@@ -22,7 +22,7 @@ Detectability thresholds (the magnitude of the hidden effect is drawn at random 
   tool's unconstrained fit of such a model to the noise-free data must also be >= 3 sigma.
 * ``maxwell_element``: a Type B + Type C system (Table 4.1 F or a Table 5.6 mount) whose
   model keeps one of the two elements (the loop is told ``elements=1``); the data have both.
-  The seed's section 4.2 shows no single element matches such a pair.
+  The study's section 4.2 shows no single element matches such a pair.
 * ``sensor_delay``: tau in 0.1..1 ms.
 * ``fixture_mass`` and ``foundation_mode`` use base systems resonating below f_max / 5 (not
   the 5.6 stud at 89 Hz): with only half a decade above resonance an extra mass and a series
@@ -254,7 +254,7 @@ def _draw_effect(effect, rng, model, omega, quantity, n_points, f_n):
         return base, base, {}, {}, ()
     if effect == "maxwell_element":
         # The base keeps one element of a Type B + Type C pair; the data have both (the
-        # seed's System F / Table 5.6 situation that no M-V model matches, section 4.2).
+        # the study's System F / Table 5.6 situation that no M-V model matches, section 4.2).
         keep = int(rng.integers(2))
         ks, cs = model.maxwell_k, model.maxwell_c
         base_model = MaxwellModel(m, model.k, model.c, (ks[keep],), (cs[keep],))

@@ -1,4 +1,4 @@
-"""``dva control optimal-c2`` and ``dva control schedule`` (seed section 7.1)."""
+"""``dva control optimal-c2`` and ``dva control schedule`` (Zhang (2006) section 7.1)."""
 from __future__ import annotations
 
 import json

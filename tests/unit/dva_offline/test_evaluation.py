@@ -141,7 +141,7 @@ def test_aggregate_counts_diverged_not_diverged_and_failed_flights():
     assert sch0.mean == pytest.approx(1.155) and sch0.std == pytest.approx(np.std([1.16, 1.15],
                                                                                   ddof=1))
     assert (rbf1.n_flights, rbf1.n_failed, rbf1.min, rbf1.max) == (4, 1, 1.10, 1.12)
-    assert sch1.seed_ratio == SEED_RATIOS["schedule"][0.1] == 1.04
+    assert sch1.study_ratio == SEED_RATIOS["schedule"][0.1] == 1.04
     assert sch1.mean_rms == pytest.approx(2e-3)
     table = markdown_table(stats)
     assert "| airspeed schedule | 0 | 3 | 2 (1 reached the end) | 1.155 |" in table

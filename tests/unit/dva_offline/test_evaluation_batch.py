@@ -83,7 +83,7 @@ def test_summary_pairs_each_seed_with_the_fixed_c2():
     rbf = rows["rbf"]
     assert rbf["mean_rms_ratio"] == pytest.approx(0.99)
     assert rbf["rms_change"].mean == pytest.approx(-0.01) and rbf["rms_change"].n == 4
-    # the seed-to-seed spread of the RMS cancels in the pairing: an exact ratio, zero width
+    # the study-to-seed spread of the RMS cancels in the pairing: an exact ratio, zero width
     assert rbf["rms_change"].high == pytest.approx(-0.01) and rbf["rms_change"].excludes_zero
     assert rbf["divergence_difference"].mean == pytest.approx(0.0115)
     assert rows["fixed"]["rms_change"].mean == 0.0

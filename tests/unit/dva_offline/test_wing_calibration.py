@@ -74,7 +74,7 @@ def test_a_shape_that_diverges_first_is_rejected_with_the_reason():
 
 
 def test_cost_is_zero_at_the_seed_and_counts_errors_in_hundredths():
-    exact = dict(wc.SEED_TARGETS)
+    exact = dict(wc.STUDY_TARGETS)
     cost = wc.calibration_cost(exact)
     assert cost.total == pytest.approx(0.0, abs=1e-9) and cost.wrong_trends == ()
     off = dict(exact)
@@ -87,7 +87,7 @@ def test_cost_is_zero_at_the_seed_and_counts_errors_in_hundredths():
 def test_cost_penalises_a_wrong_trend_beyond_its_squared_error():
     # Table 6.1 with front middle below both rear positions (the current reference wing's
     # trend) but every number within 0.012 of the seed: small errors, wrong trend.
-    ratios = dict(wc.SEED_TARGETS)
+    ratios = dict(wc.STUDY_TARGETS)
     ratios.update({"6.1 front_middle": 1.078, "6.1 rear_tip": 1.082, "6.1 rear_middle": 1.07})
     c = wc.calibration_cost(ratios)
     assert c.max_error < 0.013
@@ -98,19 +98,19 @@ def test_cost_penalises_a_wrong_trend_beyond_its_squared_error():
 
 
 def test_cost_of_missing_ratios_bad_frequency_and_bad_input():
-    ratios = dict(wc.SEED_TARGETS, **{"Maxwell design 1": float("nan")})
+    ratios = dict(wc.STUDY_TARGETS, **{"Maxwell design 1": float("nan")})
     c = wc.calibration_cost(ratios)
     assert c.squared_error == pytest.approx(wc.NAN_PENALTY) and math.isinf(c.max_error)
-    assert wc.calibration_cost(dict(wc.SEED_TARGETS), flutter_frequency=3.0).frequency == 4.0
-    assert wc.calibration_cost(dict(wc.SEED_TARGETS), flutter_frequency=12.0).frequency == 0.0
+    assert wc.calibration_cost(dict(wc.STUDY_TARGETS), flutter_frequency=3.0).frequency == 4.0
+    assert wc.calibration_cost(dict(wc.STUDY_TARGETS), flutter_frequency=12.0).frequency == 0.0
     with pytest.raises(ValueError, match="lack"):
         wc.calibration_cost({"6.1 rear_tip": 1.07})
 
 
 def test_fast_ratios_of_the_reference_wing_match_the_design_study():
     wing, aero, res = wc.build_wing(wc.params_from_wing(REFERENCE.wing))
-    got = wc.seed_ratios(wing, aero)
-    assert set(got) == set(wc.SEED_TARGETS)
+    got = wc.study_ratios(wing, aero)
+    assert set(got) == set(wc.STUDY_TARGETS)
     for key, value in REFERENCE_RATIOS.items():
         assert got[key] == pytest.approx(value, abs=6e-4), key
 

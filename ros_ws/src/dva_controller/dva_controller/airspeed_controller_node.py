@@ -1,4 +1,4 @@
-"""``airspeed_controller``: c2 from the measured airspeed, ``c2 = a0 + a1 U`` (seed eq. 7.1).
+"""``airspeed_controller``: c2 from the measured airspeed, ``c2 = a0 + a1 U`` (study eq. 7.1).
 
 One ``dva/damper_command`` (source "airspeed_schedule") per accepted ``flight/condition``
 message, at most one per ``min_period`` of ROS time. The command is clamped to the damper's

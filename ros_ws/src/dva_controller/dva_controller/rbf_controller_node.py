@@ -1,4 +1,4 @@
-"""``rbf_controller``: c2 from the scaled vibration spectra with an RBF network (seed sec. 7.2).
+"""``rbf_controller``: c2 from the scaled vibration spectra with an RBF network (study sec. 7.2).
 
 For each ``dva/spectrum`` message the network's input is the scaled magnitudes, channel-major,
 followed by the current c2 (the spectrum's ``damping`` field, the c2 applied during the
@@ -39,9 +39,8 @@ from aero_dva.control.rbf_network import RBFNetwork, spectrum_input_names
 from dva_controller.shared_params import (
     DAMPER_RANGE,
     SPECTRUM_SHAPE,
-    checked_channels,
-    checked_frequencies,
     damping_range,
+    spectrum_shape,
 )
 from dva_msgs.msg import DamperCommand, ScaledSpectrum
 from dva_ros_common import conversions
@@ -100,10 +99,8 @@ class RBFController(Node):
     def __init__(self, **kwargs) -> None:
         super().__init__(SPEC.name, **kwargs)
         values = declare_parameters(self, SPEC)
-        self.channels = checked_channels(values["channels"])
-        self.frequencies = checked_frequencies(values["frequencies"])
-        self.window = str(values["window"])
-        self.window_duration = float(values["window_duration"])
+        self.channels, self.frequencies, self.window, self.window_duration = \
+            spectrum_shape(values)
         low, high = damping_range(float(values["damping_min"]), float(values["damping_max"]))
         self.damping_range = (low, high)
         path = str(values["network_file"])

@@ -36,6 +36,13 @@ DAMPER_RANGE = (
 )
 
 
+def spectrum_shape(values) -> tuple[tuple[str, ...], np.ndarray, str, float]:
+    """``channels, frequencies, window, window_duration`` from the declared values of
+    :data:`SPECTRUM_SHAPE`, checked."""
+    return (checked_channels(values["channels"]), checked_frequencies(values["frequencies"]),
+            str(values["window"]), float(values["window_duration"]))
+
+
 def checked_channels(value) -> tuple[str, ...]:
     """Validate the ``channels`` parameter (known names, at least one, none twice)."""
     channels = tuple(c for c in value if c)

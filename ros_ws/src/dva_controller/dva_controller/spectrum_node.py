@@ -29,7 +29,7 @@ from rclpy.node import Node
 
 from aero_dva.bag import channels as ch
 from aero_dva.control.spectrum_stream import SpectrumStream
-from dva_controller.shared_params import SPECTRUM_SHAPE, checked_channels, checked_frequencies
+from dva_controller.shared_params import SPECTRUM_SHAPE, spectrum_shape
 from dva_msgs.msg import AccelerationBlock, DamperState, ScaledSpectrum
 from dva_ros_common import conversions
 from dva_ros_common.node_params import NodeSpec, Param, declare_parameters
@@ -63,10 +63,8 @@ class SpectrumNode(Node):
     def __init__(self, **kwargs) -> None:
         super().__init__(SPEC.name, **kwargs)
         values = declare_parameters(self, SPEC)
-        self.channels = checked_channels(values["channels"])
-        self.frequencies = checked_frequencies(values["frequencies"])
-        self.window = str(values["window"])
-        self.window_duration = float(values["window_duration"])
+        self.channels, self.frequencies, self.window, self.window_duration = \
+            spectrum_shape(values)
         self.hop = float(values["hop"])
 
         self._stream = SpectrumStream(self.channels, self.window_duration, self.hop,

@@ -1,4 +1,4 @@
-"""Airspeed schedule c2 = a0 + a1 U (seed eq. 7.1) and its JSON file."""
+"""Airspeed schedule c2 = a0 + a1 U (Zhang (2006) eq. 7.1) and its JSON file."""
 
 import json
 
@@ -14,7 +14,7 @@ DAMPER = (0.0, 5000.0)  # [N s/m]
 def test_fit_recovers_a_line_inside_the_range_only():
     u = np.linspace(80.0, 125.0, 46)
     c2 = -2000.0 + 30.0 * u
-    c2[u < 115.0] = 100.0  # the curved part the seed leaves out of the fit
+    c2[u < 115.0] = 100.0  # the curved part the study leaves out of the fit
     fit = fit_airspeed_schedule(u, c2, DAMPER, airspeed_range=(115.0, 120.0))
     assert fit.schedule.a0 == pytest.approx(-2000.0, rel=1e-10)
     assert fit.schedule.a1 == pytest.approx(30.0, rel=1e-10)

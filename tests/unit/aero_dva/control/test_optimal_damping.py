@@ -1,4 +1,4 @@
-"""Optimal damper c2 versus airspeed for the exact RMS objective (seed section 7.1.1)."""
+"""Optimal damper c2 versus airspeed for the exact RMS objective (Zhang (2006) section 7.1.1)."""
 from __future__ import annotations
 
 import numpy as np
@@ -185,7 +185,7 @@ def test_progress_and_bad_inputs(model, cfg):
 
 
 def test_simulated_route_agrees_within_sampling_error(model, u_cr):
-    """The seed's route (settle, then RMS of a simulation) agrees with the exact RMS to
+    """The study's route (settle, then RMS of a simulation) agrees with the exact RMS to
     within 3 of its expected standard errors, sqrt(sum rho^2 / (2 N M))."""
     sim = simulated_rms(model, np.array([0.85, 1.0]) * u_cr, [200.0, 600.0], RHO,
                         rng=np.random.default_rng(0), duration=20.0, flights=3)

@@ -1,4 +1,4 @@
-"""Gaussian RBF network (seed eq. 7.4-7.5), OLS training (Chen et al. 1991) and its file format."""
+"""Gaussian RBF network (Zhang (2006) eq. 7.4-7.5), OLS training (Chen et al. 1991), its file."""
 
 import json
 import zipfile
@@ -157,7 +157,7 @@ def test_training_arguments_are_validated(kwargs, error, match):
         train_rbf_ols(**args)
 
 
-def test_spectrum_inputs_have_the_seed_layout():
+def test_spectrum_inputs_have_the_study_layout():
     names, units = spectrum_input_names()
     assert len(names) == SPECTRUM_INPUT_DIM == 33
     assert names[0] == "plunge_5Hz" and names[16] == "pitch_5Hz" and names[-1] == "damping"

@@ -1,4 +1,4 @@
-"""Scaled magnitude spectra (seed eq. 7.3) and the sliding-window stream."""
+"""Scaled magnitude spectra (Zhang (2006) eq. 7.3) and the sliding-window stream."""
 
 import numpy as np
 import pytest
@@ -10,7 +10,7 @@ from aero_dva.control.spectrum import (
     scaled_spectrum,
 )
 
-FS = 1000.0  # [Hz] the seed's sampling rate
+FS = 1000.0  # [Hz] the study's sampling rate
 N = 2000  # 2 s window
 
 

@@ -1,4 +1,4 @@
-"""Exact stationary RMS of the wing under white-noise aileron force (seed section 7.1.1)."""
+"""Exact stationary RMS of the wing under white-noise aileron force (Zhang (2006) sec. 7.1.1)."""
 from __future__ import annotations
 
 import numpy as np
@@ -20,7 +20,7 @@ from aero_dva.wing.model import AeroelasticModel
 from aero_dva.wing.wing_io import load_wing
 
 RHO = 1.2
-SIGMA = 1000.0  # [N] per sample, the seed's excitation
+SIGMA = 1000.0  # [N] per sample, the study's excitation
 DT = 1e-3
 
 

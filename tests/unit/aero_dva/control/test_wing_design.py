@@ -1,7 +1,7 @@
-"""The seed's chapter-6 DVA results on the reference wing (tables 6.1-6.3, section 6.3.2).
+"""The study's chapter-6 DVA results on the reference wing (tables 6.1-6.3, section 6.3.2).
 
-Each seed number is held to the tolerance the calibrated reference wing reaches (see the
-seed-vs-project table in docs/wing.md); the trends the seed describes are checked separately.
+Each study number is held to the tolerance the calibrated reference wing reaches (see the
+study-vs-project table in docs/wing.md); the trends the study describes are checked separately.
 """
 from __future__ import annotations
 
@@ -41,13 +41,13 @@ def studies():
 def test_reference_wing_critical_airspeed_and_frequency():
     res = flutter_speed(AeroelasticModel(WING), RHO)
     assert res.critical_airspeed == pytest.approx(100.0, abs=0.01)
-    assert 5.0 < res.flutter_frequency < 20.0  # inside the band of the seed's spectra
+    assert 5.0 < res.flutter_frequency < 20.0  # inside the band of the study's spectra
 
 
-@pytest.mark.parametrize("label", list(dd.SEED_TABLE_6_1))
+@pytest.mark.parametrize("label", list(dd.STUDY_TABLE_6_1))
 def test_table_6_1_positions(studies, label):
     got = studies["6.1"][label].ratio
-    assert got == pytest.approx(dd.SEED_TABLE_6_1[label], abs=TOL_6_1[label])
+    assert got == pytest.approx(dd.STUDY_TABLE_6_1[label], abs=TOL_6_1[label])
 
 
 def test_table_6_1_front_tip_is_best(studies):
@@ -56,10 +56,10 @@ def test_table_6_1_front_tip_is_best(studies):
     assert ratios["rear_tip"] > ratios["rear_middle"]  # seed: 1.07 > 1.06
 
 
-@pytest.mark.parametrize("ratio", list(dd.SEED_TABLE_6_2))
+@pytest.mark.parametrize("ratio", list(dd.STUDY_TABLE_6_2))
 def test_table_6_2_masses(studies, ratio):
     got = studies["6.2"][ratio].ratio
-    assert got == pytest.approx(dd.SEED_TABLE_6_2[ratio], abs=TOL_6_2[ratio])
+    assert got == pytest.approx(dd.STUDY_TABLE_6_2[ratio], abs=TOL_6_2[ratio])
 
 
 def test_table_6_2_heavier_is_better(studies):
@@ -69,7 +69,7 @@ def test_table_6_2_heavier_is_better(studies):
 
 def test_table_6_3_constant_and_tunable_dvas(studies):
     *constant, tuned = studies["6.3"]
-    for res, (_, _, seed), tol in zip(constant, dd.SEED_TABLE_6_3, TOL_6_3):
+    for res, (_, _, seed), tol in zip(constant, dd.STUDY_TABLE_6_3, TOL_6_3):
         assert res.ratio == pytest.approx(seed, abs=tol), res.label
     assert tuned.ratio == pytest.approx(dd.SEED_TUNED_RATIO, abs=TOL_TUNED)
     # Seed: DVA(2) is the best constant DVA, then DVA(3), then DVA(1); tuning beats them all.
@@ -115,7 +115,7 @@ def test_design_errors_are_named():
                             damping_bounds=(-1.0, 10.0))
 
 
-def test_ramp_flights_diverge_in_the_seeds_order():
+def test_ramp_flights_diverge_in_the_studys_order():
     """Sections 6.1.3 and 6.3.3: 0.8 -> 1.2 U_cr in 30 s, 1 kN aileron noise, c2 tuned."""
     u_cr = flutter_speed(AeroelasticModel(WING), RHO).critical_airspeed
     u = ramp_airspeed(u_cr)
@@ -139,7 +139,7 @@ def test_ramp_flights_diverge_in_the_seeds_order():
 
 
 def test_optimal_passive_settings_above_u_cr():
-    """Fig. 6.12 / table 6.3: above U_cr the best k1 rises and c1 falls; at 1.06 U_cr the seed
+    """Fig. 6.12 / table 6.3: above U_cr the best k1 rises and c1 falls; at 1.06 U_cr the study
     found k1 = 91.56 N/mm, c1 = 0.86 N-s/mm (held here to the 5 % and 30 % reached)."""
     model = AeroelasticModel(WING, PassiveAbsorber(40.0, 1e5, 1e3, dd.SEED_POSITIONS["front_tip"]))
     u_cr = flutter_speed(AeroelasticModel(WING), RHO).critical_airspeed

@@ -1,5 +1,5 @@
-"""The chapter-6 wing (config/chapter6_wing.yaml) reproduces every chapter-6 ratio of the seed to
-0.015 with every ordering the seed reports (docs/wing.md, "Calibration")."""
+"""The chapter-6 wing (config/chapter6_wing.yaml) reproduces every chapter-6 ratio of the study to
+0.015 with every ordering the study reports (docs/wing.md, "Calibration")."""
 from __future__ import annotations
 
 import numpy as np
@@ -33,16 +33,16 @@ def test_critical_airspeed_and_flutter_band():
 
 
 def test_every_ratio_within_tolerance(studies):
-    pairs = [(studies["6.1"][k], v) for k, v in dd.SEED_TABLE_6_1.items()]
-    pairs += [(studies["6.2"][k], v) for k, v in dd.SEED_TABLE_6_2.items()]
-    pairs += [(got, seed) for got, (_, _, seed) in zip(studies["6.3"], dd.SEED_TABLE_6_3)]
+    pairs = [(studies["6.1"][k], v) for k, v in dd.STUDY_TABLE_6_1.items()]
+    pairs += [(studies["6.2"][k], v) for k, v in dd.STUDY_TABLE_6_2.items()]
+    pairs += [(got, seed) for got, (_, _, seed) in zip(studies["6.3"], dd.STUDY_TABLE_6_3)]
     pairs += [(studies["6.3"][-1], dd.SEED_TUNED_RATIO)]
     pairs += [(got, d[3]) for got, d in zip(studies["maxwell"], dd.SEED_MAXWELL_DESIGNS)]
     errors = np.array([got - seed for got, seed in pairs])
     assert len(pairs) == 14 and np.abs(errors).max() < TOL, errors
 
 
-def test_every_seed_ordering_holds(studies):
+def test_every_study_ordering_holds(studies):
     t61 = studies["6.1"]
     assert t61["front_tip"] > t61["front_middle"] > t61["rear_tip"] > t61["rear_middle"] > 1
     t62 = [studies["6.2"][r] for r in sorted(studies["6.2"])]

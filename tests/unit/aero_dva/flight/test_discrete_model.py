@@ -80,6 +80,19 @@ def test_a_condition_is_built_once_and_rebuilt_when_it_changes():
                                rtol=1e-12, atol=1e-12 * np.abs(ys).max())
 
 
+def test_a_full_cache_keeps_the_conditions_asked_for_together():
+    """A call mixing cached and new conditions that overflows the cache still returns all
+    of them (a flight whose density and c2 change every block fills the cache this way)."""
+    wing = dm.DiscreteWing(MODEL, 1000.0, max_conditions=4)
+    cached = [(70.0, 1.2, c) for c in (300.0, 400.0, 500.0)]
+    wing.conditions(cached)
+    asked = [cached[0], (70.0, 1.2, 600.0), (70.0, 1.2, 700.0)]
+    got = wing.conditions(asked)
+    for key, condition in zip(asked, got):
+        np.testing.assert_array_equal(condition.ad, wing.discretise([key]).ad[0])
+    assert wing.cached == 3
+
+
 def test_the_pitch_moment_input_is_a_couple_of_forces():
     wing = dm.DiscreteWing(MODEL, 1000.0, inputs=("force", "pitch_moment"))
     m = wing.discretise([[70.0, 1.2, 300.0]])

@@ -127,7 +127,7 @@ def test_modal_tracking_follows_the_flutter_mode(reference):
     j = int(np.argmin(res.damping_ratio[:, above]))
     assert res.damping_ratio[j, below] > 0 > res.damping_ratio[j, above]
     assert res.frequency[j, above] == pytest.approx(res_f.flutter_frequency, rel=0.01)
-    assert res.labels[j] == "rotational"  # as in the seed's fig. 6.2
+    assert res.labels[j] == "rotational"  # as in the study's fig. 6.2
     # Tracking keeps the flutter branch continuous: no jumps between neighbouring airspeeds.
     # (A branch that splits into two real roots moves fast near the split, as it should.)
     steps = np.abs(np.diff(res.eigenvalues[j]))

@@ -1,4 +1,4 @@
-"""Wing, absorbers and aerodynamics assembled into state space (seed eq. 6.1-6.16)."""
+"""Wing, absorbers and aerodynamics assembled into state space (Zhang (2006) eq. 6.1-6.16)."""
 from __future__ import annotations
 
 import math
@@ -21,8 +21,8 @@ WING = WingParameters(mass=1000.0, inertia=650.0, plunge_stiffness=4.8e6, pitch_
                       aileron_position=-0.3, lift_slope=5.5, span=1.0)
 
 
-def seed_a_matrix(w: WingParameters, u: float, rho: float) -> np.ndarray:
-    """The seed's eq. 6.6, written out term by term (unit span)."""
+def study_a_matrix(w: WingParameters, u: float, rho: float) -> np.ndarray:
+    """The study's eq. 6.6, written out term by term (unit span)."""
     m, i, k, ka, b = w.mass, w.inertia, w.plunge_stiffness, w.pitch_stiffness, w.damping_factor
     c, c0, ce, a = w.chord, w.gravity_centre, w.elastic_axis, w.lift_slope
     r = c0 / c
@@ -43,7 +43,7 @@ def test_bare_wing_matches_seed_eq_6_6():
     model = AeroelasticModel(WING)
     for u in (0.0, 37.0, 180.0):
         ss = model.state_space(u, 1.2)
-        np.testing.assert_allclose(ss.a, seed_a_matrix(WING, u, 1.2), rtol=1e-13, atol=1e-9)
+        np.testing.assert_allclose(ss.a, study_a_matrix(WING, u, 1.2), rtol=1e-13, atol=1e-9)
         np.testing.assert_allclose(ss.b, [0, 0, 1 / WING.mass, 0.3 / WING.inertia], rtol=1e-14)
 
 
@@ -202,7 +202,7 @@ def test_state_space_names_and_sizes():
         AeroelasticModel(WING, None, TheodorsenAero()).frequency_frozen(10, 1.2, None)
 
 
-def test_seed_unit_conversions():
+def test_study_unit_conversions():
     assert 29.38 * N_PER_MM == pytest.approx(29380.0)
     assert 1.88 * NS_PER_MM == pytest.approx(1880.0)
 

@@ -38,7 +38,7 @@ def run(effect, seed, clean_covariate=None, max_steps=1):
     domain = FrfDomain(conditions, mass=case.mass, static_stiffness=case.static_stiffness,
                        elements=fixed)
     # the single-effect criteria are properties of the loop's first step; effects outside
-    # the library run the whole loop (its later steps must not turn them into a name either)
+    # the library run later steps too (they must not turn them into a name either)
     return loop.run(domain, rule=loop.DecisionRule(max_steps=max_steps))
 
 
@@ -69,7 +69,9 @@ def test_clean_data_consistent():
 @pytest.mark.slow
 @pytest.mark.parametrize("effect", synthetic.OUTSIDE_EFFECTS)
 def test_effect_outside_library_never_confidently_named(effect):
-    verdicts = [run(effect, seed, max_steps=12).verdict
+    # (three steps: the later steps of the loop on these data are checked over 20 seeds with
+    # the full loop by bench/bench_discrepancy_acceptance.py; this keeps the suite's runtime)
+    verdicts = [run(effect, seed, max_steps=3).verdict
                 for seed in range(SEED0, SEED0 + N_OUTSIDE)]
     assert all(v.status != "explained" for v in verdicts), [(v.status, v.effect)
                                                            for v in verdicts]

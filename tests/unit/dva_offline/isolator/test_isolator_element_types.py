@@ -1,4 +1,4 @@
-"""Type A/B/C rule (w_n tau < 0.5: A, > 2: C, else B) checked against every seed label."""
+"""Type A/B/C rule (w_n tau < 0.5: A, > 2: C, else B) checked against every study label."""
 import numpy as np
 import pytest
 
@@ -13,7 +13,7 @@ def model(m, k, c, elements):
                         tuple(e[1] for e in elements))
 
 
-# (source, model, labels printed by the seed); elements as (k_i kN/m, c_i N s/m).
+# (source, model, labels printed by the study); elements as (k_i kN/m, c_i N s/m).
 SEED_LABELS = [
     ("3.3 System A (named by its type)", model(1, 12, 40, [(12, 20)]), "A"),
     ("3.3 System B", model(1, 12, 40, [(12, 80)]), "B"),
@@ -49,7 +49,7 @@ SEED_LABELS = [
     ("5.6 plate", model(1.041, 23.15, -29.15, [(45.21, 70.93), (26.05, 2402.82)]), "BC"),
     ("5.6 stud", model(1.041, 54.51, -70.18, [(389.70, 239.46), (224.11, 15507.4)]), "BC"),
 ]
-# The only disagreements: first elements of Table 5.6, labelled B by the seed's indirect
+# The only disagreements: first elements of Table 5.6, labelled B by the study's indirect
 # argument (section 5.3.3), but with w_n tau = 0.26-0.36, like the Type A elements of
 # Tables 4.5 (0.25-0.49) and 3.3 (0.19).
 EXPECTED_DISAGREEMENTS = {("5.6 bubble", 0), ("5.6 plate", 0), ("5.6 stud", 0)}
@@ -65,7 +65,7 @@ def all_labels():
     return rows
 
 
-def test_rule_agrees_with_all_seed_labels_except_table_5_6_first_elements():
+def test_rule_agrees_with_all_study_labels_except_table_5_6_first_elements():
     rows = all_labels()
     disagree = {(src, i) for src, i, label, t in rows if t.label != label}
     assert disagree == EXPECTED_DISAGREEMENTS
@@ -76,8 +76,8 @@ def test_rule_agrees_with_all_seed_labels_except_table_5_6_first_elements():
             assert t.label == "A" and 0.25 < t.omega_tau < 0.37
 
 
-def test_no_threshold_on_omega_tau_or_tau_reproduces_every_seed_label():
-    """Evidence that the seed's labels are not a function of w_n tau or of tau alone."""
+def test_no_threshold_on_omega_tau_or_tau_reproduces_every_study_label():
+    """Evidence that the study's labels are not a function of w_n tau or of tau alone."""
     rows = all_labels()
     for key in ("omega_tau", "time_constant_s"):
         a_values = [getattr(t, key) for *_, label, t in rows if label == "A"]

@@ -84,7 +84,7 @@ def test_table_4_3_noise_sensitivity_ordering_a_worse_than_c():
 
 
 def test_table_4_3_printed_noisy_fits_also_match_the_system_frf():
-    """The seed's own sigma > 0 parameters give FRFs within 1 % of the systems'."""
+    """The study's own sigma > 0 parameters give FRFs within 1 % of the systems'."""
     printed = {20: [(35.41, 17.80, 24.45), (32.10, 22.72, 27.69)],
                80: [(39.70, 12.06, 80.02), (38.22, 12.36, 80.16)],
                400: [(39.99, 12.00, 399.4), (40.74, 12.00, 419.9)]}
@@ -131,12 +131,12 @@ def test_table_4_6_mmv_models_match_general_systems(system, printed):
     assert fit.frf_error < 0.02
     assert [t.label for t in fit.element_types] == ["B", "C"]
     assert fit.constraint_error < 1e-8
-    # The seed's printed models match the systems' FRFs about as well as ours.
+    # The study's printed models match the systems' FRFs about as well as ours.
     assert frf_error(frf(printed, OMEGA), h0) < 0.02
 
 
 def test_table_4_6_a_reproduced_with_seed_objective():
-    """With the seed's objective (eq. 4.11: sum |H(kappa) - H_j|, unweighted) the identified
+    """With the study's objective (eq. 4.11: sum |H(kappa) - H_j|, unweighted) the identified
     Model A is the printed one to ~0.3 %."""
     fit, _ = fit_to(GENERAL_A, 2, objective="l1", weighting="none")
     np.testing.assert_allclose(params(fit.model), params(TABLE_4_6_A), rtol=3e-3)

@@ -39,7 +39,7 @@ def test_welch_h1_h2_recover_accelerance_with_seed_defaults():
     force = rng.standard_normal(int(fs * 20))
     acc = simulate_accelerance(BUBBLE, force, fs)
     noisy = np.vstack([acc + 0.02 * np.std(acc) * rng.standard_normal(acc.size) for _ in range(3)])
-    est = estimate_frf(force, noisy)  # seed defaults: fs 5000 Hz, nfft 10000, boxcar
+    est = estimate_frf(force, noisy)  # study defaults: fs 5000 Hz, nfft 10000, boxcar
     assert est.frequency_hz[1] == pytest.approx(0.5)
     band = (est.frequency_hz >= 5) & (est.frequency_hz <= 80)
     h_true = frf(BUBBLE, 2 * np.pi * est.frequency_hz[band], "accelerance")
@@ -75,7 +75,7 @@ def test_zero_crossing_and_half_power_on_voigt_model_are_exact_in_the_limit():
 
 
 def test_table_5_2_procedure_on_table_5_4_models():
-    """Applied to the seed's identified M-V models (stepped-sine grid 3-80 Hz, 0.5 Hz), the
+    """Applied to the study's identified M-V models (stepped-sine grid 3-80 Hz, 0.5 Hz), the
     zero crossing / half power give Table 5.2's w_n to 1 % and zeta to its 2 printed decimals."""
     for model, (wn_t, zeta_t), fmax in (
         (BUBBLE, (187.15, 0.09), 80.0),

@@ -1,6 +1,6 @@
-"""General Maxwell isolator model: modal analysis, FRFs, and the seed's modal tables.
+"""General Maxwell isolator model: modal analysis, FRFs, and the study's modal tables.
 
-Seed units are converted here at the boundary: kN/m -> N/m (x1000).
+The study's units are converted here at the boundary: kN/m -> N/m (x1000).
 """
 import subprocess
 import sys
@@ -48,7 +48,7 @@ def test_table_3_1_mv_and_voigt_modal():
     voigt = modal_properties(MaxwellModel(1.0, 12 * KN, 40.0))
     assert voigt.natural_frequency_rad_s == pytest.approx(109.54, abs=0.005)
     assert voigt.damping_ratio == pytest.approx(0.18, abs=0.005)
-    # The seed's remark: c = c1 and zeta_mv is (about) twice zeta_v.
+    # The study's remark: c = c1 and zeta_mv is (about) twice zeta_v.
     assert mv.damping_ratio / voigt.damping_ratio == pytest.approx(2.0, abs=0.03)
 
 
@@ -67,7 +67,7 @@ def test_table_4_1_mmv_systems(name):
     modal = modal_properties(table_4_1_system(name))
     assert modal.natural_frequency_rad_s == pytest.approx(omega, abs=0.0005)
     if name == "F":
-        # Printed 0.182; the parameters give 0.18146 (-> 0.181). The seed's Table 4.4 fits all
+        # Printed 0.182; the parameters give 0.18146 (-> 0.181). The study's Table 4.4 fits all
         # have zeta = 0.18150, so it seems to have used 0.1815 rounded up.
         assert modal.damping_ratio == pytest.approx(0.18146, abs=5e-6)
         assert abs(modal.damping_ratio - zeta) < 0.0006
@@ -105,7 +105,7 @@ TABLE_4_6_B = MaxwellModel(1.0, 12 * KN, 65.73, (40.69 * KN, 36.50 * KN), (209.1
 def test_table_4_5_system_a_printed_modal_values_contradict_its_parameters():
     """Table 4.5 prints 112.68 rad/s, 0.37 for general System A: Table 4.1 System A's values.
 
-    The printed parameters give 220.34 rad/s, 0.224 -- and the seed's own identified Model A
+    The printed parameters give 220.34 rad/s, 0.224 -- and the study's own identified Model A
     (Table 4.6), which is constrained to the system's omega/zeta, gives the same 220.35, 0.224.
     """
     computed = modal_properties(TABLE_4_5_A)
@@ -126,7 +126,7 @@ def test_table_4_5_system_b_printed_modal_values_match_model_not_system():
     """System B prints 293.87 rad/s, 0.26; its parameters give 295.21, 0.266.
 
     The printed values are those of the identified Model B of Table 4.6 (293.88, 0.262), so
-    the seed's identification used 293.87 / 0.26 as constraints, not the system's eigenvalue.
+    the study's identification used 293.87 / 0.26 as constraints, not the system's eigenvalue.
     """
     computed = modal_properties(TABLE_4_5_B)
     assert computed.natural_frequency_rad_s == pytest.approx(295.21, abs=0.005)
@@ -228,7 +228,7 @@ def test_table_5_3_voigt_models_from_tables_5_1_5_2(mount):
     w, zeta_printed = TABLE_5_2[mount]
     k_static = TABLE_5_1[mount] * KN
     (mk_m, mk_k, mk_c), (mm_m, mm_k, mm_c) = TABLE_5_3[mount]
-    # Table 5.2 prints zeta to 2 decimals; the seed used the unrounded value. Recover it from
+    # Table 5.2 prints zeta to 2 decimals; the study used the unrounded value. Recover it from
     # Model M's c and check Model K's c with the same zeta (both models share zeta).
     zeta = mm_c / (2 * MASS_CH5 * w)
     assert zeta == pytest.approx(zeta_printed, abs=0.005)

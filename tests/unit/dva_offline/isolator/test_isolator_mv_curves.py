@@ -32,7 +32,7 @@ TABLES = {
 # Rows whose printed (c1, k1) differ from the exact intersection by more than 0.1 %: the last
 # row of each table, next to the Voigt Model M limit of the family, where (c1, k1) move by 24 to
 # 230 % per % of error in omega_n or zeta (Table 3.5 is ~50 %/% throughout, yet its other rows
-# agree, so the seed solved those accurately).
+# agree, so the study solved those accurately).
 DISAGREEING_ROWS = {("3.5", 60), ("3.6", 100), ("3.7", 55)}
 
 
@@ -159,7 +159,7 @@ def test_table_4_2_mv_models_of_mmv_systems(name):
     sol = solve_mv_element(M, K, c, w, z)
     assert sol.k1 / KN == pytest.approx(k1, abs=0.0015 if name != "A" else 0.01)
     assert sol.c1 == pytest.approx(c1, rel=0.004)
-    # Our choice of c (minimum FRF error over the family) fits at least as well as the seed's.
+    # Our choice of c (minimum FRF error over the family) fits at least as well as the study's.
     omega = np.linspace(0, 300, 300)
     h = frf(system, omega)
     best = select_primary_damping(omega, h, M, K, w, z)

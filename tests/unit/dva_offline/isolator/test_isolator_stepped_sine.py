@@ -87,7 +87,7 @@ def test_zero_crossing_and_half_power_of_steps_of_a_voigt_model():
 
 
 def test_stepped_sine_cli_reproduces_table_5_2_bubble_mount(capsys, tmp_path):
-    """Steps of the seed's bubble-mount model on the seed's grid give Table 5.2's
+    """Steps of the study's bubble-mount model on the study's grid give Table 5.2's
     187.15 rad/s (to 0.5 %) and zeta 0.09 (to its 2 printed decimals)."""
     path = tmp_path / "bubble_steps.csv"
     write_steps(path, BUBBLE)
