@@ -152,3 +152,17 @@ def test_non_numbers_are_type_errors():
         damper.command("1000", 0.0)
     with pytest.raises(TypeError, match="source"):
         damper.command(1000.0, 0.0, source=None)
+
+
+def test_rejected_commands_do_not_keep_the_damper_from_falling_back():
+    # A controller sending only NaN is as good as a silent one: the fallback acts after the
+    # timeout counted from the last *accepted* command (docs/reliability.md, bursts).
+    model = DamperModel(DamperConfig(0.0, 2500.0, 500.0, stale_timeout=0.5))
+    model.command(800.0, 0.0)
+    for k in range(1, 50):  # NaN every 10 ms up to 0.49 s
+        model.command(math.nan, 0.01 * k)
+    assert model.applied_damping == 800.0
+    for k in range(50, 60):  # and on, past the 0.5 s timeout
+        model.command(math.nan, 0.01 * k)
+    assert model.applied_damping == 500.0
+    assert model.snapshot().status == DamperStatus.FALLBACK_STALE
