@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import shutil
 import subprocess
 import sys
@@ -66,27 +65,7 @@ def _sliding_divergence(bag: Path, u_cr) -> dict:
             "divergence_ratio_sliding": ratio}
 
 
-def _domain(index: int) -> str:
-    """ROS domain of the flight with this job index: flights run at the same time must not see
-    each other's topics; 101 consecutive jobs get distinct domains (1..101 above the base)."""
-    base = int(os.environ.get("ROS_DOMAIN_ID", "0") or 0)
-    return str((base + 1 + index) % 102)
-
-
-def _fly_job(out: Path, made: dict, args, job) -> dict:
-    """One job of a parallel campaign: ``job`` = (index, case, scenario); its own domain and
-    retries; the record (never raises for a failed flight)."""
-    index, case, scenario = job
-    for attempt in range(1 + args.retries):
-        record = _fly(case, scenario, out, made, args, env={**os.environ,
-                                                            "ROS_DOMAIN_ID": _domain(index)})
-        record["attempts"] = attempt + 1
-        if record["ok"]:
-            break
-    return record
-
-
-def _fly(case, scenario: Path, out: Path, made: dict, args, env=None) -> dict:
+def _fly(case, scenario: Path, out: Path, made: dict, args) -> dict:
     """One flight through run_flight; the record (never raises for a failed flight)."""
     from dva_offline.evaluation_io import flight_bag
 
@@ -98,7 +77,7 @@ def _fly(case, scenario: Path, out: Path, made: dict, args, env=None) -> dict:
               "absorber": "none" if case.controller == "none" else "maxwell"}
     started = time.monotonic()
     try:
-        result = subprocess.run(_flight_argv(case, scenario, bag, made, args), env=env,
+        result = subprocess.run(_flight_argv(case, scenario, bag, made, args),
                                 capture_output=True, text=True, timeout=args.timeout + 120)
         if result.returncode == 0:
             record.update(json.loads(result.stdout))
@@ -118,13 +97,18 @@ def _fly(case, scenario: Path, out: Path, made: dict, args, env=None) -> dict:
     return record
 
 
-def _retried(case, scenarios, out, made, args, log) -> dict:
+def _fly_retried(out: Path, made: dict, args, log, job) -> dict:
+    """``job`` = (case, scenario) flown, again up to ``--retries`` times while it fails; the
+    record (never raises for a failed flight). Each run_flight reserves a ROS domain of its own,
+    so flights may run side by side (``--workers``, ``--ray``)."""
+    case, scenario = job
     for attempt in range(1 + args.retries):
-        record = _fly(case, scenarios[(case.mu, case.seed)], out, made, args)
+        record = _fly(case, scenario, out, made, args)
         record["attempts"] = attempt + 1
         if record["ok"]:
             break
-        log(f"flight {case.key} attempt {attempt + 1} failed: {record['error']}")
+        if log is not None:
+            log(f"flight {case.key} attempt {attempt + 1} failed: {record['error']}")
     return record
 
 
@@ -192,17 +176,16 @@ def evaluate_graph(args) -> int:
                file=sys.stderr, dynamic_ncols=True)
     flight_times = []
     try:
-        if args.workers == 1 and args.ray is None:
-            done = ((case, _retried(case, scenarios, out, made, args, log)) for case in todo)
-        else:
-            from functools import partial
+        from functools import partial
 
-            from dva_offline.campaign import run_jobs
+        from dva_offline.campaign import run_jobs
 
-            jobs = [(i, c, scenarios[(c.mu, c.seed)]) for i, c in enumerate(todo)]
-            done = ((job[1], record) for job, record in run_jobs(
-                jobs, partial(_fly_job, out, made, args), workers=args.workers,
-                ray_address=args.ray))
+        serial = args.workers == 1 and args.ray is None
+        # a worker process or thread does not log: its record says what failed
+        fly = partial(_fly_retried, out, made, args, log if serial else None)
+        jobs = [(c, scenarios[(c.mu, c.seed)]) for c in todo]
+        done = ((job[0], record) for job, record in run_jobs(
+            jobs, fly, workers=args.workers, ray_address=args.ray))
         for case, record in done:
             if not record["ok"]:
                 log(f"flight {case.key} failed after {record['attempts']} attempt(s): "
