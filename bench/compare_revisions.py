@@ -48,6 +48,8 @@ BENCHMARKS = {
     "bench_flight_log_read": ["--blocks", "4000"],
     "bench_discrepancy_combined": ["--cases", "1", "--only", "pairs"],
     "bench_faults": ["--trials", "1", "--only", "burst"],
+    "bench_evaluate_workers": ["--runs", "1", "--seeds", "2", "--cases", "rho0",
+                               "--controllers", "fixed,oracle"],
 }
 NEEDS_ROS_BUILD = {"bench_graph"}
 

@@ -44,8 +44,8 @@ def run_jobs(items: Sequence[Item], work: Callable[[Item], Result], *, workers: 
     workers : int
         Local jobs at a time; 1 runs them in order in this thread.
     processes : bool
-        Local workers are forked processes (``work`` and the items must be picklable), not
-        threads.
+        Local workers are forked processes, not threads: they inherit ``work`` (it need not
+        be picklable; the items and results must be).
     ray_address : str, optional
         A Ray cluster's address, ``"auto"`` for the cluster this machine is part of, or
         ``"local"`` to start a local Ray with ``workers`` CPUs. Overrides local workers.
@@ -62,20 +62,45 @@ def run_jobs(items: Sequence[Item], work: Callable[[Item], Result], *, workers: 
             yield item, work(item)
     else:
         if processes:
-            import multiprocessing
+            yield from _run_forked(items, work, workers)
+            return
+        with cf.ThreadPoolExecutor(max_workers=workers) as pool:
+            yield from _collect(pool, {pool.submit(work, item): item for item in items})
 
-            pool = cf.ProcessPoolExecutor(max_workers=workers,
-                                          mp_context=multiprocessing.get_context("fork"))
-        else:
-            pool = cf.ThreadPoolExecutor(max_workers=workers)
-        with pool:
-            futures = {pool.submit(work, item): item for item in items}
-            try:
-                for future in cf.as_completed(futures):
-                    yield futures[future], future.result()
-            finally:
-                for future in futures:
-                    future.cancel()
+
+_INHERITED: Callable | None = None  # the forked workers' ``work``
+
+
+def _run_forked(items, work, workers: int):
+    # The workers are forked after ``work`` is stored here, so they inherit it (a shared
+    # evaluation setup, say) instead of receiving a pickled copy with every job; only the
+    # items and the results cross the pipes.
+    import multiprocessing
+
+    global _INHERITED
+    if _INHERITED is not None:
+        raise CampaignError("forked campaigns cannot be nested or run concurrently")
+    _INHERITED = work
+    try:
+        with cf.ProcessPoolExecutor(max_workers=workers,
+                                    mp_context=multiprocessing.get_context("fork")) as pool:
+            yield from _collect(pool, {pool.submit(_call_inherited, item): item
+                                       for item in items})
+    finally:
+        _INHERITED = None
+
+
+def _call_inherited(item):
+    return _INHERITED(item)
+
+
+def _collect(pool, futures):
+    try:
+        for future in cf.as_completed(futures):
+            yield futures[future], future.result()
+    finally:
+        for future in futures:
+            future.cancel()
 
 
 def _run_on_ray(items, work, address: str, workers: int):
@@ -97,7 +122,8 @@ def _run_on_ray(items, work, address: str, workers: int):
             raise CampaignError(f"cannot reach the Ray cluster at {address!r}: {exc}") from None
     try:
         task = ray.remote(num_cpus=1)(_call)
-        pending = {task.remote(work, item): item for item in items}
+        shared = ray.put(work)  # stored once in the cluster, not once per job
+        pending = {task.remote(shared, item): item for item in items}
         while pending:
             done, _ = ray.wait(list(pending), num_returns=1)
             for ref in done:

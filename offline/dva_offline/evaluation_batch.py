@@ -115,15 +115,21 @@ def flight_record(controller: str, case: str, seed: int, outcome, critical_airsp
     low, high = rms_range
     in_range = (u >= low) & (u <= high) & (np.arange(u.size) >= skip * rate)
     complete = u.size > 0 and u[-1] > high
-    rms = float(np.sqrt(np.mean(le[in_range] ** 2))) if complete and in_range.any() \
+    rms = math.sqrt(_exact_mean(le[in_range] ** 2)) if complete and in_range.any() \
         else math.nan
-    c2 = float(np.mean(outcome.damping[in_range])) if in_range.any() else math.nan
+    c2 = _exact_mean(outcome.damping[in_range]) if in_range.any() else math.nan
     act = float(np.median(outcome.peak_activation)) if outcome.peak_activation.size \
         else math.nan
     return FlightRecord(controller=controller, case=case, seed=int(seed),
                         diverged=bool(outcome.diverged),
                         divergence_ratio=div / critical_airspeed, rms=rms,
                         mean_damping=c2, median_peak_activation=act)
+
+
+def _exact_mean(x) -> float:
+    # Correctly rounded: numpy's SIMD sums depend on where the array sits in memory, which
+    # differs between processes, and the records must be the same on every route.
+    return math.fsum(x) / len(x)
 
 
 @dataclass(frozen=True)

@@ -90,10 +90,10 @@ def oracle_table(model, critical_airspeed: float, base_density: float,
                                      np.linspace(r_lo, r_hi, n_rho))
 
 
-def fly_seed(setup: EvaluationSetup, controllers: Sequence[str], keep: bool,
+def fly_seed(setup: EvaluationSetup, controllers: Sequence[str], keep_seed: int | None,
              job: tuple[DensityCase, int]) -> tuple[list[FlightRecord], dict]:
     """One job of the batch: every controller on one (case, seed), the same force realisation
-    for all (paired); the outcomes too when ``keep`` (for plots)."""
+    for all (paired); the outcomes too when the seed is ``keep_seed`` (for plots)."""
     case, seed = job
     scenario = case_scenario(setup.config.scenario, case, setup.critical_airspeed, seed)
     config = replace(setup.config, scenario=scenario)
@@ -102,7 +102,7 @@ def fly_seed(setup: EvaluationSetup, controllers: Sequence[str], keep: bool,
         outcome = fly(config, setup.controller(name))
         records.append(flight_record(name, case.name, seed, outcome, setup.critical_airspeed,
                                      setup.rms_range))
-        if keep:
+        if seed == keep_seed:
             kept[(name, case.name, seed)] = outcome
     return records, kept
 
@@ -127,19 +127,15 @@ def fly_batch(setup: EvaluationSetup, cases: Sequence[DensityCase], seeds: Seque
     done = dict(done or {})
     jobs = [(case, seed) for case in cases for seed in seeds
             if seed == keep_seed or (case.name, seed) not in done]
+    # The jobs whose outcomes come back (large) first, so they are not the last to finish.
+    jobs.sort(key=lambda job: job[1] != keep_seed)
     results: dict[tuple[str, int], list[FlightRecord]] = dict(done)
     kept: dict = {}
-    by_keep = {True: partial(fly_seed, setup, tuple(controllers), True),
-               False: partial(fly_seed, setup, tuple(controllers), False)}
-    # Jobs whose outcomes are kept run in this process (their traces are large to send back).
-    for job in [j for j in jobs if j[1] == keep_seed]:
-        records, outcomes = by_keep[True](job)
+    work = partial(fly_seed, setup, tuple(controllers), keep_seed)
+    for job, (records, outcomes) in run_jobs(jobs, work, workers=workers,
+                                             ray_address=ray_address, processes=True):
         _finish(job, records, results, finished, progress)
         kept.update(outcomes)
-    rest = [j for j in jobs if j[1] != keep_seed]
-    for job, (records, _) in run_jobs(rest, by_keep[False], workers=workers,
-                                      ray_address=ray_address, processes=True):
-        _finish(job, records, results, finished, progress)
     ordered = [r for case in cases for seed in seeds for r in results[(case.name, seed)]]
     return ordered, kept
 

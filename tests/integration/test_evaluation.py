@@ -35,7 +35,8 @@ def test_evaluate_flies_the_subset_and_tabulates_it(tmp_path):
     out = tmp_path / "ev"
     argv = ["evaluate", "--graph", "--out", str(out), "--scenario", str(scenario), "--seeds", "1",
             "--mu", "0,0.1", "--controllers", "none,fixed", "--no-rrd", "--json"]
-    result = _dva(*argv)
+    # two run_flight at a time, each on a ROS domain of its own: no flight sees another's topics
+    result = _dva(*argv, "--workers", "2")
     assert result.returncode == 0, result.stderr[-2000:]
     assert "flights" in result.stderr  # progress on stderr
     payload = json.loads(result.stdout)
@@ -61,7 +62,7 @@ def test_evaluate_flies_the_subset_and_tabulates_it(tmp_path):
     report = (out / "reports" / "fixed_mu0" / "run.md").read_text()
     assert "controller: **fixed**" in report and "excitation seed 1" in report
     # run again: every flight is on record, nothing is flown twice
-    again = _dva(*argv[:-1], "--reports", "none", "--json")
+    again = _dva(*argv[:-1], "--reports", "none", "--json")  # serial
     assert again.returncode == 0, again.stderr[-2000:]
     assert json.loads(again.stdout)["flown_now"] == 0
     assert "resuming" in again.stderr

@@ -46,6 +46,31 @@ def test_local_workers_give_the_serial_results_and_overlap():
     assert _results(workers=3) == _results()
 
 
+def test_forked_workers_inherit_work_that_cannot_be_pickled():
+    """The forked workers get ``work`` from the fork, not through a pipe: a closure over a
+    lock (unpicklable) runs, in other processes, and gives the serial results."""
+    import os
+
+    lock = threading.Lock()
+
+    def work(item):
+        with lock:
+            return item * 3, os.getpid()
+
+    results = dict(run_jobs(range(8), work, workers=2, processes=True))
+    assert {i: v for i, (v, _) in results.items()} == {i: 3 * i for i in range(8)}
+    assert os.getpid() not in {pid for _, pid in results.values()}
+    assert _results(workers=2, processes=True) == _results()
+
+
+def test_forked_campaigns_cannot_nest():
+    def inner(item):
+        return sum(v for _, v in run_jobs(range(3), abs, workers=2, processes=True))
+
+    with pytest.raises(CampaignError, match="nested"):
+        list(run_jobs([1, 2], inner, workers=2, processes=True))
+
+
 def test_a_failing_job_raises_when_collected():
     def work(item):
         if item == 2:
