@@ -109,6 +109,10 @@ class ModelSpec:
     n_priority : int
         The first ``n_priority`` of ``starts`` are informed guesses (e.g. from the residual's
         peaks) that always get iterations when the starts are screened.
+    batch_predict : callable, optional
+        ``batch_predict(values)`` for S parameter vectors at once, shape (S, P) -> (S, N),
+        equal to ``predict`` row by row. When given, the fits take their finite-difference
+        Jacobians (the bulk of their model evaluations) in one call per iteration.
     """
 
     name: str
@@ -120,6 +124,7 @@ class ModelSpec:
     signature: str = ""
     label: str = ""
     n_priority: int = 0
+    batch_predict: Callable[[np.ndarray], np.ndarray] | None = None
 
     def __post_init__(self) -> None:
         if self.effect is not None and self.effect not in EFFECT_VOCABULARY:
@@ -408,6 +413,9 @@ class _Coordinates:
         return np.where(self.log, self.to_values(z) * dx, self.scale * dx)
 
 
+_FD_STEP = float(np.finfo(float).eps) ** 0.5  # scipy's relative step of '2-point'
+
+
 def fit_model(spec: ModelSpec, obs: Observations, split: HoldoutSplit,
               max_nfev: int = 60, n_refine: int = 2, n_screen: int = 10) -> ModelFit:
     """Weighted nonlinear least squares on the training points, from every start; best wins.
@@ -437,6 +445,8 @@ def fit_model(spec: ModelSpec, obs: Observations, split: HoldoutSplit,
     w_tr = obs.weights[train]
     big = 1e3 * np.sqrt(train.sum())
 
+    last = [None, None]  # the latest (u, resid(u)): the Jacobian is taken where it was
+
     def resid(u):
         with np.errstate(all="ignore"):
             pred = spec.predict(coords.to_values(u))[train]
@@ -444,22 +454,43 @@ def fit_model(spec: ModelSpec, obs: Observations, split: HoldoutSplit,
         out = np.concatenate([r.real, r.imag])
         if not np.all(np.isfinite(out)):
             out = np.where(np.isfinite(out), out, big)
+        last[:] = u.copy(), out
         return out
 
+    def resid_rows(us):  # resid of each row of us, with spec.batch_predict
+        with np.errstate(all="ignore"):
+            pred = spec.batch_predict(coords.to_values(us))[:, train]
+            r = w_tr * (pred - y_tr)
+        out = np.concatenate([r.real, r.imag], axis=1)
+        if not np.all(np.isfinite(out)):
+            out = np.where(np.isfinite(out), out, big)
+        return out
+
+    def forward_jacobian(u):
+        # scipy's '2-point' Jacobian (same steps), all columns from one batched evaluation
+        h = _FD_STEP * np.where(u >= 0, 1.0, -1.0) * np.maximum(1.0, np.abs(u))
+        h = (u + h) - u
+        f0 = last[1] if last[0] is not None and np.array_equal(last[0], u) else resid(u)
+        return ((resid_rows(u + np.diag(h)) - f0) / h[:, None]).T
+
+    jac = "2-point" if spec.batch_predict is None else forward_jacobian
+
     starts = [np.array([p.initial for p in params], dtype=float), *map(np.asarray, spec.starts)]
-    internal = []
     for start in starts:
         if start.shape != (n_p,):
             raise ValueError(f"{spec.name}: a start has shape {start.shape}, expected ({n_p},)")
-        internal.append(coords.to_z(start))
+    internal = list(coords.to_z(np.array(starts).reshape(len(starts), n_p)))
     n_starts = len(internal)
     if n_p and len(internal) > n_refine:
         # Screen a grid of starts: cost at each start, a few iterations from the best
         # n_screen of them (and the initial values), then full fits from the best n_refine.
-        costs = [float(np.sum(resid(u0) ** 2)) for u0 in internal[1:]]
+        if spec.batch_predict is None:
+            costs = [float(np.sum(resid(u0) ** 2)) for u0 in internal[1:]]
+        else:
+            costs = np.sum(resid_rows(np.array(internal[1:])) ** 2, axis=1)
         keep = np.argsort(costs)[:n_screen] + 1
         chosen = sorted({0, *range(1, 1 + spec.n_priority), *keep.tolist()})
-        short = [least_squares(resid, internal[i], method="lm", x_scale="jac",
+        short = [least_squares(resid, internal[i], jac=jac, method="lm", x_scale="jac",
                                max_nfev=15 if 1 <= i <= spec.n_priority else 6)
                  for i in chosen]
         short.sort(key=lambda r: r.cost)
@@ -469,8 +500,8 @@ def fit_model(spec: ModelSpec, obs: Observations, split: HoldoutSplit,
         if n_p == 0:
             break
         # Levenberg-Marquardt (MINPACK) on the optimiser coordinates (bounds built in).
-        res = least_squares(resid, u0, method="lm", x_scale="jac", ftol=1e-7, xtol=1e-7,
-                            max_nfev=max_nfev)
+        res = least_squares(resid, u0, jac=jac, method="lm", x_scale="jac", ftol=1e-7,
+                            xtol=1e-7, max_nfev=max_nfev)
         if best is None or res.cost < best.cost:
             best = res
     if n_p == 0:

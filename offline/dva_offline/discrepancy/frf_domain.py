@@ -50,6 +50,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Sequence
+from functools import partial
 
 import numpy as np
 
@@ -67,6 +68,8 @@ from dva_offline.discrepancy.frf_terms import (
     Term,
     compose,
     log_shift,
+    maxwell_parts,
+    maxwell_stiffness,
 )
 from dva_offline.discrepancy.maxwell_starts import (
     positive,
@@ -291,22 +294,12 @@ class FrfDomain(FrfLibrary):
         cs = v[i + 1 + n: i + 1 + 2 * n]
         return m, k, c, ks, cs, v[i + 1 + 2 * n:]
 
-    def _stiffness(self, k, c, ks, cs, omega=None):
+    def _stiffness(self, k, c, ks, cs, omega=None, parts=False):
         """K(w) of eq. 4.8, as :func:`~dva_offline.isolator.maxwell_model.dynamic_stiffness`
-        (tested equal) without its input validation, which dominates inside the fits."""
-        s = 1j * (self.omega if omega is None else omega)
-        total = k + c * s
-        for ki, ci in zip(ks, cs):
-            total = total + ki * ci * s / (ki + ci * s)
-        return total
-
-    def _response(self, stiffness, m):
-        if self.quantity == "stiffness":
-            return stiffness
-        d = stiffness - m * self.omega**2
-        if self.quantity == "receptance":
-            return 1.0 / d
-        return -(self.omega**2) / d
+        (tested equal) without its input validation, which dominates inside the fits; its
+        real and imaginary parts with ``parts``."""
+        w = self.omega if omega is None else omega
+        return maxwell_parts(w, k, c, ks, cs) if parts else maxwell_stiffness(w, k, c, ks, cs)
 
     def _evaluate(self, v, n, terms):
         """Model values of parameter vector v: Maxwell order n with ``terms`` (in stack order,
@@ -316,15 +309,12 @@ class FrfDomain(FrfLibrary):
         for t in terms:
             vals.append(rest[i:i + t.size])
             i += t.size
-        return compose(lambda wm: self._stiffness(k, c, ks, cs, wm), terms, vals, self.omega,
-                       m, self.quantity)
+        return compose(partial(self._stiffness, k, c, ks, cs), terms, vals, self.omega, m,
+                       self.quantity)
 
     def _base_predict(self, v, n=None):
         """The current baseline: Maxwell order n with the effects added so far."""
         n = self._setup["n"] if n is None else n
-        if not self._stack:
-            m, k, c, ks, cs, _ = self._unpack(v, n)
-            return self._response(self._stiffness(k, c, ks, cs), m)
         return self._evaluate(v, n, self._stack)
 
     def _maxwell_params(self, model: MaxwellModel) -> tuple[ParamSpec, ...]:
@@ -388,8 +378,9 @@ class FrfDomain(FrfLibrary):
                         maxwell_element_stiffness([ke], [ce], [1j * wn])[0, 0])) / wn
                     starts.append(np.array([*head, c_new, *pks, ke, *pcs, ce]))
         name = "voigt" if n == 0 else f"maxwell(n={n})"
-        return ModelSpec(name, None, params, 0, lambda v, n=n: self._base_predict(v, n),
-                         tuple(starts))
+        predict = partial(self._base_predict, n=n)
+        return ModelSpec(name, None, params, 0, predict, tuple(starts),
+                         batch_predict=_rows(predict))
 
     # --- Domain protocol -------------------------------------------------------------------
     def baseline(self, train: np.ndarray) -> ModelSpec:
@@ -441,7 +432,8 @@ class FrfDomain(FrfLibrary):
         model = MaxwellModel(float(m_c), float(k_c), float(c_c), tuple(ks_c), tuple(cs_c))
         self._base_params = self._maxwell_params(model)
         name = "voigt" if chosen == 0 else f"maxwell(n={chosen})"
-        return ModelSpec(name, None, self._base_params, 0, self._base_predict)
+        return ModelSpec(name, None, self._base_params, 0, self._base_predict,
+                         batch_predict=_rows(self._base_predict))
 
     @property
     def order_selection(self):
@@ -483,7 +475,7 @@ class FrfDomain(FrfLibrary):
         full_starts = informed + full_starts
         name = self._model_name(n) + f" + {effect}" + (f"({label})" if label else "")
         spec = ModelSpec(name, effect, params, len(added) + extra, predict, full_starts,
-                         SIGNATURES[effect], label, len(informed))
+                         SIGNATURES[effect], label, len(informed), _rows(predict))
         self._term_of[name] = (term, n, tuple(added))
         return spec
 
@@ -526,3 +518,9 @@ class FrfDomain(FrfLibrary):
             fit = fit_model(spec, self.observations, split, n_screen=4)
             self._reference_values = np.array([e.value for e in fit.estimates])
         return self._library([self._base_values], self._setup["n"])
+
+
+def _rows(predict):
+    """``predict`` for many parameter vectors, (S, P) -> (S, N): every parameter becomes an
+    (S, 1) column, so the same arithmetic broadcasts over the points and the vectors."""
+    return lambda values: predict(np.asarray(values, dtype=float).T[..., None])

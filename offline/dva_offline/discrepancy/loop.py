@@ -514,6 +514,9 @@ def _iterate(domain, obs, split, base, features, noise, scores, specs, rule, pro
                       f"floor {noise.sigma:.4f} and a white residual (Ljung-Box p = "
                       f"{features.whiteness.p_value:.2g})")
             break
+        if steps:  # the candidates on the new baseline, only when they can be used
+            scores, specs = _candidates(domain, obs, split, base, features, noise, rule,
+                                        progress, n_variants)
         choice, reason = choose_step(scores, rule)
         if choice is None:
             status = "stopped"
@@ -536,8 +539,6 @@ def _iterate(domain, obs, split, base, features, noise, scores, specs, rule, pro
         if fresh.sigma < noise.sigma:
             noise = fresh
         features = _features(obs, base, noise.sigma)
-        scores, specs = _candidates(domain, obs, split, base, features, noise, rule, progress,
-                                    n_variants)
     final = LoopOutcome(status, reason, base.name, base.error, noise.sigma,
                         tuple((s.effect, s.label) for s in steps), base)
     return steps, final
