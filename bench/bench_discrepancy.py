@@ -1,6 +1,7 @@
 """Detection rates and run time of the discrepancy loop on generated FRF data sets.
 
-Usage: ``PYTHONPATH=offline python bench/bench_discrepancy.py [CASES_PER_EFFECT] [EFFECT ...]``
+Usage: ``PYTHONPATH=offline python bench/bench_discrepancy.py [--max-steps N] [CASES_PER_EFFECT]
+[EFFECT ...]`` (``--max-steps 1``: the first step only, the loop as it was before it iterated)
 
 For each effect (the library's, ``none`` for clean data, and the two outside the library) it
 generates CASES_PER_EFFECT data sets with seeds 0, 1, ... and prints how often the verdict
@@ -22,7 +23,8 @@ from dva_offline.isolator.frf_data import split_conditions
 EFFECTS = ("none", *synthetic.LIBRARY_EFFECTS, *synthetic.OUTSIDE_EFFECTS)
 
 
-def run_case(effect, seed, quantity="receptance", clean_covariate=None):
+def run_case(effect, seed, quantity="receptance", clean_covariate=None,
+             max_steps=loop.DecisionRule.max_steps):
     case = synthetic.generate_case(effect, np.random.default_rng(seed), quantity=quantity,
                                    clean_covariate=clean_covariate)
     conditions = split_conditions(case.frequency_hz, case.values, quantity, case.covariates,
@@ -30,17 +32,22 @@ def run_case(effect, seed, quantity="receptance", clean_covariate=None):
     fixed = case.n_elements if effect == "maxwell_element" else None
     domain = FrfDomain(conditions, mass=case.mass, static_stiffness=case.static_stiffness,
                        elements=fixed)
-    return case, loop.run(domain)
+    return case, loop.run(domain, rule=loop.DecisionRule(max_steps=max_steps))
 
 
 def main(argv):
+    max_steps = loop.DecisionRule.max_steps
+    if "--max-steps" in argv:
+        at = argv.index("--max-steps")
+        max_steps, argv = int(argv[at + 1]), argv[:at] + argv[at + 2:]
     n = int(argv[0]) if argv else 10
     effects = argv[1:] or EFFECTS
     for effect in effects:
         start = time.perf_counter()
         verdicts, ratios, hits = Counter(), [], 0
         for seed in range(n):
-            case, res = run_case(None if effect == "none" else effect, seed)
+            case, res = run_case(None if effect == "none" else effect, seed,
+                                 max_steps=max_steps)
             v = res.verdict
             verdicts[f"{v.status}:{v.effect}" if v.effect else v.status] += 1
             if v.effect == case.effect and v.effect is not None:

@@ -36,7 +36,8 @@ EFFECTS = (*synthetic.LIBRARY_EFFECTS, "none", *synthetic.OUTSIDE_EFFECTS)
 CLEAN_COVARIATES = (None, "temperature_c", None, "excitation_n")
 
 
-def run_case(effect: str | None, seed: int, clean_covariate: str | None = None):
+def run_case(effect: str | None, seed: int, clean_covariate: str | None = None,
+             max_steps: int = loop.DecisionRule.max_steps):
     case = synthetic.generate_case(effect, np.random.default_rng(seed),
                                    clean_covariate=clean_covariate)
     conditions = split_conditions(case.frequency_hz, case.values, case.quantity,
@@ -44,7 +45,7 @@ def run_case(effect: str | None, seed: int, clean_covariate: str | None = None):
     fixed = case.n_elements if effect == "maxwell_element" else None
     domain = FrfDomain(conditions, mass=case.mass, static_stiffness=case.static_stiffness,
                        elements=fixed)
-    return case, domain, loop.run(domain)
+    return case, domain, loop.run(domain, rule=loop.DecisionRule(max_steps=max_steps))
 
 
 def accepted(effect: str | None, res) -> bool:
@@ -83,6 +84,9 @@ def main(argv=None) -> int:
     parser.add_argument("--seed0", type=int, default=1000)
     parser.add_argument("--effects", default=",".join(EFFECTS))
     parser.add_argument("--log", default=None)
+    parser.add_argument("--max-steps", type=int, default=loop.DecisionRule.max_steps,
+                        help="effects the loop may add one after another (1: the first step "
+                             "only, the loop as it was before it iterated)")
     args = parser.parse_args(argv)
     effects = [e.strip() for e in args.effects.split(",") if e.strip()]
     unknown = set(effects) - set(EFFECTS)
@@ -99,7 +103,7 @@ def main(argv=None) -> int:
             for i, seed in enumerate(range(args.seed0, args.seed0 + args.cases)):
                 cov = CLEAN_COVARIATES[i % 4] if hidden is None else None
                 start = time.perf_counter()
-                case, domain, res = run_case(hidden, seed, cov)
+                case, domain, res = run_case(hidden, seed, cov, args.max_steps)
                 dt = time.perf_counter() - start
                 total_s += dt
                 v = res.verdict

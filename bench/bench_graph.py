@@ -110,6 +110,9 @@ def main() -> int:
     parser.add_argument("--keep", help="directory to keep the bags in (default: temporary)")
     parser.add_argument("--network", help="RBF network (.npz) of the spectrum-based graph "
                         "(default: trained here on a mini plan)")
+    parser.add_argument("--schedule-only", action="store_true",
+                        help="fly only the schedule graphs (the work of this benchmark before "
+                             "the spectrum graph was added: bench/compare_revisions.py)")
     args = parser.parse_args()
     sim_s, wall_s = baseline_runtime()
     print(f"baseline runtime alone: {sim_s:.2f} s sim in {wall_s:.3f} s wall = "
@@ -119,10 +122,12 @@ def main() -> int:
         schedule = ["--controller", "schedule", "--schedule", str(schedule_file(root))]
         runs = {kind: fly_graph(root, f"bench_graph_{kind}", schedule, kind)
                 for kind in ("single_threaded", "events")}
-        network = Path(args.network) if args.network else network_file(root)
-        rbf = fly_graph(root, "bench_graph_rbf", ["--controller", "rbf", "--network",
-                                                  str(network)], "events")
-        if None in runs.values() or rbf is None:
+        rbf = None
+        if not args.schedule_only:
+            network = Path(args.network) if args.network else network_file(root)
+            rbf = fly_graph(root, "bench_graph_rbf", ["--controller", "rbf", "--network",
+                                                      str(network)], "events")
+        if None in runs.values() or (rbf is None and not args.schedule_only):
             return 1
         for kind, run in runs.items():
             print(f"graph, {kind + ' executor':<24}: {run['sim']:.2f} s sim in "
@@ -142,6 +147,8 @@ def main() -> int:
               f"{float(final['command_latency_p95_s']) * 1e3:.0f} ms, max "
               f"{float(final['command_latency_max_s']) * 1e3:.0f} ms over "
               f"{final['commands_accepted']} commands")
+        if rbf is None:
+            return 0
         factor = rbf["sim"] / rbf["wall"]
         print(f"graph, spectrum + rbf_controller (events): {rbf['sim']:.2f} s sim in "
               f"{rbf['wall']:.3f} s wall = {factor:.1f}x real time, ratio to the runtime alone "

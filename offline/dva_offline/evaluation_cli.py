@@ -21,7 +21,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import shutil
 import sys
 import time
 from pathlib import Path
@@ -142,7 +141,7 @@ def _batch(args) -> int:
         oracle_table,
         stability_boundaries,
     )
-    from dva_offline.evaluation_inputs import check_given_inputs, inputs
+    from dva_offline.evaluation_inputs import evaluation_directory, log
 
     seeds_n = DEFAULT_SEEDS if args.seeds is None else args.seeds
     if seeds_n < 1 or args.first_seed < 0:
@@ -159,22 +158,8 @@ def _batch(args) -> int:
     if config.scenario.airspeed.kind != "ramp":
         raise ValueError(f"--scenario {scenario_path}: the evaluation flies a ramp, got "
                          f"airspeed kind {config.scenario.airspeed.kind!r}")
-    check_given_inputs(args, controllers)
-    stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
-    out = Path(args.out or f"runs/evaluation_{stamp}").resolve()
-    created = not out.exists()
-    out.mkdir(parents=True, exist_ok=True)
     started = time.monotonic()
-
-    def log(text):
-        tqdm.write(f"dva evaluate: {text}", file=sys.stderr)
-
-    try:
-        made = inputs(args, controllers, out / "inputs", log)
-    except BaseException:
-        if created:  # nothing was flown: leave no directory that looks like an evaluation
-            shutil.rmtree(out, ignore_errors=True)
-        raise
+    out, made = evaluation_directory(args, controllers)
     model = AeroelasticModel(config.wing, config.absorber, config.aero)
     u_cr = FlightRuntime(config).critical_airspeed
     fixed = made["fixed_c2"]

@@ -126,7 +126,7 @@ def evaluate_graph(args) -> int:
         parse_controllers,
         parse_mu_list,
     )
-    from dva_offline.evaluation_inputs import check_given_inputs, inputs
+    from dva_offline.evaluation_inputs import evaluation_directory, log
     from dva_offline.evaluation_io import (
         flight_record_path,
         load_base_scenario,
@@ -148,22 +148,9 @@ def evaluate_graph(args) -> int:
     scenario_path = Path(args.scenario) if args.scenario else \
         data_files.data_file("scenario_ramp.yaml")
     base = load_base_scenario(scenario_path)
-    check_given_inputs(args, controllers)
-    stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
-    out = Path(args.out or f"runs/evaluation_{stamp}").resolve()
-    created = not out.exists()
-    (out / "flights").mkdir(parents=True, exist_ok=True)
     started = time.monotonic()
-
-    def log(text):
-        tqdm.write(f"dva evaluate: {text}", file=sys.stderr)
-
-    try:
-        made = inputs(args, controllers, out / "inputs", log)
-    except BaseException:
-        if created:  # nothing was flown: leave no directory that looks like an evaluation
-            shutil.rmtree(out, ignore_errors=True)
-        raise
+    out, made = evaluation_directory(args, controllers)
+    (out / "flights").mkdir(exist_ok=True)
     scenarios = {(mu, seed): write_scenario(out / "scenarios",
                                             evaluation_scenario(base, mu, seed))
                  for mu in mus for seed in seeds}

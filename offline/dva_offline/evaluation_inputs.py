@@ -15,9 +15,11 @@ import math
 import shutil
 import subprocess
 import sys
+import time
 from pathlib import Path
 
-__all__ = ["best_fixed_damping_of", "check_given_inputs", "inputs"]
+__all__ = ["best_fixed_damping_of", "check_given_inputs", "evaluation_directory", "inputs",
+           "log"]
 
 
 def _run(argv: list[str], what: str, timeout: float = 3600.0) -> str:
@@ -32,6 +34,30 @@ def _run(argv: list[str], what: str, timeout: float = 3600.0) -> str:
 
 def _dva(*args: str) -> list[str]:
     return [sys.executable, "-m", "dva_offline.cli", *args]
+
+
+def log(text: str) -> None:
+    """A line of ``dva evaluate`` on stderr that keeps its progress bar intact."""
+    from tqdm import tqdm
+
+    tqdm.write(f"dva evaluate: {text}", file=sys.stderr)
+
+
+def evaluation_directory(args, controllers) -> tuple[Path, dict]:
+    """The evaluation's directory (``--out``, default ``runs/evaluation_<UTC time>``) and the
+    inputs given or made into its ``inputs/``; a directory created here is removed again when
+    making the inputs fails, so nothing is left that looks like an evaluation."""
+    check_given_inputs(args, controllers)
+    stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
+    out = Path(args.out or f"runs/evaluation_{stamp}").resolve()
+    created = not out.exists()
+    out.mkdir(parents=True, exist_ok=True)
+    try:
+        return out, inputs(args, controllers, out / "inputs", log)
+    except BaseException:
+        if created:
+            shutil.rmtree(out, ignore_errors=True)
+        raise
 
 
 def inputs(args, controllers, inputs: Path, log) -> dict:

@@ -398,6 +398,21 @@ def _add_table_arguments(p) -> None:
                         "measured temperature that drifts within a sweep)")
 
 
+def _add_loop_arguments(p) -> None:
+    """Flags of the loop over a table of sweeps (``frf``, ``modal``)."""
+    p.add_argument("--covariates", default=None, metavar="COL[,COL...]",
+                   help="covariates to analyse (temperature, excitation level); default: every "
+                        "extra column whose level differs between sweeps")
+    p.add_argument("--holdout-every", type=int, default=4,
+                   help="hold out every Nth point of each condition (default 4)")
+    p.add_argument("--holdout-seed", type=int, default=None,
+                   help="hold out a seeded random 1/N of the points instead")
+    p.add_argument("--max-steps", type=int, default=12,
+                   help="most effects the loop adds one after another (default 12)")
+    p.add_argument("--plot-dir", default=None, help="write PNG plots into this directory")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+
+
 def register(subparsers) -> None:
     """Add the ``discrepancy`` subcommand to the ``dva`` parser."""
     from dva_offline.discrepancy import synthetic
@@ -425,17 +440,7 @@ def register(subparsers) -> None:
                    help="Maxwell elements of the baseline, or 'auto' (isolator order "
                         "selection); a fixed order makes maxwell_element a candidate")
     p.add_argument("--max-elements", type=int, default=3, help="largest order for 'auto'")
-    p.add_argument("--covariates", default=None, metavar="COL[,COL...]",
-                   help="covariates to analyse (temperature, excitation level); default: every "
-                        "extra column whose level differs between sweeps")
-    p.add_argument("--holdout-every", type=int, default=4,
-                   help="hold out every Nth point of each condition (default 4)")
-    p.add_argument("--holdout-seed", type=int, default=None,
-                   help="hold out a seeded random 1/N of the points instead")
-    p.add_argument("--max-steps", type=int, default=12,
-                   help="most effects the loop adds one after another (default 12)")
-    p.add_argument("--plot-dir", default=None, help="write PNG plots into this directory")
-    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    _add_loop_arguments(p)
     p.set_defaults(func=_cmd_frf)
 
     p = sub.add_parser("modal", help="vibration-test FRFs of a structure against N modes")
@@ -446,17 +451,7 @@ def register(subparsers) -> None:
     p.add_argument("--modes", default="auto",
                    help="number of modes of the baseline, or 'auto' (order rule)")
     p.add_argument("--max-modes", type=int, default=8, help="largest order for 'auto'")
-    p.add_argument("--covariates", default=None, metavar="COL[,COL...]",
-                   help="covariates to analyse (excitation level, temperature); default: every "
-                        "extra column whose level differs between sweeps")
-    p.add_argument("--holdout-every", type=int, default=4,
-                   help="hold out every Nth point of each condition (default 4)")
-    p.add_argument("--holdout-seed", type=int, default=None,
-                   help="hold out a seeded random 1/N of the points instead")
-    p.add_argument("--max-steps", type=int, default=12,
-                   help="most effects the loop adds one after another (default 12)")
-    p.add_argument("--plot-dir", default=None, help="write PNG plots into this directory")
-    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    _add_loop_arguments(p)
     p.set_defaults(func=_cmd_modal)
 
     from dva_offline.discrepancy import structure_synthetic

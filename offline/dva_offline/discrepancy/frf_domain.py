@@ -58,7 +58,6 @@ from dva_offline.discrepancy.fitting import (
     HoldoutSplit,
     ModelFit,
     ModelSpec,
-    Observations,
     ParamSpec,
     fit_model,
 )
@@ -74,6 +73,7 @@ from dva_offline.discrepancy.frf_terms import (
 from dva_offline.discrepancy.maxwell_starts import (
     positive,
 )
+from dva_offline.discrepancy.pooling import pool_conditions
 from dva_offline.discrepancy.residual import ResidualFeatures, ljung_box, noise_floor
 from dva_offline.isolator.frf_data import FrfData, estimate_modal, to_receptance
 from dva_offline.isolator.maxwell_fit import FitWarning, fit_maxwell_model
@@ -141,29 +141,7 @@ class FrfDomain(FrfLibrary):
         self.static_stiffness = static_stiffness
         self.elements = elements
         self.max_elements = int(max_elements)
-        f = np.concatenate([c.frequency_hz for c in conditions])
-        if np.any(f <= 0):
-            raise ValueError("frequency_hz must be > 0 Hz (drop the 0 Hz point)")
-        y = np.concatenate([c.values for c in conditions])
-        if np.any(y == 0):
-            raise ValueError("FRF values must be nonzero (relative errors divide by |H|)")
-        groups = np.concatenate([np.full(c.frequency_hz.size, i)
-                                 for i, c in enumerate(conditions)])
-        names = covariates
-        if names is None:
-            common = set.intersection(*(set(c.covariates) for c in conditions))
-            names = [n for n in conditions[0].covariates if n in common]
-        cov = {}
-        for name in names:
-            if not all(name in c.covariates for c in conditions):
-                raise ValueError(f"covariate {name!r} is missing from a condition")
-            col = np.concatenate([np.asarray(c.covariates[name], float) for c in conditions])
-            if not np.all(np.isfinite(col)):
-                raise ValueError(f"covariate {name!r} has NaN values")
-            if covariates is not None or np.unique(col).size > 1:
-                cov[name] = col
-        self.omega = 2 * np.pi * f
-        self.observations = Observations(y, 1.0 / np.abs(y), f, groups, cov)
+        self.omega, self.observations = pool_conditions(conditions, covariates)
         self.reference = self._reference_condition()
         self._setup = None
         self._stack: list[Term] = []  # effects added by the loop's earlier steps

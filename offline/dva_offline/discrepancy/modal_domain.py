@@ -41,10 +41,10 @@ from dva_offline.discrepancy.fitting import (
     ModelFit,
     ModelSpec,
     NotApplicable,
-    Observations,
     ParamSpec,
     fit_model,
 )
+from dva_offline.discrepancy.pooling import pool_conditions
 from dva_offline.discrepancy.residual import ResidualFeatures, ljung_box, noise_floor
 from dva_offline.isolator.frf_data import FrfData
 
@@ -142,30 +142,7 @@ class ModalDomain:
         self.conditions, self.modes, self.max_modes = conditions, modes, int(max_modes)
         self.quantity = quantity
         self.order_tolerance, self.whiteness_alpha = float(order_tolerance), whiteness_alpha
-        f = np.concatenate([c.frequency_hz for c in conditions])
-        if np.any(f <= 0):
-            raise ValueError("frequency_hz must be > 0 Hz (drop the 0 Hz point)")
-        y = np.concatenate([c.values for c in conditions])
-        if np.any(y == 0):
-            raise ValueError("FRF values must be nonzero (relative errors divide by |H|)")
-        groups = np.concatenate([np.full(c.frequency_hz.size, i)
-                                 for i, c in enumerate(conditions)])
-        names = covariates
-        if names is None:
-            common = set.intersection(*(set(c.covariates) for c in conditions))
-            names = [n for n in conditions[0].covariates if n in common]
-        cov = {}
-        for name in names:
-            if not all(name in c.covariates for c in conditions):
-                raise ValueError(f"covariate {name!r} is missing from a condition")
-            col = np.concatenate([np.asarray(c.covariates[name], float) for c in conditions])
-            if not np.all(np.isfinite(col)):
-                raise ValueError(f"covariate {name!r} has NaN values")
-            means = np.array([col[groups == g].mean() for g in range(len(conditions))])
-            if covariates is not None or np.ptp(means) > 0:
-                cov[name] = col
-        self.omega = 2 * np.pi * f
-        self.observations = Observations(y, 1.0 / np.abs(y), f, groups, cov)
+        self.omega, self.observations = pool_conditions(conditions, covariates)
         self.reference = self._reference_condition()
         self._stack: list[ModalTerm] = []
         self._n = None
@@ -192,31 +169,32 @@ class ModalDomain:
         return float(col[self.observations.groups == self.reference].mean())
 
     def _evaluate(self, v, n, terms):
-        """Receptance of parameter vector v = [f_1, z_1, A_1, ..., U, L, term params...]."""
+        """Receptance of parameter vector v = [f_1, z_1, A_1, ..., U, L, term params...],
+        shape (P,) -> (N,), or of each row of v, shape (S, P) -> (S, N)."""
         w = self.omega
-        fr = np.array(v[0:3 * n:3], float)
-        zr = np.array(v[1:3 * n:3], float)
-        ar = np.array(v[2:3 * n:3], float)
-        u, low = v[3 * n], v[3 * n + 1]
-        rest = v[3 * n + 2:]
-        f_fac = np.ones((n, w.size))
-        z_fac = np.ones((n, w.size))
-        delay = np.zeros(w.size)
+        vs = np.atleast_2d(np.asarray(v, dtype=float))
+        fr, zr, ar = (vs[:, k:3 * n:3, None] for k in range(3))  # (S, n, 1) each
+        u, low = vs[:, 3 * n, None], vs[:, 3 * n + 1, None]
+        rest = vs[:, 3 * n + 2:]
+        f_fac = np.ones((vs.shape[0], n, w.size))
+        z_fac = np.ones((vs.shape[0], n, w.size))
+        delay = np.zeros((vs.shape[0], 1))
         i = 0
         for t in terms:
-            p = rest[i:i + t.size]
+            p = rest[:, i:i + t.size]
             i += t.size
             if t.kind == "level":
-                f_fac[t.mode] = f_fac[t.mode] * (1 + p[0] * t.data["log_level"])
-                z_fac[t.mode] = z_fac[t.mode] * (1 + p[1] * t.data["log_level"])
+                f_fac[:, t.mode] = f_fac[:, t.mode] * (1 + p[:, 0, None] * t.data["log_level"])
+                z_fac[:, t.mode] = z_fac[:, t.mode] * (1 + p[:, 1, None] * t.data["log_level"])
             elif t.kind == "shift":
-                f_fac = f_fac * 10.0 ** (-p[0] * t.data["dc"])
+                f_fac = f_fac * 10.0 ** (-p[:, 0, None, None] * t.data["dc"])
             elif t.kind == "delay":
-                delay = delay + p[0]
-        wr = 2 * np.pi * fr[:, None] * f_fac
-        z = zr[:, None] * z_fac
-        h = np.sum(ar[:, None] / (wr**2 - w**2 + 2j * z * wr * w), axis=0) + u - low / w**2
-        return h * np.exp(-1j * w * delay)
+                delay = delay + p[:, 0, None]
+        wr = 2 * np.pi * fr * f_fac
+        z = zr * z_fac
+        h = np.sum(ar / (wr**2 - w**2 + 2j * z * wr * w), axis=1) + u - low / w**2
+        out = h * np.exp(-1j * w * delay)
+        return out if np.ndim(v) == 2 else out[0]
 
     def _params(self, n, values) -> tuple[ParamSpec, ...]:
         f = self.observations.axis
@@ -268,7 +246,7 @@ class ModalDomain:
             return self._evaluate(v, n, [])
 
         return ModelSpec(name or f"modal(N={n})", None, params, 0, predict,
-                         tuple([starts[0], starts[2]]))
+                         tuple([starts[0], starts[2]]), batch_predict=predict)
 
     # --- Domain protocol -------------------------------------------------------------------
     def baseline(self, train: np.ndarray) -> ModelSpec:
@@ -306,7 +284,7 @@ class ModalDomain:
         values = np.array([e.value for e in fits[n].estimates])
         spec = self._order_spec(n, peaks, train)
         return ModelSpec(spec.name, None, self._params(n, values), 0, spec.predict,
-                         (values, *spec.starts))
+                         (values, *spec.starts), batch_predict=spec.predict)
 
     @property
     def baseline_order(self) -> int:
@@ -337,7 +315,7 @@ class ModalDomain:
                      for s in [init, *starts])
         name = self._model_name() + f" + {term.effect}" + (f"({label})" if label else "")
         spec = ModelSpec(name, term.effect, params, len(added), predict, full[1:],
-                         SIGNATURES[term.effect], label)
+                         SIGNATURES[term.effect], label, batch_predict=predict)
         self._term_of[name] = (term, tuple(added))
         return spec
 

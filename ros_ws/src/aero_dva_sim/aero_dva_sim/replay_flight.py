@@ -12,7 +12,6 @@ Unless ``--domain-id`` is given, the graph runs on a ROS_DOMAIN_ID reserved for 
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
 import os
 import subprocess
@@ -21,7 +20,14 @@ import time
 from pathlib import Path
 
 from aero_dva.bag import channels as ch
-from aero_dva_sim.run_flight import die_with_parent, executable, ros_params, stop_process
+from aero_dva_sim.run_flight import (
+    controller_files_given,
+    die_with_parent,
+    executable,
+    ros_params,
+    run_on_domain,
+    stop_process,
+)
 
 CONTROLLERS = ("rbf", "schedule", "fixed")
 INPUTS = tuple(c.absolute() for c in (ch.ACCELERATION, ch.DAMPER_STATE, ch.FLIGHT_CONDITION))
@@ -130,28 +136,15 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    for option, needed in (("schedule", "schedule"), ("network", "rbf")):
-        if args.controller == needed and not getattr(args, option):
-            print(f"replay_flight: error: --controller {needed} needs --{option} FILE",
-                  file=sys.stderr)
-            return 2
+    if not controller_files_given("replay_flight", args):
+        return 2
     if not args.rate > 0:
         print("replay_flight: error: --rate must be > 0 (the graph must keep up)",
               file=sys.stderr)
         return 2
-    with contextlib.ExitStack() as stack:
-        if args.domain_id is None:
-            from domain_coordinator import domain_id
-
-            args.domain_id = stack.enter_context(domain_id())
-        try:
-            summary = run(args)
-        except SystemExit as exc:
-            print(exc, file=sys.stderr)
-            return 1
-        except ValueError as exc:  # an unreadable bag (BagReadError)
-            print(f"replay_flight: error: {exc}", file=sys.stderr)
-            return 2
+    summary, code = run_on_domain("replay_flight", run, args)
+    if summary is None:
+        return code
     if args.json:
         print(json.dumps(summary, indent=2))
     else:

@@ -237,23 +237,41 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+def controller_files_given(prog: str, args) -> bool:
+    """--controller schedule / rbf need --schedule / --network; False (and the error said)
+    when one is missing."""
     for option, needed in (("schedule", "schedule"), ("network", "rbf")):
         if args.controller == needed and not getattr(args, option):
-            print(f"run_flight: error: --controller {needed} needs --{option} FILE",
-                  file=sys.stderr)
-            return 2
+            print(f"{prog}: error: --controller {needed} needs --{option} FILE", file=sys.stderr)
+            return False
+    return True
+
+
+def run_on_domain(prog: str, run, args) -> tuple[dict | None, int]:
+    """``(run(args), 0)`` on ``args.domain_id``, or on a ROS domain reserved for this run
+    (released after); ``(None, exit code)`` with the error said when it fails."""
     with contextlib.ExitStack() as stack:
         if args.domain_id is None:
             from domain_coordinator import domain_id
 
             args.domain_id = stack.enter_context(domain_id())
         try:
-            summary = run(args)
-        except SystemExit as exc:
+            return run(args), 0
+        except SystemExit as exc:  # a node failed or timed out: run() says which
             print(exc, file=sys.stderr)
-            return 1
+            return None, 1
+        except ValueError as exc:  # bad input (an unreadable file, say)
+            print(f"{prog}: error: {exc}", file=sys.stderr)
+            return None, 2
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    if not controller_files_given("run_flight", args):
+        return 2
+    summary, code = run_on_domain("run_flight", run, args)
+    if summary is None:
+        return code
     print(json.dumps(summary, indent=2) if args.json else _format(summary))
     return 0
 
