@@ -147,12 +147,12 @@ def main(argv=None) -> int:
             print(f"building the ROS workspace of {args.base} ...", file=sys.stderr)
             base_env = build_workspace(base_dir)
         print(f"base {args.base} vs this tree, {args.runs} run(s) each, alternating")
-        print(f"{'benchmark':30s} {'wall base':>10s} {'wall now':>10s} {'ratio':>6s}"
+        print(f"{'benchmark':42s} {'wall base':>10s} {'wall now':>10s} {'ratio':>6s}"
               f" {'cpu base':>10s} {'cpu now':>10s} {'ratio':>6s}")
         worst = 0.0
         for name in names:
             if not (base_dir / "bench" / f"{name}.py").is_file():
-                print(f"{name:30s} new since {args.base}: nothing to compare")
+                print(f"{name:42s} new since {args.base}: nothing to compare")
                 continue
             rows = {name: BENCHMARKS[name]}
             if name in SAME_WORK_NOW:
@@ -165,7 +165,7 @@ def main(argv=None) -> int:
                 failed = [(side, r) for side, rs in runs.items() for r in rs if r.code != 0]
                 if failed:
                     side, r = failed[0]
-                    print(f"{label:30s} FAILED on {side} (exit {r.code}): {r.tail[-120:]}")
+                    print(f"{label:42s} FAILED on {side} (exit {r.code}): {r.tail[-120:]}")
                     worst = float("inf")
                     continue
                 med = {side: (statistics.median(r.wall for r in rs),
@@ -174,7 +174,7 @@ def main(argv=None) -> int:
                 cpu_ratio = med["now"][1] / med["base"][1]
                 if name not in SAME_WORK_NOW or label != name:
                     worst = max(worst, cpu_ratio)
-                print(f"{label:30s} {med['base'][0]:9.2f}s {med['now'][0]:9.2f}s "
+                print(f"{label:42s} {med['base'][0]:9.2f}s {med['now'][0]:9.2f}s "
                       f"{wall_ratio:6.3f} {med['base'][1]:9.2f}s {med['now'][1]:9.2f}s "
                       f"{cpu_ratio:6.3f}", flush=True)
         print("largest CPU ratio (this tree / base) of the same work: "

@@ -1,6 +1,7 @@
 """Fault trials of ``bench/bench_faults.py``, shared with the tests that assert the invariants.
 
-- :mod:`bench.faults.cli_matrix`: malformed inputs to every ``dva`` command that reads a file;
+- :mod:`bench.faults.cli_matrix`: malformed inputs to every ``dva`` command that reads a file
+  (the files themselves: :mod:`bench.faults.bad_inputs`);
 - :mod:`bench.faults.ros_processes`: nodes started as processes (as ``ros2 run`` would) and an
   in-process probe node that logs what the graph publishes;
 - :mod:`bench.faults.recorder_faults`: the recorder killed by SIGINT, SIGTERM or SIGKILL at a

@@ -10,7 +10,8 @@ from __future__ import annotations
 import pytest
 
 from bench.faults import cli_matrix
-from bench.faults.cli_matrix import COMMANDS, WRITERS, command, kinds_of
+from bench.faults.bad_inputs import WRITERS, kinds_of
+from bench.faults.cli_matrix import COMMANDS, command
 
 HUGE = "ten-million-lines"
 

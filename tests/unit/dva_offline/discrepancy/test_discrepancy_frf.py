@@ -13,6 +13,8 @@ from dva_offline.isolator import isolator_io
 from dva_offline.isolator.frf_data import FrfData, split_conditions
 from dva_offline.isolator.maxwell_model import dynamic_stiffness
 
+from .domain_checks import batch_rows_equal_predict
+
 
 def domain_for(case, **kw):
     conditions = split_conditions(case.frequency_hz, case.values, case.quantity, case.covariates,
@@ -270,33 +272,8 @@ def test_cli_bad_column_is_one_line_error(tmp_path, capsys, only_discrepancy):
     err = capsys.readouterr().err
     assert code == 2 and "temperature_c" in err and "Traceback" not in err
 
-def _batch_rows_equal_predict(dom):
-    """Every spec the loop fits (baseline and candidates): batch_predict row by row equals
-    predict, to the bit, and the fit with the batched Jacobian matches scipy's 2-point one."""
-    from dataclasses import replace
 
-    from dva_offline.discrepancy.fitting import ModelSpec, fit_model, holdout_split
-
-    split = holdout_split(dom.observations.groups)
-    base_spec = dom.baseline(split.train)
-    base = fit_model(base_spec, dom.observations, split)
-    specs = [base_spec, *[s for s in dom.candidates(base, loop._features(dom.observations, base))
-                          if isinstance(s, ModelSpec)]]
-    rng = np.random.default_rng(1)
-    for spec in specs:
-        v0 = np.array([p.initial for p in spec.params])
-        rows = v0 * (1 + 0.01 * rng.standard_normal((4, v0.size)))
-        batch = spec.batch_predict(rows)
-        assert batch.shape == (4, dom.observations.values.size), spec.name
-        for row, values in zip(rows, batch):
-            np.testing.assert_array_equal(values, spec.predict(row), err_msg=spec.name)
-    plain = fit_model(replace(base_spec, batch_predict=None), dom.observations, split)
-    assert base.error == pytest.approx(plain.error, rel=1e-6)
-    return len(specs)
-
-
-@pytest.mark.parametrize("clean_covariate", [None, "temperature_c"])
-def test_batched_model_rows_equal_single_evaluations(clean_covariate):
-    case = synthetic.generate_case("covariate_shift" if clean_covariate else "sensor_delay",
-                                   np.random.default_rng(3))
-    assert _batch_rows_equal_predict(domain_for(case)) >= 4
+@pytest.mark.parametrize("effect", ["sensor_delay", "covariate_shift"])
+def test_batched_model_rows_equal_single_evaluations(effect):
+    case = synthetic.generate_case(effect, np.random.default_rng(3))
+    assert batch_rows_equal_predict(domain_for(case)) >= 4

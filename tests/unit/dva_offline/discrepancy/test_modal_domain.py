@@ -9,6 +9,8 @@ from dva_offline.discrepancy import loop, structure_synthetic
 from dva_offline.discrepancy.modal_domain import ModalDomain, find_peaks, to_receptance
 from dva_offline.isolator.frf_data import FrfData, split_conditions
 
+from .domain_checks import batch_rows_equal_predict
+
 
 def domain_for(case, **kw):
     rec = to_receptance(case.frequency_hz, case.values, case.quantity)
@@ -100,33 +102,9 @@ def test_domain_validation():
     with pytest.raises(ValueError, match="modes"):
         ModalDomain([FrfData(f, np.ones(20) + 0j, "receptance")], modes=0)
 
-def _batch_rows_equal_predict(dom):
-    """Every spec the loop fits (baseline and candidates): batch_predict row by row equals
-    predict, to the bit, and the fit with the batched Jacobian matches scipy's 2-point one."""
-    from dataclasses import replace
-
-    from dva_offline.discrepancy.fitting import ModelSpec, fit_model, holdout_split
-
-    split = holdout_split(dom.observations.groups)
-    base_spec = dom.baseline(split.train)
-    base = fit_model(base_spec, dom.observations, split)
-    specs = [base_spec, *[s for s in dom.candidates(base, loop._features(dom.observations, base))
-                          if isinstance(s, ModelSpec)]]
-    rng = np.random.default_rng(1)
-    for spec in specs:
-        v0 = np.array([p.initial for p in spec.params])
-        rows = v0 * (1 + 0.01 * rng.standard_normal((4, v0.size)))
-        batch = spec.batch_predict(rows)
-        assert batch.shape == (4, dom.observations.values.size), spec.name
-        for row, values in zip(rows, batch):
-            np.testing.assert_array_equal(values, spec.predict(row), err_msg=spec.name)
-    plain = fit_model(replace(base_spec, batch_predict=None), dom.observations, split)
-    assert base.error == pytest.approx(plain.error, rel=1e-6)
-    return len(specs)
-
 
 @pytest.mark.parametrize("effect", ["amplitude_dependence", "covariate_shift"])
 def test_batched_model_rows_equal_single_evaluations(effect):
     case = structure_synthetic.generate_structure(effect, np.random.default_rng(2000),
                                                   jitter=True)
-    assert _batch_rows_equal_predict(domain_for(case)) >= 3
+    assert batch_rows_equal_predict(domain_for(case)) >= 3
