@@ -13,7 +13,8 @@ the process and its children on each revision, and their ratio (this tree / base
 faster. CPU time is the figure to trust on a loaded machine.
 A benchmark that does more work than on the base gets a second row, "(same work)", with the
 arguments that do the base's work (``SAME_WORK_NOW``); the closing line's largest ratio is over
-the rows of the same work. A benchmark that fails on either side is reported with its exit code
+the rows of the same work. A benchmark new since the base runs on this tree only (its times are
+printed, to show it runs). A benchmark that fails on either side is reported with its exit code
 and last line of output.
 """
 from __future__ import annotations
@@ -152,7 +153,17 @@ def main(argv=None) -> int:
         worst = 0.0
         for name in names:
             if not (base_dir / "bench" / f"{name}.py").is_file():
-                print(f"{name:42s} new since {args.base}: nothing to compare")
+                # nothing to compare with, but it must still run
+                new = [run_once(REPO, name, BENCHMARKS[name], current_env)
+                       for _ in range(args.runs)]
+                bad = next((r for r in new if r.code != 0), None)
+                if bad is not None:
+                    print(f"{name:42s} FAILED on now (exit {bad.code}): {bad.tail[-120:]}")
+                    worst = float("inf")
+                else:
+                    print(f"{name:42s} {'new':>10s} "
+                          f"{statistics.median(r.wall for r in new):9.2f}s {'':6s} {'new':>10s} "
+                          f"{statistics.median(r.cpu for r in new):9.2f}s", flush=True)
                 continue
             rows = {name: BENCHMARKS[name]}
             if name in SAME_WORK_NOW:

@@ -71,7 +71,6 @@ def _conditions(args):
 def _cmd_frf(args) -> int:
     from dva_offline.discrepancy import loop
     from dva_offline.discrepancy.frf_domain import FrfDomain
-    from dva_offline.discrepancy.report import plot_result, result_to_dict
 
     if args.mass is not None and not args.mass > 0:
         raise ValueError(f"--mass must be > 0 kg, got {args.mass}")
@@ -120,9 +119,17 @@ def _cmd_frf(args) -> int:
             "baseline_order": domain.baseline_order,
         },
     }
+    return _report(args, result, domain, grouping, extra, args.quantity)
+
+
+def _report(args, result, domain, grouping, extra: dict, quantity: str) -> int:
+    """Print the loop's result of ``dva discrepancy frf|modal`` (JSON or lines), with plots of
+    ``quantity`` in --plot-dir."""
+    from dva_offline.discrepancy.report import plot_result, result_to_dict
+
     payload = result_to_dict(result, extra)
     if args.plot_dir:
-        paths = plot_result(result, domain.observations, args.plot_dir, args.quantity,
+        paths = plot_result(result, domain.observations, args.plot_dir, quantity,
                             Path(args.file).name)
         payload["plots"] = [str(p) for p in paths]
     if args.json:
@@ -136,7 +143,6 @@ def _cmd_frf(args) -> int:
 def _cmd_modal(args) -> int:
     from dva_offline.discrepancy import loop, table_io
     from dva_offline.discrepancy.modal_domain import ModalDomain, to_receptance
-    from dva_offline.discrepancy.report import plot_result, result_to_dict
     from dva_offline.isolator.frf_data import FrfData
 
     modes = None
@@ -183,17 +189,7 @@ def _cmd_modal(args) -> int:
                                                        domain.order_errors.items()},
                             "modes": domain.baseline_order},
     }
-    payload = result_to_dict(result, extra)
-    if args.plot_dir:
-        paths = plot_result(result, domain.observations, args.plot_dir, "receptance",
-                            Path(args.file).name)
-        payload["plots"] = [str(p) for p in paths]
-    if args.json:
-        print(json.dumps(payload))
-    else:
-        print(f"read {domain.omega.size} points: {grouping.describe()}")
-        print("\n".join(_summary_lines(result)))
-    return EXIT_OK
+    return _report(args, result, domain, grouping, extra, "receptance")
 
 
 def _cmd_synth_structure(args) -> int:

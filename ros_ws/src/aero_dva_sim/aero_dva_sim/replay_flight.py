@@ -21,6 +21,7 @@ from pathlib import Path
 
 from aero_dva.bag import channels as ch
 from aero_dva_sim.run_flight import (
+    controller_commands,
     controller_files_given,
     die_with_parent,
     executable,
@@ -42,20 +43,7 @@ def build_commands(args, inputs: list[str]) -> dict[str, list[str]]:
                           *ros_params(output=args.out, **sim_time),
                           "-p", "exclude:=[/rosout,/parameter_events]"],
     }
-    if args.controller == "rbf":
-        commands["spectrum"] = [executable("dva_controller", "spectrum"), "--ros-args",
-                                *ros_params(**sim_time)]
-        commands["rbf_controller"] = [executable("dva_controller", "rbf_controller"),
-                                      "--ros-args",
-                                      *ros_params(network_file=args.network, **sim_time)]
-    elif args.controller == "schedule":
-        commands["airspeed_controller"] = [executable("dva_controller", "airspeed_controller"),
-                                           "--ros-args",
-                                           *ros_params(schedule_file=args.schedule, **sim_time)]
-    else:
-        commands["fixed_controller"] = [executable("dva_controller", "fixed_controller"),
-                                        "--ros-args",
-                                        *ros_params(damping=args.damping, rate=20.0, **sim_time)]
+    commands.update(controller_commands(args, **sim_time))
     others = list(commands)
     # The links between the nodes must be up before the first message, not only the nodes:
     # the spectra reach the network and the recorder, the commands the recorder.

@@ -60,20 +60,7 @@ def build_commands(args, bag: Path) -> dict[str, list[str]]:
         "mcap_recorder": [executable("aero_dva_sim", "mcap_recorder"), "--ros-args",
                           *ros_params(output=bag, **sim_time)],
     }
-    if args.controller == "rbf":
-        commands["spectrum"] = [executable("dva_controller", "spectrum"), "--ros-args",
-                                *ros_params(**sim_time)]
-        commands["rbf_controller"] = [executable("dva_controller", "rbf_controller"),
-                                      "--ros-args",
-                                      *ros_params(network_file=args.network, **sim_time)]
-    elif args.controller == "schedule":
-        commands["airspeed_controller"] = [executable("dva_controller", "airspeed_controller"),
-                                           "--ros-args",
-                                           *ros_params(schedule_file=args.schedule, **sim_time)]
-    elif args.controller == "fixed":
-        commands["fixed_controller"] = [executable("dva_controller", "fixed_controller"),
-                                        "--ros-args",
-                                        *ros_params(damping=args.damping, rate=20.0, **sim_time)]
+    commands.update(controller_commands(args, **sim_time))
     # The flight starts once every other node of the graph is up (none misses its start).
     others = list(commands)
     commands["simulator"] = [
@@ -235,6 +222,25 @@ def build_parser() -> argparse.ArgumentParser:
                         help="[s] wall time allowed for the flight (default 600)")
     parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     return parser
+
+
+def controller_commands(args, **params) -> dict[str, list[str]]:
+    """Node name -> command line of the controller nodes ``args.controller`` needs (rbf: the
+    spectrum node and the network; none: no node), each with the ROS parameters ``params``."""
+    def node(package, name, **own):
+        return [executable(package, name), "--ros-args", *ros_params(**own, **params)]
+
+    if args.controller == "rbf":
+        return {"spectrum": node("dva_controller", "spectrum"),
+                "rbf_controller": node("dva_controller", "rbf_controller",
+                                       network_file=args.network)}
+    if args.controller == "schedule":
+        return {"airspeed_controller": node("dva_controller", "airspeed_controller",
+                                            schedule_file=args.schedule)}
+    if args.controller == "fixed":
+        return {"fixed_controller": node("dva_controller", "fixed_controller",
+                                         damping=args.damping, rate=20.0)}
+    return {}
 
 
 def controller_files_given(prog: str, args) -> bool:
