@@ -79,7 +79,8 @@ class Param:
             return "string array"
         return "double array"
 
-    def range_text(self) -> str:
+    def constraints(self) -> list[str]:
+        """The interval, the allowed choices and what NaN means, as short phrases."""
         parts = []
         if self.low is not None or self.high is not None:
             low = "-inf" if self.low is None else f"{self.low:g}"
@@ -89,7 +90,10 @@ class Param:
             parts.append("one of " + ", ".join(self.choices))
         if self.nan_means:
             parts.append(f"NaN: {self.nan_means}")
-        return "; ".join(parts)
+        return parts
+
+    def range_text(self) -> str:
+        return "; ".join(self.constraints())
 
     def default_shown(self) -> str:
         if self.default_text:
@@ -168,15 +172,8 @@ def help_text(spec: NodeSpec) -> str:
     ]
     for p in spec.params:
         unit = f" [{p.unit}]" if p.unit else ""
-        facts = [f"default {p.default_shown()}"]
-        if p.low is not None or p.high is not None:
-            low = "-inf" if p.low is None else f"{p.low:g}"
-            high = "inf" if p.high is None else f"{p.high:g}"
-            facts.append(f"range [{low}, {high}]")
-        if p.choices:
-            facts.append("one of " + ", ".join(p.choices))
-        if p.nan_means:
-            facts.append(f"NaN = {p.nan_means}")
+        facts = [f"default {p.default_shown()}",
+                 *(f"range {c}" if c.startswith("[") else c for c in p.constraints())]
         if p.dynamic:
             facts.append("can change at run time")
         lines += _wrap(f"{p.name} ({p.type_name}{unit}): {p.description}", "  ", " " * 6)
