@@ -189,7 +189,7 @@ def main(argv=None) -> int:
                       f"{wall_ratio:6.3f} {med['base'][1]:9.2f}s {med['now'][1]:9.2f}s "
                       f"{cpu_ratio:6.3f}", flush=True)
         print("largest CPU ratio (this tree / base) of the same work: "
-              f"{worst:.3f}")
+              + (f"{worst:.3f}" if worst else "none compared"))
         return 0
     finally:
         subprocess.run(["git", "worktree", "remove", "--force", str(base_dir)], cwd=REPO,
