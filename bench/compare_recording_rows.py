@@ -17,12 +17,12 @@ from __future__ import annotations
 import argparse
 import os
 import re
-import shutil
 import statistics
 import subprocess
 import sys
-import tempfile
 from pathlib import Path
+
+from compare_revisions import base_worktree, python_path  # a script beside this one
 
 REPO = Path(__file__).resolve().parents[1]
 # Row label, then: bench_batch_recording "blocks sim wall cpu ...", bench_sweep_recording
@@ -60,16 +60,13 @@ def main(argv=None) -> int:
     parser.add_argument("bench", choices=sorted(COLUMNS))
     parser.add_argument("args", nargs=argparse.REMAINDER, help="arguments of the benchmark")
     args = parser.parse_args(argv)
-    base_dir = Path(tempfile.mkdtemp(prefix="dva-rows-base-"))
-    try:
-        subprocess.run(["git", "worktree", "add", "--detach", str(base_dir), args.base],
-                       cwd=REPO, check=True, capture_output=True)
+    with base_worktree(args.base) as base_dir:
         found: dict[str, dict[str, list]] = {}
         for _ in range(args.runs):
             for side, tree in (("base", base_dir), ("now", REPO)):
                 env = dict(os.environ)
-                paths = [tree / "aero_dva", tree / "offline"] if side == "base" else []
-                env["PYTHONPATH"] = ":".join([*map(str, paths), env.get("PYTHONPATH", "")])
+                paths = python_path(tree) if side == "base" else []
+                env["PYTHONPATH"] = ":".join([*paths, env.get("PYTHONPATH", "")])
                 script = (REPO if args.same_script else tree) / "bench" / f"{args.bench}.py"
                 env["PYTHONPATH"] = ":".join([str(script.parent), env["PYTHONPATH"]])
                 out = subprocess.run([sys.executable, str(script), *args.args], cwd=tree,
@@ -90,10 +87,6 @@ def main(argv=None) -> int:
             ratio = f"{cn / cb:7.3f}" if cb > 0 else f"{'-':>7}"
             print(f"{name:<32}{walls}{cb:10.3f}{cn:10.3f}{ratio}")
         return 0
-    finally:
-        subprocess.run(["git", "worktree", "remove", "--force", str(base_dir)], cwd=REPO,
-                       capture_output=True)
-        shutil.rmtree(base_dir, ignore_errors=True)
 
 
 if __name__ == "__main__":

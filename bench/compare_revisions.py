@@ -20,6 +20,7 @@ and last line of output.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import shutil
 import statistics
@@ -70,6 +71,20 @@ class Run:
     cpu: float
     code: int
     tail: str
+
+
+@contextlib.contextmanager
+def base_worktree(rev: str):
+    """A temporary git worktree of ``rev`` (detached), removed afterwards; its path."""
+    base_dir = Path(tempfile.mkdtemp(prefix="dva-bench-base-"))
+    try:
+        subprocess.run(["git", "worktree", "add", "--detach", str(base_dir), rev],
+                       cwd=REPO, check=True, capture_output=True)
+        yield base_dir
+    finally:
+        subprocess.run(["git", "worktree", "remove", "--force", str(base_dir)], cwd=REPO,
+                       capture_output=True)
+        shutil.rmtree(base_dir, ignore_errors=True)
 
 
 def python_path(tree: Path) -> list[str]:
@@ -139,10 +154,7 @@ def main(argv=None) -> int:
     if args.runs < 1:
         print("compare_revisions: error: --runs must be >= 1", file=sys.stderr)
         return 2
-    base_dir = Path(tempfile.mkdtemp(prefix="dva-bench-base-"))
-    try:
-        subprocess.run(["git", "worktree", "add", "--detach", str(base_dir), args.base],
-                       cwd=REPO, check=True, capture_output=True)
+    with base_worktree(args.base) as base_dir:
         base_env = current_env = dict(os.environ)
         if NEEDS_ROS_BUILD & set(names):
             print(f"building the ROS workspace of {args.base} ...", file=sys.stderr)
@@ -191,10 +203,6 @@ def main(argv=None) -> int:
         print("largest CPU ratio (this tree / base) of the same work: "
               + (f"{worst:.3f}" if worst else "none compared"))
         return 0
-    finally:
-        subprocess.run(["git", "worktree", "remove", "--force", str(base_dir)], cwd=REPO,
-                       capture_output=True)
-        shutil.rmtree(base_dir, ignore_errors=True)
 
 
 if __name__ == "__main__":

@@ -16,13 +16,12 @@ from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
 
 from aero_dva.bag.bag_reader import bag_topics, read_messages
 from aero_dva.bag.bag_writer import BagWriter, qos_profile_yaml
-from aero_dva.control.rbf_io import save_rbf_network
-from aero_dva.control.rbf_network import spectrum_input_names, train_rbf_ols
 from aero_dva_sim.bag_player_node import BagPlayer
 from aero_dva_sim.mcap_recorder_node import McapRecorder
 from dva_controller.spectrum_node import SpectrumNode
 from dva_offline.replay import compare
 from dva_offline.replay_io import read_outputs, read_recording
+from tests.unit.dva_offline.small_networks import small_spectrum_network
 
 from .conftest import ros2_run_path
 
@@ -36,19 +35,6 @@ FLIGHT_TOPICS = ["/wing/acceleration", "/wing/displacement", "/wing/excitation",
 TIMING_TOLERANCE = {"median": 0.005, "p95": 0.025, "max": 0.25}
 
 
-def _network(path, slope: float):
-    rng = np.random.default_rng(0)
-    n = 60
-    mags = rng.dirichlet(np.ones(16), size=(n, 2))
-    damping = rng.uniform(300.0, 1500.0, n)
-    inputs = np.column_stack([mags.reshape(n, 32), damping])
-    targets = 400.0 + 3000.0 * mags[:, 0, 7] + slope * damping
-    names, units = spectrum_input_names()
-    network = train_rbf_ols(inputs, targets, spread=2.0, max_neurons=15, input_names=names,
-                            input_units=units).network
-    return save_rbf_network(network, path)
-
-
 @pytest.fixture(scope="module")
 def flight(tmp_path_factory):
     """A 4 s flight with the spectrum node and an RBF network in the loop, recorded by
@@ -58,7 +44,8 @@ def flight(tmp_path_factory):
     scenario.write_text("name: short\nduration: 4.0\nblock_size: 50\n"
                         "airspeed: {kind: ramp, start_ratio: 0.8, end_ratio: 0.9}\n"
                         "excitation: {force_std: 1000.0, seed: 2}\n")
-    nets = {"a": _network(root / "net_a.npz", 0.3), "b": _network(root / "net_b.npz", 0.6)}
+    nets = {"a": small_spectrum_network(root / "net_a.npz", 0.3)[0],
+            "b": small_spectrum_network(root / "net_b.npz", 0.6)[0]}
     bag = root / "flight"
     result = subprocess.run(
         [str(ros2_run_path("aero_dva_sim", "run_flight")), "--scenario", str(scenario),

@@ -68,8 +68,22 @@ def _conditions(args):
     return conditions, columns, grouping, info
 
 
-def _cmd_frf(args) -> int:
+def _run_loop(args, domain):
+    """The loop on ``domain`` with the held-out split and step limit of the loop options,
+    with a progress bar."""
     from dva_offline.discrepancy import loop
+
+    rng = None if args.holdout_seed is None else np.random.default_rng(args.holdout_seed)
+    split = loop.holdout_split(domain.observations.groups, args.holdout_every, rng)
+    bar, step = _progress()
+    try:
+        return loop.run(domain, rule=loop.DecisionRule(max_steps=args.max_steps), split=split,
+                        progress=step)
+    finally:
+        bar.close()
+
+
+def _cmd_frf(args) -> int:
     from dva_offline.discrepancy.frf_domain import FrfDomain
 
     if args.mass is not None and not args.mass > 0:
@@ -87,14 +101,7 @@ def _cmd_frf(args) -> int:
     conditions, columns, grouping, info = _conditions(args)
     domain = FrfDomain(conditions, mass=args.mass, static_stiffness=args.static_stiffness,
                        elements=elements, max_elements=args.max_elements, covariates=columns)
-    rng = None if args.holdout_seed is None else np.random.default_rng(args.holdout_seed)
-    split = loop.holdout_split(domain.observations.groups, args.holdout_every, rng)
-    bar, step = _progress()
-    try:
-        result = loop.run(domain, rule=loop.DecisionRule(max_steps=args.max_steps),
-                          split=split, progress=step)
-    finally:
-        bar.close()
+    result = _run_loop(args, domain)
     sel = domain.order_selection
     extra = {
         "file": str(args.file), "quantity": args.quantity, "n_points": int(domain.omega.size),
@@ -141,7 +148,7 @@ def _report(args, result, domain, grouping, extra: dict, quantity: str) -> int:
 
 
 def _cmd_modal(args) -> int:
-    from dva_offline.discrepancy import loop, table_io
+    from dva_offline.discrepancy import table_io
     from dva_offline.discrepancy.modal_domain import ModalDomain, to_receptance
     from dva_offline.isolator.frf_data import FrfData
 
@@ -169,14 +176,7 @@ def _cmd_modal(args) -> int:
         columns = [n for n in conditions[0].covariates if n not in skip]
     domain = ModalDomain(conditions, modes=modes, max_modes=args.max_modes, covariates=columns,
                          quantity=args.quantity)
-    rng = None if args.holdout_seed is None else np.random.default_rng(args.holdout_seed)
-    split = loop.holdout_split(domain.observations.groups, args.holdout_every, rng)
-    bar, step = _progress()
-    try:
-        result = loop.run(domain, rule=loop.DecisionRule(max_steps=args.max_steps),
-                          split=split, progress=step)
-    finally:
-        bar.close()
+    result = _run_loop(args, domain)
     extra = {
         "file": str(args.file), "quantity": args.quantity, "model_quantity": "receptance",
         "n_points": int(domain.omega.size),

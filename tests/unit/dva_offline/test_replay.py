@@ -8,13 +8,12 @@ import pytest
 
 from aero_dva.bag.bag_writer import BagWriter
 from aero_dva.control.command_laws import RBFLaw
-from aero_dva.control.rbf_io import save_rbf_network
-from aero_dva.control.rbf_network import spectrum_input_names, train_rbf_ols
 from aero_dva.control.spectrum import scaled_spectrum
 from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
 from dva_offline import cli
 from dva_offline.replay import CommandRecord, compare, rbf_commands, spectra_from_inputs
 from dva_offline.replay_io import read_outputs, read_recording
+from tests.unit.dva_offline.small_networks import small_spectrum_network
 
 FREQS = np.arange(5.0, 21.0)
 NS = 1_000_000_000
@@ -22,19 +21,6 @@ NS = 1_000_000_000
 
 def _header(t_ns: int, frame: str = "wing") -> dict:
     return {"stamp": {"sec": t_ns // NS, "nanosec": t_ns % NS}, "frame_id": frame}
-
-
-def _network(path, slope: float):
-    rng = np.random.default_rng(0)
-    n = 60
-    mags = rng.dirichlet(np.ones(16), size=(n, 2))
-    damping = rng.uniform(300.0, 1500.0, n)
-    inputs = np.column_stack([mags.reshape(n, 32), damping])
-    targets = 400.0 + 3000.0 * mags[:, 0, 7] + slope * damping
-    names, units = spectrum_input_names()
-    network = train_rbf_ols(inputs, targets, spread=2.0, max_neurons=15, input_names=names,
-                            input_units=units).network
-    return save_rbf_network(network, path), network
 
 
 @pytest.fixture(scope="module")
@@ -48,8 +34,8 @@ def flight(tmp_path_factory):
                         "airspeed: {kind: constant, value: 90.0}\n"
                         "excitation: {force_std: 1000.0, seed: 4}\n")
     runtime = FlightRuntime(load_runtime_config({"scenario": str(scenario)}))
-    net_a, network = _network(root / "net_a.npz", 0.3)
-    net_b, _ = _network(root / "net_b.npz", 0.6)
+    net_a, network = small_spectrum_network(root / "net_a.npz", 0.3)
+    net_b, _ = small_spectrum_network(root / "net_b.npz", 0.6)
     blocks, states = [], []
     while not runtime.done:
         if runtime.time > 1.0:
