@@ -293,6 +293,19 @@ def _describe(c: CandidateScore) -> str:
                                for h in _added_hits(c)))
 
 
+def _best_eligible(eligible, rule):
+    """The eligible candidate with the lowest delta BIC; when its added parameters hit a bound,
+    another form of the same effect whose fit stays inside its bounds (Arrhenius for a WLF
+    whose C2 ran to its bound) if it scores within ``rule.ambiguity_margin``."""
+    best = min(eligible, key=lambda c: c.delta_bic)
+    if _added_hits(best):
+        inside = [c for c in eligible if c.effect == best.effect and not _added_hits(c)
+                  and c.delta_bic - best.delta_bic < rule.ambiguity_margin]
+        if inside:
+            best = min(inside, key=lambda c: c.delta_bic)
+    return best
+
+
 def decide(base: ModelFit, noise: NoiseFloor, features: ResidualFeatures,
            scores: Sequence[CandidateScore], rule: DecisionRule) -> Verdict:
     """Apply :class:`DecisionRule` (module docstring) to the scored candidates."""
@@ -313,14 +326,7 @@ def decide(base: ModelFit, noise: NoiseFloor, features: ResidualFeatures,
         tail = f"; best was {_describe(best)}" if best is not None else ""
         return Verdict("unexplained", None, "",
                        f"{head}; no candidate improves the held-out score significantly{tail}")
-    best = min(eligible, key=lambda c: c.delta_bic)
-    if _added_hits(best):
-        # another form of the same effect whose fit stays inside its bounds (Arrhenius for a
-        # WLF whose C2 ran to its bound) is preferred when it scores about as well
-        inside = [c for c in eligible if c.effect == best.effect and not _added_hits(c)
-                  and c.delta_bic - best.delta_bic < rule.ambiguity_margin]
-        if inside:
-            best = min(inside, key=lambda c: c.delta_bic)
+    best = _best_eligible(eligible, rule)
     frac = best.explained_fraction
     if not frac >= rule.min_explained:
         return Verdict(
@@ -432,12 +438,7 @@ def choose_step(scores, rule) -> tuple[CandidateScore | None, str]:
         best = min(fitted, key=lambda c: c.delta_bic) if fitted else None
         tail = f" (best: {_describe(best)})" if best is not None else ""
         return None, f"no candidate improves the held-out score significantly{tail}"
-    best = min(eligible, key=lambda c: c.delta_bic)
-    if _added_hits(best):
-        inside = [c for c in eligible if c.effect == best.effect and not _added_hits(c)
-                  and c.delta_bic - best.delta_bic < rule.ambiguity_margin]
-        if inside:
-            best = min(inside, key=lambda c: c.delta_bic)
+    best = _best_eligible(eligible, rule)
     frac = best.explained_fraction
     if frac >= rule.min_explained:
         rivals = [c for c in eligible if c.effect != best.effect

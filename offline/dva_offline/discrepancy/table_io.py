@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from dva_offline.isolator.frf_data import MIN_POINTS, FrfData, condition_columns
-from dva_offline.isolator.isolator_io import MAX_ROWS
+from dva_offline.isolator.isolator_io import append_numeric_row
 
 FREQUENCY_UNITS = {"hz": 1.0, "khz": 1e3, "rad/s": 1.0 / (2 * np.pi), "1/s": 1.0}
 # factor to SI per quantity family; the SI unit of each family is the first entry
@@ -152,19 +152,7 @@ def _read_rows(path: Path) -> Table:
         if i == 0 and not all(_is_number(c) for c in row if c.strip()):
             units = {name: cell.strip() for name, cell in zip(header, row)}
             continue
-        line = i + 2
-        if len(row) != len(header):
-            raise ValueError(f"{path}: line {line} has {len(row)} values, header has "
-                             f"{len(header)}")
-        if rows == MAX_ROWS:
-            raise ValueError(f"{path}: more than {MAX_ROWS} data rows; at most that many are "
-                             "read (decimate or split the file)")
-        for name, cell in zip(header, row):
-            try:
-                values.append(float(cell))
-            except ValueError:
-                raise ValueError(f"{path}: line {line}, column {name!r}: {cell[:40]!r} is "
-                                 "not a number") from None
+        append_numeric_row(values, row, header, path, i + 2, rows)
         rows += 1
     if not rows:
         raise ValueError(f"{path}: no data rows")

@@ -47,6 +47,25 @@ STEP_AMPLITUDES = ("force_amplitude_n", "response_amplitude")
 STEP_PHASES = ("force_phase", "response_phase")
 
 
+def append_numeric_row(values: array, row: list[str], header: list[str], path, line: int,
+                       rows: int) -> None:
+    """Append the data row ``row`` (line ``line`` of ``path``; ``rows`` read before it) to
+    ``values`` as floats: one value per header column, at most :data:`MAX_ROWS` rows (a
+    runaway file is refused there, not read to its end); errors name the file, line and
+    column."""
+    if len(row) != len(header):
+        raise ValueError(f"{path}: line {line} has {len(row)} values, header has {len(header)}")
+    if rows == MAX_ROWS:
+        raise ValueError(f"{path}: more than {MAX_ROWS} data rows; at most that many are read "
+                         "(decimate or split the file)")
+    for name, cell in zip(header, row):
+        try:
+            values.append(float(cell))
+        except ValueError:
+            raise ValueError(f"{path}: line {line}, column {name!r}: {cell[:40]!r} is not a "
+                             "number") from None
+
+
 def _read_table(path) -> tuple[list[str], np.ndarray]:
     path = Path(path)
     if not path.is_file():
@@ -66,18 +85,7 @@ def _read_table(path) -> tuple[list[str], np.ndarray]:
                     if len(set(header)) != len(header):
                         raise ValueError(f"{path}: duplicate column names in header {header}")
                     continue
-                if len(row) != len(header):
-                    raise ValueError(f"{path}: line {reader.line_num} has {len(row)} values, "
-                                     f"header has {len(header)}")
-                if rows == MAX_ROWS:  # stop here: never read a runaway file to its end
-                    raise ValueError(f"{path}: more than {MAX_ROWS} data rows; the isolator "
-                                     "tools read at most that many (decimate or split the file)")
-                for name, cell in zip(header, row):
-                    try:
-                        values.append(float(cell))
-                    except ValueError:
-                        raise ValueError(f"{path}: line {reader.line_num}, column {name!r}: "
-                                         f"{cell[:40]!r} is not a number") from None
+                append_numeric_row(values, row, header, path, reader.line_num, rows)
                 rows += 1
     except UnicodeDecodeError as exc:
         raise ValueError(f"{path}: not UTF-8 text (byte at offset {exc.start}); a CSV file "
