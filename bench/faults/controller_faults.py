@@ -49,7 +49,13 @@ class ControllerTrial:
     diagnostic : str
         That warning.
     applied_min, applied_max : float
-        [N s/m] c2 applied in the states between the kill and the fallback.
+        [N s/m] c2 applied in the states that reached the probe between the kill and the
+        fallback (by wall time: none when the fallback's state is the first to arrive).
+    held_min, held_max : float
+        [N s/m] c2 applied in the states stamped (sim time) from the last accepted command to
+        the fallback: the damper's own account of what it held, whatever the probe's backlog.
+    held_states : int
+        How many such states reached the probe.
     statuses_between : dict
         Status name -> number of states between the kill and the fallback.
     longest_stall : float
@@ -69,6 +75,9 @@ class ControllerTrial:
     diagnostic: str
     applied_min: float
     applied_max: float
+    held_min: float
+    held_max: float
+    held_states: int
     statuses_between: dict
     longest_stall: float
     stalls: list
@@ -123,11 +132,14 @@ def run_controller_trial(mode: str, kill_after: float, work: Path, *, damping: f
     warning = next((d for d in probe.diagnostics if d.wall > killed and "fallback" in d.message),
                    None)
     values = [s.applied for s in between] or [math.nan]
+    last_command = first.stamp - first.command_age
+    held = [s.applied for s in states if last_command <= s.stamp < first.stamp] or [math.nan]
     return ControllerTrial(
         mode=mode, kill_after=kill_after, commanded=damping, fallback=first.applied,
         fallback_wall_delay=first.wall - killed, command_age=first.command_age,
         diagnostic_wall_delay=None if warning is None else warning.wall - killed,
         diagnostic="" if warning is None else warning.message,
         applied_min=min(values), applied_max=max(values),
+        held_min=min(held), held_max=max(held), held_states=sum(map(math.isfinite, held)),
         statuses_between=dict(Counter(STATUS_NAMES[s.status] for s in between)),
         longest_stall=max(gaps) if gaps else 0.0, stalls=[g for g in gaps if g > 0.2])

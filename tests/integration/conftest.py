@@ -62,9 +62,17 @@ def executor(ros_context: Context) -> Iterator[SingleThreadedExecutor]:
         exe.shutdown()
 
 
+#: Every wait's timeout is multiplied by this (DVA_TEST_TIMEOUT_SCALE). A wait returns as soon as
+#: its condition holds, so a long timeout costs nothing on a passing test; the timeouts written in
+#: the tests are what an idle machine needs, and a busy two-core machine (the tests beside other
+#: jobs, or two pytest workers) can be several times slower.
+TIMEOUT_SCALE = float(os.environ.get("DVA_TEST_TIMEOUT_SCALE", "4"))
+
+
 def spin_until(executor, condition: Callable[[], bool], timeout: float) -> bool:
-    """Spin ``executor`` until ``condition()`` is true or ``timeout`` [s] of wall time passed."""
-    deadline = time.monotonic() + timeout
+    """Spin ``executor`` until ``condition()`` is true or ``timeout`` x :data:`TIMEOUT_SCALE`
+    [s] of wall time passed."""
+    deadline = time.monotonic() + timeout * TIMEOUT_SCALE
     while not condition():
         remaining = deadline - time.monotonic()
         if remaining <= 0:

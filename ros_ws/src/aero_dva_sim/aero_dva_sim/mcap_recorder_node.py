@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import sys
 import time
+from collections import Counter
 from pathlib import Path
 
 import yaml
@@ -82,6 +83,7 @@ class McapRecorder(Node):
         self._recorded: dict[str, object] = {}
         self._skipped: set[str] = set()
         self.received = 0
+        self.received_by_topic: Counter[str] = Counter()
         try:
             wall = Clock(clock_type=ClockType.STEADY_TIME)
             self.create_timer(float(values["discovery_period"]),
@@ -141,6 +143,7 @@ class McapRecorder(Node):
     def _record(self, topic: str, data: bytes) -> None:
         self._writer.write(topic, data, self.get_clock().now().nanoseconds)
         self.received += 1
+        self.received_by_topic[topic] += 1
 
     def _flush(self) -> None:
         if not self._writer.closed:
