@@ -6,4 +6,6 @@ cd "$(dirname "${BASH_SOURCE[0]}")"
 bash scripts/setup.sh
 # shellcheck disable=SC1091
 source scripts/env.sh
-exec python -m pytest "$@"
+# Two worker processes (pytest-xdist), one test file per worker at a time, so module fixtures
+# run once; DVA_TEST_WORKERS=0 runs every test in this process.
+exec python -m pytest -n "${DVA_TEST_WORKERS:-2}" --dist loadfile "$@"
