@@ -28,7 +28,7 @@ import numpy as np
 from tqdm import tqdm
 
 from dva_offline import cli
-from dva_offline.isolator import isolator_io
+from dva_offline.isolator import files as isolator_io
 from dva_offline.isolator.maxwell_model import frf, modal_properties
 from dva_offline.isolator.synthetic_systems import add_complex_noise, random_mv_system
 

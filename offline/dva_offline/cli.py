@@ -15,16 +15,16 @@ from dva_offline import __version__
 
 # name -> module; a module registers exactly one top-level subcommand.
 SUBCOMMAND_MODULES = {
-    "info": "dva_offline.info_cli",
-    "wing": "dva_offline.wing_cli",
+    "info": "dva_offline.info",
+    "wing": "dva_offline.wing.cli",
     "isolator": "dva_offline.isolator.cli",
     "discrepancy": "dva_offline.discrepancy.cli",
-    "control": "dva_offline.control_cli",
-    "train": "dva_offline.train_cli",
-    "evaluate": "dva_offline.evaluation_cli",
-    "report": "dva_offline.run_report_cli",
-    "replay": "dva_offline.replay_cli",
-    "bag": "dva_offline.bag_cli",
+    "control": "dva_offline.control.cli",
+    "train": "dva_offline.training.cli",
+    "evaluate": "dva_offline.evaluation.cli",
+    "report": "dva_offline.report.cli",
+    "replay": "dva_offline.replay.cli",
+    "bag": "dva_offline.bag.cli",
 }
 
 

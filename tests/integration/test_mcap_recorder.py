@@ -11,7 +11,7 @@ from rclpy.node import Node
 from rosbags.rosbag2 import Reader
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-from aero_dva.bag.bag_reader import bag_topics, read_messages
+from aero_dva.bag.reader import bag_topics, read_messages
 from dva_msgs.msg import AccelerationBlock, DamperCommand
 
 from .conftest import ros2_run_path

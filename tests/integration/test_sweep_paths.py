@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from aero_dva.bag.bag_reader import bag_topics, read_messages
 from aero_dva.bag.flight_log_io import load_flight_log
+from aero_dva.bag.reader import bag_topics, read_messages
 
 from .conftest import ros2_run_path
 

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dva_offline.isolator import isolator_io
+from dva_offline.isolator import files as isolator_io
 
 EXIT_OK = 0
 

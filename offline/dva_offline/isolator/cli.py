@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dva_offline.isolator import isolator_io
+from dva_offline.isolator import files as isolator_io
 from dva_offline.isolator.element_types import classify_elements
 from dva_offline.isolator.frf_data import (
     check_units,

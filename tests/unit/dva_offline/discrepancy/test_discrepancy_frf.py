@@ -9,7 +9,7 @@ from dva_offline import cli
 from dva_offline.discrepancy import loop, synthetic
 from dva_offline.discrepancy.frf_domain import FrfDomain
 from dva_offline.discrepancy.maxwell_starts import maxwell_from_stiffness, modal_term_scan
-from dva_offline.isolator import isolator_io
+from dva_offline.isolator import files as isolator_io
 from dva_offline.isolator.frf_data import FrfData, split_conditions
 from dva_offline.isolator.maxwell_model import dynamic_stiffness
 
