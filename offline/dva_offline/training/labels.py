@@ -22,11 +22,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from aero_dva.control.optimal_damping import optimal_damping
+from dva_offline.training.defaults import LABEL_METHODS
 
 __all__ = ["LABEL_METHODS", "LabelError", "Labels", "conditions_of", "label_exact",
            "label_min_rms"]
 
-LABEL_METHODS = ("exact", "measured-argmin")
 _GRID = np.linspace(0.0, 2500.0, 126)  # [N s/m] c2 grid of the exact optimum (then refined)
 
 

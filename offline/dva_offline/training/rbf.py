@@ -46,6 +46,7 @@ from aero_dva.control.rbf_network import (
 from aero_dva.control.spectrum import DEFAULT_FREQUENCIES, scaled_spectrum
 from aero_dva.flight.scenario import AirspeedProfile, Scenario, sweep_duration
 from aero_dva.wing.model import ACCELERATION_NAMES
+from dva_offline.training.defaults import DEFAULT_SPREADS, MAX_CANDIDATES, MIN_ACTIVATION
 
 __all__ = [
     "ACCELERATION_CHANNELS",
@@ -75,14 +76,6 @@ ACCELERATION_CHANNELS = ACCELERATION_NAMES
 #: Spectrum channels of the study's network (translational, rotational), as the spectrum node.
 CHANNELS = ("plunge", "pitch")
 LEADING_EDGE = 2  # row of the leading-edge displacement in FlightLog.displacements
-#: Candidate spreads in min-max scaled input space (33 inputs: distances of order 0.1 .. 1).
-DEFAULT_SPREADS = (0.1, 0.2, 0.3, 0.5, 0.7, 1.0, 1.5, 2.0, 3.0)
-#: A network whose median peak activation on its validation inputs is below this has neurons
-#: that do not respond to inputs it has not seen: it outputs its bias, a constant c2.
-MIN_ACTIVATION = 0.1
-#: Candidate centres of the OLS selection at most (evenly spaced through the training windows):
-#: the candidate matrix is n_train x n_candidates doubles (8 000 x 2 000 = 128 MB).
-MAX_CANDIDATES = 2000
 
 
 class TrainingDataError(ValueError):

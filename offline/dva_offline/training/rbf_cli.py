@@ -32,8 +32,12 @@ TOPICS = {
 
 def register(sub) -> None:
     """Add ``dva train rbf`` to the ``train`` subcommands."""
-    from dva_offline.training.labels import LABEL_METHODS
-    from dva_offline.training.rbf import DEFAULT_SPREADS, MAX_CANDIDATES, MIN_ACTIVATION
+    from dva_offline.training.defaults import (
+        DEFAULT_SPREADS,
+        LABEL_METHODS,
+        MAX_CANDIDATES,
+        MIN_ACTIVATION,
+    )
 
     r = sub.add_parser("rbf", help="train the RBF network from a recorded sweep",
                        description=__doc__,
