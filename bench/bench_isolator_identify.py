@@ -97,7 +97,6 @@ def main() -> None:
     args = parser.parse_args()
     if args.cases < 1:
         parser.error("--cases must be >= 1")
-    cli.SUBCOMMAND_MODULES = {"isolator": "dva_offline.isolator.cli"}
     rng = np.random.default_rng(args.seed)
     rows = [(f"{100 * s:g} % | {q} | {f} | fit", s, q, f, (), 1.0)
             for s in NOISES for q in ("receptance", "accelerance") for f in ("csv", "uff58")]

@@ -21,12 +21,13 @@ airspeeds at which some c2 of the grid keeps the wing stable: [U_s - 0.05 U_cr, 
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 import time
 
 import numpy as np
+
+from dva_offline.cli_tools import emit, finite, range2, range3, show_help
 
 __all__ = ["register"]
 
@@ -45,33 +46,6 @@ SCHEDULE_DESCRIPTION = (
 
 
 # -- argument parsing ---------------------------------------------------------------------------
-
-def _range3(option: str, text: str, integer_count: bool = True):
-    """``START:STOP:N`` -> (start, stop, n)."""
-    parts = text.split(":")
-    try:
-        if len(parts) != 3:
-            raise ValueError
-        start, stop, n = float(parts[0]), float(parts[1]), int(parts[2])
-    except ValueError:
-        raise ValueError(f"{option} expects START:STOP:N, got {text!r}") from None
-    if not (math.isfinite(start) and math.isfinite(stop)) or n < 2 or stop <= start:
-        raise ValueError(f"{option} needs finite START < STOP and N >= 2, got {text!r}")
-    return start, stop, n
-
-
-def _range2(option: str, text: str):
-    parts = text.split(":")
-    try:
-        if len(parts) != 2:
-            raise ValueError
-        low, high = float(parts[0]), float(parts[1])
-    except ValueError:
-        raise ValueError(f"{option} expects MIN:MAX, got {text!r}") from None
-    if not (math.isfinite(low) and math.isfinite(high)) or high <= low:
-        raise ValueError(f"{option} needs finite MIN < MAX, got {text!r}")
-    return low, high
-
 
 def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--wing", metavar="FILE", help="wing YAML with a Maxwell absorber "
@@ -105,7 +79,7 @@ def register(subparsers) -> None:
                               description=__doc__,
                               formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = p.add_subparsers(dest="control_command", metavar="<control-command>")
-    p.set_defaults(func=lambda args: _help(p))
+    p.set_defaults(func=lambda args: show_help(p))
 
     o = sub.add_parser("optimal-c2", help="optimal c2 and minimum RMS vs airspeed (fig. 7.4)",
                        description="Optimal c2 minimising the exact stationary RMS of the "
@@ -141,20 +115,10 @@ def register(subparsers) -> None:
     s.set_defaults(func=_schedule)
 
 
-def _help(parser) -> int:
-    parser.print_help()
-    return 2
-
-
 # -- shared work --------------------------------------------------------------------------------
 
-def _finite(x):
-    x = float(x)
-    return x if math.isfinite(x) else None
-
-
 def _finite_list(values):
-    return [_finite(v) for v in np.asarray(values, dtype=float).ravel()]
+    return [finite(v) for v in np.asarray(values, dtype=float).ravel()]
 
 
 def _setup(args):
@@ -180,11 +144,11 @@ def _setup(args):
         raise ValueError(f"--sample-rate must be > 0, got {args.sample_rate}")
     u_cr = bare_critical_airspeed(cfg.wing, rho, cfg.aero)
     relative = args.relative or args.airspeeds is None
-    start, stop, n = _range3("--airspeeds", args.airspeeds or DEFAULT_AIRSPEEDS)
+    start, stop, n = range3("--airspeeds", args.airspeeds or DEFAULT_AIRSPEEDS)
     if start < 0:
         raise ValueError("--airspeeds must be >= 0")
     speeds = np.linspace(start, stop, n) * (u_cr if relative else 1.0)
-    c_lo, c_hi, n_c = _range3("--c2-range", args.c2_range)
+    c_lo, c_hi, n_c = range3("--c2-range", args.c2_range)
     if c_lo < 0 or n_c < 3:
         raise ValueError("--c2-range needs MIN >= 0 and N >= 3")
     grid = np.linspace(c_lo, c_hi, n_c)
@@ -232,18 +196,11 @@ def _base_payload(args, res, u_cr, elapsed) -> dict:
         "c2_grid": {"min": float(res.damping_grid[0]), "max": float(res.damping_grid[-1]),
                     "n": int(res.damping_grid.size)},
         "n_airspeeds": int(res.airspeeds.size),
-        "stable_limit": {"airspeed": _finite(limit),
-                         "ratio": _finite(limit / u_cr) if math.isfinite(limit) else None},
+        "stable_limit": {"airspeed": finite(limit),
+                         "ratio": finite(limit / u_cr) if math.isfinite(limit) else None},
         "rms_unit": _rms_unit(res.objective),
         "elapsed_s": elapsed,
     }
-
-
-def _emit(args, payload: dict, lines: list[str]) -> None:
-    if args.json:
-        print(json.dumps(payload, allow_nan=False))
-    else:
-        print("\n".join(lines))
 
 
 # -- optimal-c2 ---------------------------------------------------------------------------------
@@ -331,7 +288,7 @@ def _optimal_c2(args) -> int:
                   f"{r['simulated_rms']:.4g} (z = {r['z']:+.2f}, "
                   f"SE {100 * r['relative_standard_error']:.1f} %)"
                   for r in chk["points"]]
-    _emit(args, payload, lines)
+    emit(args, payload, lines)
     return 0
 
 
@@ -393,7 +350,7 @@ def _plot_optimal(res, curves, u_cr, path) -> None:
 def _fit_range(args, res, u_cr):
     """(low, high) [m/s] of the fit and a sentence saying where it came from."""
     if args.fit_range is not None:
-        low, high = _range2("--fit-range", args.fit_range)
+        low, high = range2("--fit-range", args.fit_range)
         scale = u_cr if args.relative else 1.0
         return low * scale, high * scale, "--fit-range"
     limit = res.stable_airspeed_limit()
@@ -411,7 +368,7 @@ def _schedule(args) -> int:
 
     model, rho, u_cr, speeds, grid = _setup(args)
     if args.damping_range is not None:
-        damping_range = _range2("--damping-range", args.damping_range)
+        damping_range = range2("--damping-range", args.damping_range)
         if damping_range[0] < 0:
             raise ValueError("--damping-range MIN must be >= 0")
     else:
@@ -454,7 +411,7 @@ def _schedule(args) -> int:
         "n_points": fit.n_points,
         "rmse": fit.rmse,
         "max_abs_error": fit.max_abs_error,
-        "r_squared": _finite(fit.r_squared),
+        "r_squared": finite(fit.r_squared),
         "description": description,
     })
     if args.plot:
@@ -467,7 +424,7 @@ def _schedule(args) -> int:
              f"R^2 {fit.r_squared:.5f}",
              f"clamped to {sch.damping_range[0]:g} .. {sch.damping_range[1]:g} N s/m; "
              f"written to {path}"]
-    _emit(args, payload, lines)
+    emit(args, payload, lines)
     return 0
 
 

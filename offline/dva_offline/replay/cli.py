@@ -62,7 +62,7 @@ def register(subparsers) -> None:
 
 
 def _check_args(args) -> None:
-    from dva_offline.cli import CliError
+    from dva_offline.cli_tools import CliError
 
     for option, needed in (("network", "rbf"), ("schedule", "schedule")):
         if args.controller == needed and not getattr(args, option):

@@ -23,12 +23,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
+
+from dva_offline.cli_tools import range3, show_help
 
 __all__ = ["register"]
 
@@ -46,7 +47,7 @@ def register(subparsers) -> None:
                                             "network", description=__doc__,
                               formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = p.add_subparsers(dest="train_command", metavar="<train-command>")
-    p.set_defaults(func=lambda args: _help(p))
+    p.set_defaults(func=lambda args: show_help(p))
 
     pl = sub.add_parser("plan", help="the (U, rho, c2) dwells of the training sweep (JSON)",
                         description="Plan the training dwells: airspeeds x densities, c2 "
@@ -108,11 +109,6 @@ def _plan_options(p) -> None:
     p.add_argument("--seed", type=int, default=7, help="excitation seed (default 7)")
 
 
-def _help(parser) -> int:
-    parser.print_help()
-    return 2
-
-
 def _jobs(text: str) -> int:
     try:
         value = int(text)
@@ -124,17 +120,8 @@ def _jobs(text: str) -> int:
 
 
 def _range3(option: str, text: str):
-    parts = text.split(":")
-    try:
-        if len(parts) != 3:
-            raise ValueError
-        start, stop, n = float(parts[0]), float(parts[1]), int(parts[2])
-    except ValueError:
-        raise ValueError(f"{option} expects MIN:MAX:N, got {text!r}") from None
-    if not (math.isfinite(start) and math.isfinite(stop)) or start < 0 or n < 2 \
-            or stop <= start:
-        raise ValueError(f"{option} needs finite 0 <= MIN < MAX and N >= 2, got {text!r}")
-    return np.linspace(start, stop, n)
+    """``MIN:MAX:N`` -> N evenly spaced values, 0 <= MIN < MAX."""
+    return np.linspace(*range3(option, text, "MIN:MAX:N", minimum=0.0))
 
 
 # -- plan -------------------------------------------------------------------------------------

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from aero_dva.bag import channels as ch
+from dva_offline.cli_tools import json_safe
 
 __all__ = ["register"]
 
@@ -202,21 +203,10 @@ def _rbf(args) -> int:
         summary["plot"] = str(Path(args.plot).resolve())
     summary["wall_time_s"] = time.monotonic() - started
     if args.json:
-        print(json.dumps(_clean(summary), allow_nan=False))
+        print(json.dumps(json_safe(summary), allow_nan=False))
     else:
         _print(summary, outcome)
     return 0
-
-
-def _clean(value):
-    """NaN and inf as null (strict JSON)."""
-    if isinstance(value, dict):
-        return {k: _clean(v) for k, v in value.items()}
-    if isinstance(value, list):
-        return [_clean(v) for v in value]
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
 
 
 def _summary(args, bag, data, labels, outcome, wing, u_cr) -> dict:

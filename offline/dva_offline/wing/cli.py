@@ -15,11 +15,12 @@ units; ``--tune`` gives the tunable parameters their damping-optimal value at ev
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 
 import numpy as np
+
+from dva_offline.cli_tools import emit, finite, show_help
 
 __all__ = ["register"]
 
@@ -64,7 +65,7 @@ def register(subparsers) -> None:
                               description=__doc__,
                               formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = p.add_subparsers(dest="wing_command", metavar="<wing-command>")
-    p.set_defaults(func=lambda args: _help(p))
+    p.set_defaults(func=lambda args: show_help(p))
 
     m = sub.add_parser("modal", help="frequencies and damping ratios vs airspeed (fig. 6.2)")
     _common(m)
@@ -97,11 +98,6 @@ def register(subparsers) -> None:
     s.add_argument("--seed", type=int, default=0, help="random seed (0)")
     s.add_argument("--plot", metavar="PNG", help="write the time traces of the first flight")
     s.set_defaults(func=_simulate)
-
-
-def _help(parser) -> int:
-    parser.print_help()
-    return 2
 
 
 # -- building the model from the arguments ------------------------------------------------------
@@ -171,25 +167,6 @@ def _absorber_json(absorber):
     return absorber_to_dict(absorber)
 
 
-def _emit(args, payload: dict, lines: list[str]) -> None:
-    if args.json:
-        print(json.dumps(payload, default=_jsonable))
-    else:
-        print("\n".join(lines))
-
-
-def _jsonable(x):
-    if isinstance(x, (np.floating, np.integer)):
-        return x.item()
-    if isinstance(x, np.ndarray):
-        return x.tolist()
-    raise TypeError(f"not JSON serialisable: {type(x).__name__}")
-
-
-def _finite(x):
-    return None if x is None or not math.isfinite(x) else float(x)
-
-
 def _tune_kwargs(args):
     return {} if args.c_max is None else {"damping_bounds": (1e-3 * args.c_max, args.c_max)}
 
@@ -225,7 +202,7 @@ def _flutter(args) -> int:
              f"flutter frequency: {payload['flutter_frequency']:.6g} Hz"]
     if args.tune:
         lines.append(f"ratio to the bare wing: {payload['ratio']:.4f}")
-    _emit(args, payload, lines)
+    emit(args, payload, lines)
     return 0
 
 
@@ -274,7 +251,7 @@ def _modal(args) -> int:
         lines.append(f"  {lab:13s} f = {res.frequency[i, 0]:.4g} -> {res.frequency[i, -1]:.4g}"
                      f" Hz, zeta = {res.damping_ratio[i, 0]:.4g} -> "
                      f"{res.damping_ratio[i, -1]:.4g}")
-    _emit(args, payload, lines)
+    emit(args, payload, lines)
     return 0
 
 
@@ -319,13 +296,13 @@ def _design(args) -> int:
     for name, rows in tables.items():
         lines.append(f"{name}:  label  project  study")
         lines += [f"  {r['label']:22s} {r['ratio']:.4f}  {r['study']}" for r in rows]
-    _emit(args, payload, lines)
+    emit(args, payload, lines)
     return 0
 
 
 def _rows(results, study: dict) -> list[dict]:
-    return [{"label": r.label, "critical_airspeed": _finite(r.critical_airspeed),
-             "ratio": _finite(r.ratio), "study": study.get(r.label),
+    return [{"label": r.label, "critical_airspeed": finite(r.critical_airspeed),
+             "ratio": finite(r.ratio), "study": study.get(r.label),
              "setting": None if r.setting is None else
              {"stiffness": r.setting.stiffness, "damping": r.setting.damping}}
             for r in results]
@@ -372,12 +349,12 @@ def _simulate(args) -> int:
                "tuned": bool(args.tune), "critical_airspeed": u_cr, "seed": args.seed,
                "flights": args.flights, "duration": args.duration,
                "sample_rate": args.sample_rate, "force_std": args.force_std,
-               "divergence_airspeed": [_finite(x) for x in u_div],
-               "divergence_ratio": [_finite(x / u_cr) for x in u_div],
+               "divergence_airspeed": [finite(x) for x in u_div],
+               "divergence_ratio": [finite(x / u_cr) for x in u_div],
                "max_abs_leading_edge": np.abs(traces.displacements[:, 2]).max(axis=1)}
     lines = [f"bare wing critical airspeed: {u_cr:.4f} m/s"]
     for i, x in enumerate(u_div):
         lines.append(f"flight {i}: " + ("no divergence" if not math.isfinite(x) else
                                          f"diverged at {x:.2f} m/s = {x / u_cr:.3f} U_cr"))
-    _emit(args, payload, lines)
+    emit(args, payload, lines)
     return 0

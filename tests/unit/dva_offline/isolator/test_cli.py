@@ -12,12 +12,6 @@ KN = 1e3
 SYSTEM_F = MaxwellModel(1.0, 12 * KN, 40.0, (12 * KN, 24 * KN), (80.0, 2000.0))
 
 
-@pytest.fixture(autouse=True)
-def only_isolator(monkeypatch):
-    # Other subcommand modules are built by other work; test this one in isolation.
-    monkeypatch.setattr(cli, "SUBCOMMAND_MODULES", {"isolator": "dva_offline.isolator.cli"})
-
-
 def run(capsys, *argv):
     code = cli.main(["isolator", *map(str, argv)])
     out, err = capsys.readouterr()

@@ -19,11 +19,6 @@ F_HZ = np.linspace(1.0, 60.0, 400)
 SIGMA = 0.005
 
 
-@pytest.fixture(autouse=True)
-def only_isolator(monkeypatch):
-    monkeypatch.setattr(cli, "SUBCOMMAND_MODULES", {"isolator": "dva_offline.isolator.cli"})
-
-
 def run(capsys, *argv):
     code = cli.main(["isolator", *map(str, argv)])
     out, err = capsys.readouterr()

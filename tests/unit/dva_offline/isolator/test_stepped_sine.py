@@ -25,11 +25,6 @@ SYSTEM_F = MaxwellModel(1.0, 12 * KN, 40.0, (12 * KN, 24 * KN), (80.0, 2000.0))
 SEED_STEPS_HZ = np.arange(3.0, 80.0 + 0.25, 0.5)  # section 5.2: 0.5 Hz steps, 3-80 Hz
 
 
-@pytest.fixture(autouse=True)
-def only_isolator(monkeypatch):
-    monkeypatch.setattr(cli, "SUBCOMMAND_MODULES", {"isolator": "dva_offline.isolator.cli"})
-
-
 def run(capsys, *argv):
     code = cli.main(["isolator", *map(str, argv)])
     out, err = capsys.readouterr()
