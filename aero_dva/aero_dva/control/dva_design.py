@@ -24,7 +24,7 @@ from scipy.optimize import brentq, minimize, minimize_scalar
 
 from aero_dva.wing.absorbers import MaxwellAbsorber, PassiveAbsorber
 from aero_dva.wing.checks import positive
-from aero_dva.wing.flutter import NoFlutterError, flutter_speed
+from aero_dva.wing.flutter import NoFlutterError, bare_critical_airspeed, flutter_speed
 from aero_dva.wing.modal import min_damping_ratio
 from aero_dva.wing.model import N_FEATURES, AeroelasticModel
 
@@ -329,11 +329,6 @@ def _tuned_ratio(model, density, u_cr, label, **kwargs) -> CriticalRatio:
     except NoFlutterError:
         return CriticalRatio(label, float("nan"), float("nan"))
     return CriticalRatio(label, tc.airspeed, tc.airspeed / u_cr, tc)
-
-
-def bare_critical_airspeed(wing, density: float, aero=None) -> float:
-    """Critical airspeed [m/s] of the wing without DVA (quasi-steady by default)."""
-    return flutter_speed(AeroelasticModel(wing, None, aero), density).critical_airspeed
 
 
 def position_study(wing, density: float, positions=None, mass_ratio: float = 0.04,

@@ -8,14 +8,15 @@ the next block on: the graph with its command lag bound at one block (``run_flig
 The same the study gives the same aileron force whatever the controller (the force is drawn per
 block from the scenario's generator), so flights of different controllers are paired.
 
-Controllers (the nodes' arithmetic on the nodes' inputs):
+Controllers (the nodes' command laws, :mod:`aero_dva.control.command_laws`, on the nodes'
+inputs):
 
 - :class:`FixedControl` (``fixed_controller``): a constant c2;
-- :class:`ScheduleControl` (``airspeed_controller``): eq. 7.1 from the block's
-  ``flight/condition`` airspeed;
+- :class:`ScheduleControl` (``airspeed_controller``): its ScheduleLaw (eq. 7.1, clamped to
+  the damper, invalid airspeeds rejected) on the block's ``flight/condition`` airspeed;
 - :class:`SpectrumRBFControl` (``spectrum`` + ``rbf_controller``): eq. 7.3 spectra of the plunge
   and pitch accelerations over 2 s windows every 0.1 s, the network's c2 from each (input: the
-  spectra and the window's mean applied c2), clamped to the damper range;
+  spectra and the window's mean applied c2) by its RBFLaw, clamped to the damper range;
 - :class:`OracleControl`: c2*(U, rho) of the true airspeed and density of the block it commands
   (:class:`OptimalDampingTable`), the upper bound no measurement-based controller can beat.
 """
@@ -27,16 +28,21 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.interpolate import RegularGridInterpolator
 
+from aero_dva.control.command_laws import RBFLaw, ScheduleLaw
 from aero_dva.control.optimal_damping import optimal_damping
+from aero_dva.control.rbf_network import spectrum_input_names
 from aero_dva.control.spectrum import SlidingSpectrum
 from aero_dva.control.stationary_rms import stationary_rms
+from aero_dva.flight.damper import DAMPER_RANGE
 from aero_dva.flight.flight_runtime import FlightRuntime
 from aero_dva.flight.scenario import airspeed_at, density_at
+from aero_dva.wing.model import LEADING_EDGE
 
 __all__ = ["FixedControl", "FlightOutcome", "OptimalDampingTable", "OracleControl",
            "ScheduleControl", "SpectrumRBFControl", "fly"]
 
-LEADING_EDGE = 2  # row of the leading-edge displacement in a FlightBlock
+#: [m/s] the airspeed_controller's default max_airspeed: larger airspeeds are rejected.
+MAX_AIRSPEED = 400.0
 
 
 class FixedControl:
@@ -54,16 +60,20 @@ class FixedControl:
 
 
 class ScheduleControl:
-    """c2 = a0 + a1 U of an :class:`~aero_dva.control.airspeed_schedule.AirspeedSchedule`
-    from the block's first airspeed (its ``flight/condition`` message)."""
+    """The ``airspeed_controller``'s law (eq. 7.1, the node's default parameters: the line
+    extrapolated, one command per condition) on the block's first airspeed (its
+    ``flight/condition`` message); a rejected airspeed commands nothing."""
 
     name = "schedule"
 
-    def __init__(self, schedule):
-        self.schedule = schedule
+    def __init__(self, schedule, damping_range=DAMPER_RANGE,
+                 max_airspeed: float = MAX_AIRSPEED):
+        self.law = ScheduleLaw(schedule, tuple(float(v) for v in damping_range),
+                               extrapolate=True, max_airspeed=max_airspeed)
 
     def command(self, block, runtime) -> float | None:
-        return float(self.schedule.evaluate(float(block.airspeed[0])))
+        step = self.law.step(round(block.t0 * 1e9), float(block.airspeed[0]))
+        return step.damping if step.kind == "command" else None
 
 
 class SpectrumRBFControl:
@@ -83,13 +93,14 @@ class SpectrumRBFControl:
 
     name = "rbf"
 
-    def __init__(self, network, sample_rate: float, damping_range=(0.0, 2500.0),
+    def __init__(self, network, sample_rate: float, damping_range=DAMPER_RANGE,
                  window: float = 2.0, hop: float = 0.1):
-        if network.input_dim != 33:
+        inputs = len(spectrum_input_names()[0])
+        if network.input_dim != inputs:
             raise ValueError(f"the network has {network.input_dim} inputs, the spectrum "
-                             "controller gives 33")
+                             f"controller gives {inputs}")
         self.network = network
-        self.low, self.high = (float(v) for v in damping_range)
+        self.law = RBFLaw(network, tuple(float(v) for v in damping_range))
         self.sliding = SlidingSpectrum(2, sample_rate, window, hop)
         self.peak_activation: list[float] = []
 
@@ -99,11 +110,9 @@ class SpectrumRBFControl:
         if not result.spectra:
             return None
         window = result.spectra[-1]  # the node answers each; the last one acts
-        x = np.append(window.spectrum.magnitudes.ravel(), window.mean_damping)[None, :]
-        hidden = self.network.hidden(x)
-        self.peak_activation.append(float(hidden.max()) if hidden.size else 0.0)
-        c2 = float((hidden @ self.network.output_weights)[0] + self.network.output_bias)
-        return min(max(c2, self.low), self.high)
+        c2, activation = self.law.command(window.spectrum.magnitudes, window.mean_damping)
+        self.peak_activation.append(activation)
+        return c2 if math.isfinite(c2) else None  # the node publishes no NaN command
 
 
 @dataclass(frozen=True)
@@ -133,7 +142,7 @@ class OptimalDampingTable:
         """Tabulate c2* (the exact stationary leading-edge RMS optimum) on the grid."""
         u = np.asarray(airspeed, dtype=float)
         rho = np.asarray(density, dtype=float)
-        c = np.linspace(0.0, 2500.0, 126) if grid is None else np.asarray(grid, dtype=float)
+        c = np.linspace(*DAMPER_RANGE, 126) if grid is None else np.asarray(grid, dtype=float)
         table = np.empty((u.size, rho.size))
         stable = np.empty((u.size, rho.size), dtype=bool)
         for k, r in enumerate(rho):
@@ -200,10 +209,11 @@ class FlightOutcome:
     peak_activation: np.ndarray
 
 
-def fly(config, controller=None) -> FlightOutcome:
+def fly(config, controller=None, critical_airspeed: float | None = None) -> FlightOutcome:
     """Fly ``config`` (a :class:`~aero_dva.flight.flight_runtime.RuntimeConfig`) with
-    ``controller`` (None: nothing commands c2; the damper holds its initial value)."""
-    runtime = FlightRuntime(config)
+    ``controller`` (None: nothing commands c2; the damper holds its initial value).
+    ``critical_airspeed``: the bare wing's U_cr [m/s] if the caller has it (else solved)."""
+    runtime = FlightRuntime(config, critical_airspeed)
     n = runtime.scenario.n_samples
     out = {k: np.empty(n) for k in ("airspeed", "density", "damping", "leading_edge")}
     done = 0

@@ -65,10 +65,10 @@ class EvaluationSetup:
     def controller(self, name: str):
         if name == "fixed":
             return FixedControl(self.fixed_damping)
+        damper = self.config.damper
         if name == "schedule":
-            return ScheduleControl(self.schedule)
+            return ScheduleControl(self.schedule, (damper.min_damping, damper.max_damping))
         if name == "rbf":
-            damper = self.config.damper
             return SpectrumRBFControl(self.network, self.config.scenario.sample_rate,
                                       (damper.min_damping, damper.max_damping))
         if name == "oracle":
@@ -99,7 +99,7 @@ def fly_seed(setup: EvaluationSetup, controllers: Sequence[str], keep_seed: int 
     config = replace(setup.config, scenario=scenario)
     records, kept = [], {}
     for name in controllers:
-        outcome = fly(config, setup.controller(name))
+        outcome = fly(config, setup.controller(name), setup.critical_airspeed)
         records.append(flight_record(name, case.name, seed, outcome, setup.critical_airspeed,
                                      setup.rms_range))
         if seed == keep_seed:

@@ -54,10 +54,11 @@ def _sliding_divergence(bag: Path, u_cr) -> dict:
     import numpy as np
 
     from aero_dva.bag.flight_log_io import load_flight_log
-    from dva_offline.evaluation.graph_cases import divergence_airspeed_sliding
+    from aero_dva.flight.divergence import divergence_airspeed_sliding
+    from aero_dva.wing.model import LEADING_EDGE
 
     log = load_flight_log(bag)
-    response = log.displacements[2]
+    response = log.displacements[LEADING_EDGE]
     valid = np.isfinite(response) & np.isfinite(log.airspeed)
     u_div = divergence_airspeed_sliding(log.airspeed[valid], response[valid], log.sample_rate)
     ratio = u_div / u_cr if u_cr and math.isfinite(u_div) else None

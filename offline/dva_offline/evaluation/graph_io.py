@@ -23,6 +23,7 @@ import yaml
 from aero_dva.atomic_io import atomic_output
 from aero_dva.flight.scenario_io import scenario_from_dict
 from aero_dva.text_input import read_text_input
+from aero_dva.wing.model import LEADING_EDGE
 from dva_offline.evaluation.graph_cases import (
     CONTROLLER_LABELS,
     CONTROLLERS,
@@ -103,7 +104,7 @@ def plot_traces(path, mu: float, runs: Mapping[str, object], u_cr: float) -> Pat
     """Fig. 7.13-7.16 for one mu: per controller (rows) w, alpha and c2 versus U/U_cr of one
     flight (``runs``: controller -> FlightLog; the table's divergence airspeed, sliding 1 s
     windows, marked if found)."""
-    from dva_offline.evaluation.graph_cases import divergence_airspeed_sliding
+    from aero_dva.flight.divergence import divergence_airspeed_sliding
 
     plt = _plt()
     names = [c for c in CONTROLLERS if c in runs]
@@ -112,8 +113,9 @@ def plot_traces(path, mu: float, runs: Mapping[str, object], u_cr: float) -> Pat
     for row, controller in zip(axes, names):
         log = runs[controller]
         ratio = log.airspeed / u_cr
-        valid = np.isfinite(log.displacements[2]) & np.isfinite(log.airspeed)
-        u_div = divergence_airspeed_sliding(log.airspeed[valid], log.displacements[2][valid],
+        edge = log.displacements[LEADING_EDGE]
+        valid = np.isfinite(edge) & np.isfinite(log.airspeed)
+        u_div = divergence_airspeed_sliding(log.airspeed[valid], edge[valid],
                                             log.sample_rate) / u_cr  # as in the table
         # without the DVA the recorded c2 acts on nothing: leave its panel empty
         c2 = log.applied_damping if controller != "none" else np.full(ratio.shape, np.nan)

@@ -134,6 +134,7 @@ def best_fixed_damping_of(wing) -> dict:
     the default wing) with its Maxwell DVA, c2 held fixed, at the file's density."""
     import numpy as np
 
+    from aero_dva.flight.damper import DAMPER_RANGE
     from aero_dva.wing.flutter import NoFlutterError, flutter_speed
     from aero_dva.wing.model import AeroelasticModel
     from aero_dva.wing.wing_io import load_wing
@@ -149,7 +150,7 @@ def best_fixed_damping_of(wing) -> dict:
         except NoFlutterError:
             return math.nan
 
-    grid = np.linspace(0.0, 2500.0, 51)  # the simulator's damper range
+    grid = np.linspace(*DAMPER_RANGE, 51)
     choice = best_fixed_damping(critical, grid)
     u_cr = flutter_speed(AeroelasticModel(cfg.wing, None, cfg.aero), rho).critical_airspeed
     return {"damping": choice.damping, "critical_airspeed": choice.critical_airspeed,

@@ -18,7 +18,7 @@ Density cases (eq. 7.2, rho = rho0 (1 + mu sin 2 pi f t)); which can adaptation 
 ============  =======================================================================
 
 Per flight: the divergence airspeed (1 s windows sliding by 0.05 s,
-:func:`.graph_cases.divergence_airspeed_sliding`) over U_cr, and the leading-edge
+:func:`aero_dva.flight.divergence.divergence_airspeed_sliding`) over U_cr, and the leading-edge
 RMS between ``rms_range`` (default 0.8 .. 1.05 U_cr, after the first 2 s in which the spectrum
 controller has no window yet), the study's objective where the optimal c2 moves with the
 airspeed, both compared with the best fixed c2 flown on the same seed.
@@ -32,8 +32,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy import stats
 
+from aero_dva.flight.divergence import divergence_airspeed_sliding
 from aero_dva.flight.scenario import AirspeedProfile, Scenario
-from dva_offline.evaluation.graph_cases import divergence_airspeed_sliding
 
 __all__ = ["CASE_NAMES", "EVALUATION_CONTROLLERS", "DensityCase", "FlightRecord",
            "PairedStat", "case_scenario", "default_cases", "flight_record", "paired",

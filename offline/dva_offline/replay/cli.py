@@ -28,12 +28,13 @@ from pathlib import Path
 
 import numpy as np
 
+from aero_dva.flight.damper import DAMPER_RANGE
+
 __all__ = ["register"]
 
 CHANNELS = ("plunge", "pitch")  # the spectrum and rbf_controller nodes' defaults
 FREQUENCIES = np.arange(5.0, 21.0, 1.0)
 WINDOW_DURATION, HOP, WINDOW = 2.0, 0.1, "rectangular"
-DAMPER_RANGE = (0.0, 2500.0)  # [N s/m] the controllers' default damping_min, damping_max
 MAX_AIRSPEED = 400.0  # [m/s] the airspeed controller's default
 FIXED_DAMPING = 1500.0  # [N s/m] the fixed controller's default
 

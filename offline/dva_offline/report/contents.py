@@ -15,7 +15,8 @@ import numpy as np
 
 from aero_dva.bag.flight_log_io import FlightLog
 from aero_dva.bag.flight_summary import FlightSummary, summarize
-from dva_offline.evaluation.graph_cases import divergence_airspeed_sliding
+from aero_dva.flight.divergence import divergence_airspeed_sliding
+from aero_dva.wing.model import LEADING_EDGE
 
 __all__ = ["RunData", "RunReport", "SpectrumTrack", "build_report", "report_markdown"]
 
@@ -123,7 +124,7 @@ def build_report(data: RunData) -> RunReport:
     applied = applied[np.isfinite(applied)]
     c2_range = (float(applied.min()), float(applied.max())) if applied.size \
         else (math.nan, math.nan)
-    response, airspeed = data.log.displacements[2], data.log.airspeed
+    response, airspeed = data.log.displacements[LEADING_EDGE], data.log.airspeed
     valid = np.isfinite(response) & np.isfinite(airspeed)
     try:  # the evaluation's finer reading of the same definition
         sliding = divergence_airspeed_sliding(airspeed[valid], response[valid],

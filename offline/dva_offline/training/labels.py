@@ -22,12 +22,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from aero_dva.control.optimal_damping import optimal_damping
+from aero_dva.flight.damper import DAMPER_RANGE
 from dva_offline.training.defaults import LABEL_METHODS
 
 __all__ = ["LABEL_METHODS", "LabelError", "Labels", "conditions_of", "label_exact",
            "label_min_rms"]
 
-_GRID = np.linspace(0.0, 2500.0, 126)  # [N s/m] c2 grid of the exact optimum (then refined)
+_GRID = np.linspace(*DAMPER_RANGE, 126)  # [N s/m] c2 grid of the exact optimum (then refined)
 
 
 class LabelError(ValueError):

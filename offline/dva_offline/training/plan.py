@@ -29,6 +29,7 @@ import numpy as np
 
 from aero_dva.control.optimal_damping import optimal_damping
 from aero_dva.control.stationary_rms import stationary_rms
+from aero_dva.flight.damper import DAMPER_RANGE
 
 __all__ = [
     "DEFAULT_FACTORS",
@@ -44,7 +45,7 @@ __all__ = [
 DEFAULT_RATIOS = (0.8, 1.14, 0.002)
 #: Densities [rho / rho0]: a constant 10 % offset either way around the base density.
 DEFAULT_FACTORS = (0.9, 1.0, 1.1)
-_C2_GRID = np.linspace(0.0, 2500.0, 126)  # [N s/m] the damper's range, 20 N s/m apart
+_C2_GRID = np.linspace(*DAMPER_RANGE, 126)  # [N s/m] the damper's range, 20 N s/m apart
 
 
 @dataclass(frozen=True)
@@ -79,7 +80,7 @@ class PlanSettings:
     n_damping: int = 20
     min_decay: float = 0.2
     max_offset: float = 300.0
-    damping_range: tuple[float, float] = (0.0, 2500.0)
+    damping_range: tuple[float, float] = DAMPER_RANGE
     window: float = 2.0
     sample_rate: float = 1000.0
     force_std: float = 1000.0

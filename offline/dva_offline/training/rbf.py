@@ -45,7 +45,7 @@ from aero_dva.control.rbf_network import (
 )
 from aero_dva.control.spectrum import DEFAULT_FREQUENCIES, scaled_spectrum
 from aero_dva.flight.scenario import AirspeedProfile, Scenario, sweep_duration
-from aero_dva.wing.model import ACCELERATION_NAMES
+from aero_dva.wing.model import ACCELERATION_NAMES, LEADING_EDGE
 from dva_offline.training.defaults import DEFAULT_SPREADS, MAX_CANDIDATES, MIN_ACTIVATION
 
 __all__ = [
@@ -75,7 +75,6 @@ __all__ = [
 ACCELERATION_CHANNELS = ACCELERATION_NAMES
 #: Spectrum channels of the study's network (translational, rotational), as the spectrum node.
 CHANNELS = ("plunge", "pitch")
-LEADING_EDGE = 2  # row of the leading-edge displacement in FlightLog.displacements
 
 
 class TrainingDataError(ValueError):

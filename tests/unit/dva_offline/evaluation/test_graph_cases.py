@@ -8,7 +8,7 @@ import pytest
 import yaml
 
 from aero_dva import data_files
-from aero_dva.flight.divergence import divergence_airspeed
+from aero_dva.flight.divergence import divergence_airspeed, divergence_airspeed_sliding
 from aero_dva.flight.scenario_io import scenario_from_dict
 from dva_offline import cli
 from dva_offline.evaluation.graph_cases import (
@@ -18,7 +18,6 @@ from dva_offline.evaluation.graph_cases import (
     best_fixed_damping,
     case_grid,
     compare_rbf_with_schedule,
-    divergence_airspeed_sliding,
     evaluation_scenario,
     markdown_table,
     parse_controllers,
