@@ -25,6 +25,8 @@ from tests.unit.dva_offline.small_networks import small_spectrum_network
 
 from .conftest import ros2_run_path
 
+pytestmark = pytest.mark.ros
+
 FLIGHT_TOPICS = ["/wing/acceleration", "/wing/displacement", "/wing/excitation",
                  "/flight/condition", "/dva/damper_state", "/dva/damper_command",
                  "/dva/spectrum"]

@@ -26,6 +26,8 @@ from aero_dva.flight.flight_runtime import FlightBlock
 from dva_msgs.msg import AccelerationBlock
 from dva_ros_common import conversions
 
+pytestmark = pytest.mark.ros
+
 RATE = 1000.0
 STORE = typestore()
 

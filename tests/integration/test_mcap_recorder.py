@@ -5,6 +5,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from rclpy.node import Node
@@ -15,6 +16,8 @@ from aero_dva.bag.reader import bag_topics, read_messages
 from dva_msgs.msg import AccelerationBlock, DamperCommand
 
 from .conftest import ros2_run_path
+
+pytestmark = pytest.mark.ros
 
 
 def _start_recorder(start_process, bag: Path, *extra: str):
