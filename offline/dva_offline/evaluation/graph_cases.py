@@ -22,7 +22,7 @@ from scipy.optimize import minimize_scalar
 __all__ = [
     "CONTROLLERS",
     "CONTROLLER_LABELS",
-    "SEED_RATIOS",
+    "STUDY_RATIOS",
     "CaseStats",
     "FixedDampingChoice",
     "FlightCase",
@@ -43,7 +43,7 @@ CONTROLLER_LABELS = {"none": "no DVA", "fixed": "best fixed c2", "schedule": "ai
 # The study's single flights (U_div / U_cr): fig. 7.5-7.7 (schedule), fig. 7.13, 7.15, 7.16 (RBF
 # network). Without DVA the wing flutters at U_cr by definition (fig. 6.4); the study flies no
 # fixed-c2 Maxwell DVA in chapter 7.
-SEED_RATIOS = {
+STUDY_RATIOS = {
     "none": {0.0: 1.00},
     "schedule": {0.0: 1.17, 0.05: 1.11, 0.1: 1.04},
     "rbf": {0.0: 1.16, 0.05: 1.13, 0.1: 1.11},
@@ -227,7 +227,7 @@ class CaseStats:
 
 
 def _study_ratio(controller: str, mu: float) -> float | None:
-    for m, value in SEED_RATIOS.get(controller, {}).items():
+    for m, value in STUDY_RATIOS.get(controller, {}).items():
         if abs(m - mu) < 1e-9:
             return value
     return None

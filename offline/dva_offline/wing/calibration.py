@@ -63,8 +63,8 @@ __all__ = [
 WING_MASS = 1000.0  # [kg] seed: DVA masses 10-40 kg are m1/m = 0.01-0.04
 AIR_DENSITY = 1.2  # [kg/m^3]
 TARGET_UCR = 100.0  # [m/s] DESIGN.md / section 7.1.1
-FRONT_TIP = dd.SEED_POSITIONS["front_tip"]
-REAR_TIP = dd.SEED_POSITIONS["rear_tip"]
+FRONT_TIP = dd.STUDY_POSITIONS["front_tip"]
+REAR_TIP = dd.STUDY_POSITIONS["rear_tip"]
 FLUTTER_BAND = (5.0, 20.0)  # [Hz] the study's spectra (ch. 7)
 UNIT = 0.01  # errors are counted in units of 0.01 of U / U_cr
 RANK_MARGIN = 0.003  # an ordering counts as right only with this margin
@@ -102,15 +102,15 @@ STUDY_TARGETS = {
     "6.1 rear_tip": 1.07,
     "6.1 rear_middle": 1.06,
     "6.1 front_middle": 1.09,
-    "front_tip m1/m=0.04 (tables 6.1-6.3)": dd.SEED_TUNED_RATIO,
+    "front_tip m1/m=0.04 (tables 6.1-6.3)": dd.STUDY_TUNED_RATIO,
     "6.2 m1/m=0.01": 1.08,
     "6.2 m1/m=0.02": 1.10,
     "6.2 m1/m=0.03": 1.12,
     "6.3 DVA(1)": dd.STUDY_TABLE_6_3[0][2],
     "6.3 DVA(2)": dd.STUDY_TABLE_6_3[1][2],
     "6.3 DVA(3)": dd.STUDY_TABLE_6_3[2][2],
-    "Maxwell design 1": dd.SEED_MAXWELL_DESIGNS[0][3],
-    "Maxwell design 2": dd.SEED_MAXWELL_DESIGNS[1][3],
+    "Maxwell design 1": dd.STUDY_MAXWELL_DESIGNS[0][3],
+    "Maxwell design 2": dd.STUDY_MAXWELL_DESIGNS[1][3],
 }
 """The study's ratios ``U / U_cr`` (the front-tip, ``m1/m = 0.04`` tuned value is shared by the
 three tables and the text: 1.14 / 1.141)."""
@@ -298,7 +298,7 @@ def study_ratios(wing: WingParameters, aero=None, density: float = AIR_DENSITY,
                       u_cr, fast)
 
     for label in ("rear_tip", "rear_middle", "front_middle"):
-        out[f"6.1 {label}"] = passive(0.04, dd.SEED_POSITIONS[label])
+        out[f"6.1 {label}"] = passive(0.04, dd.STUDY_POSITIONS[label])
     out[_TIP] = passive(0.04, FRONT_TIP)
     for r in (0.01, 0.02, 0.03):
         out[f"6.2 m1/m={r:g}"] = passive(r, FRONT_TIP)
@@ -309,7 +309,7 @@ def study_ratios(wing: WingParameters, aero=None, density: float = AIR_DENSITY,
         except ValueError:
             u = float("nan")
         out[f"6.3 DVA({i + 1})"] = u / u_cr
-    for i, (k1, k2, c_max, _) in enumerate(dd.SEED_MAXWELL_DESIGNS):
+    for i, (k1, k2, c_max, _) in enumerate(dd.STUDY_MAXWELL_DESIGNS):
         dva = MaxwellAbsorber(0.04 * m, k1, k2, c_max / 2, FRONT_TIP)
         out[f"Maxwell design {i + 1}"] = _tuned(wing, dva, aero, density, u_cr, fast,
                                                 damping_bounds=(1e-3 * c_max, c_max))

@@ -273,10 +273,10 @@ def _design(args) -> int:
                                 {f"{k:g}": v for k, v in dd.STUDY_TABLE_6_2.items()})
     steps.update()
     study63 = {f"constant DVA({i + 1})": row[2] for i, row in enumerate(dd.STUDY_TABLE_6_3)}
-    study63["tunable DVA"] = dd.SEED_TUNED_RATIO
+    study63["tunable DVA"] = dd.STUDY_TUNED_RATIO
     tables["table_6_3"] = _rows(dd.constant_absorber_study(wing, rho, aero=aero), study63)
     steps.update()
-    studymx = {f"Maxwell DVA({i + 1})": row[3] for i, row in enumerate(dd.SEED_MAXWELL_DESIGNS)}
+    studymx = {f"Maxwell DVA({i + 1})": row[3] for i, row in enumerate(dd.STUDY_MAXWELL_DESIGNS)}
     tables["maxwell"] = _rows(dd.maxwell_study(wing, rho, aero=aero), studymx)
     steps.update()
     steps.close()
@@ -286,7 +286,7 @@ def _design(args) -> int:
         from dva_offline.wing.plots import plot_tuned
 
         model = AeroelasticModel(
-            wing, PassiveAbsorber(0.04 * wing.mass, 1e5, 1e3, dd.SEED_POSITIONS["front_tip"]),
+            wing, PassiveAbsorber(0.04 * wing.mass, 1e5, 1e3, dd.STUDY_POSITIONS["front_tip"]),
             aero)
         u = np.linspace(0.5, 1.25, 31) * u_cr
         plot_tuned(dd.best_damping_curve(model, u, rho), u_cr, args.plot)

@@ -14,7 +14,7 @@ def model(m, k, c, elements):
 
 
 # (source, model, labels printed by the study); elements as (k_i kN/m, c_i N s/m).
-SEED_LABELS = [
+STUDY_LABELS = [
     ("3.3 System A (named by its type)", model(1, 12, 40, [(12, 20)]), "A"),
     ("3.3 System B", model(1, 12, 40, [(12, 80)]), "B"),
     ("3.3 System C", model(1, 12, 40, [(12, 400)]), "C"),
@@ -57,7 +57,7 @@ EXPECTED_DISAGREEMENTS = {("5.6 bubble", 0), ("5.6 plate", 0), ("5.6 stud", 0)}
 
 def all_labels():
     rows = []
-    for source, mdl, labels in SEED_LABELS:
+    for source, mdl, labels in STUDY_LABELS:
         types = classify_elements(mdl)
         assert len(types) == len(labels)
         for i, (t, label) in enumerate(zip(types, labels)):

@@ -22,7 +22,7 @@ KN = 1e3
 # Table 5.4 bubble-mount M-V model with the measured mass 1.041 kg (section 5.2).
 BUBBLE = MaxwellModel(1.041, 14.01 * KN, 25.81, (22.27 * KN,), (1588.57,))
 SYSTEM_F = MaxwellModel(1.0, 12 * KN, 40.0, (12 * KN, 24 * KN), (80.0, 2000.0))
-SEED_STEPS_HZ = np.arange(3.0, 80.0 + 0.25, 0.5)  # section 5.2: 0.5 Hz steps, 3-80 Hz
+STUDY_STEPS_HZ = np.arange(3.0, 80.0 + 0.25, 0.5)  # section 5.2: 0.5 Hz steps, 3-80 Hz
 
 
 def run(capsys, *argv):
@@ -31,7 +31,7 @@ def run(capsys, *argv):
     return code, out, err
 
 
-def write_steps(path, model, quantity="accelerance", f=SEED_STEPS_HZ, seed=0, extra=None):
+def write_steps(path, model, quantity="accelerance", f=STUDY_STEPS_HZ, seed=0, extra=None):
     """Steps of a known model with random force amplitudes (10-50 N) and phases."""
     rng = np.random.default_rng(seed)
     force = rng.uniform(10, 50, f.size) * np.exp(1j * rng.uniform(-np.pi, np.pi, f.size))
@@ -42,7 +42,7 @@ def write_steps(path, model, quantity="accelerance", f=SEED_STEPS_HZ, seed=0, ex
 
 def test_amplitude_phase_steps_read_back_as_the_model_frf(tmp_path):
     path = tmp_path / "steps.csv"
-    h = write_steps(path, BUBBLE, extra={"temperature_c": np.full(SEED_STEPS_HZ.size, 23.0)})
+    h = write_steps(path, BUBBLE, extra={"temperature_c": np.full(STUDY_STEPS_HZ.size, 23.0)})
     data = isolator_io.read_stepped_sine_csv(path, "accelerance")
     np.testing.assert_allclose(data.values, h, rtol=1e-12)
     assert data.quantity == "accelerance"
@@ -91,13 +91,13 @@ def test_stepped_sine_cli_reproduces_table_5_2_bubble_mount(capsys, tmp_path):
                          "--out", out_csv, "--plot", png, "--json")
     assert code == 0, err
     payload = json.loads(out)
-    assert payload["n_steps"] == SEED_STEPS_HZ.size
+    assert payload["n_steps"] == STUDY_STEPS_HZ.size
     assert payload["natural_frequency_rad_s"] == pytest.approx(187.15, rel=0.005)
     assert round(payload["damping_ratio"], 2) == 0.09
     assert payload["half_power_lower_hz"] < payload["peak_hz"] < payload["half_power_upper_hz"]
     assert payload["warnings"] == []
     written = isolator_io.read_frf_csv(out_csv, "accelerance")
-    np.testing.assert_allclose(written.values, frf(BUBBLE, 2 * np.pi * SEED_STEPS_HZ,
+    np.testing.assert_allclose(written.values, frf(BUBBLE, 2 * np.pi * STUDY_STEPS_HZ,
                                                    "accelerance"), rtol=1e-9)
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     # The same file feeds identification directly. With --modal-estimate half-power it imposes
