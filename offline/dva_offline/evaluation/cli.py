@@ -95,7 +95,7 @@ def _evaluate(args) -> int:
         args.seeds = 10 if args.seeds is None else args.seeds
         args.controllers = args.controllers or ",".join(GRAPH_CONTROLLERS)
         return evaluate_graph(args)
-    return _batch(args)
+    return _paired(args)
 
 
 def _choose(option: str, text: str | None, known: tuple[str, ...]) -> tuple[str, ...]:
@@ -119,7 +119,7 @@ def _rms_range(text: str) -> tuple[float, float]:
     return low, high
 
 
-def _batch(args) -> int:
+def _paired(args) -> int:
     from tqdm import tqdm
 
     from aero_dva import data_files
@@ -130,7 +130,7 @@ def _batch(args) -> int:
     from dva_offline.evaluation.flights import (
         EvaluationSetup,
         case_table,
-        fly_batch,
+        fly_paired,
         oracle_table,
         stability_boundaries,
     )
@@ -141,7 +141,7 @@ def _batch(args) -> int:
         default_cases,
         summarise,
     )
-    from dva_offline.evaluation.paired_io import plot_batch, write_batch_results
+    from dva_offline.evaluation.paired_io import plot_paired, write_paired_results
 
     seeds_n = DEFAULT_SEEDS if args.seeds is None else args.seeds
     if seeds_n < 1 or args.first_seed < 0:
@@ -198,7 +198,7 @@ def _batch(args) -> int:
         bar.update(sum(len(v) for k, v in done.items() if k[1] != seeds[0]))
     flights_started = time.monotonic()
     try:
-        records, kept = fly_batch(setup, list(cases.values()), seeds, controllers, progress,
+        records, kept = fly_paired(setup, list(cases.values()), seeds, controllers, progress,
                                   keep_seed=seeds[0], workers=args.workers,
                                   ray_address=args.ray, done=done, finished=store.save)
     finally:
@@ -216,8 +216,8 @@ def _batch(args) -> int:
         "resumed_jobs": len(done),
         "results": [_row_json(r) for r in rows], "boundaries": boundaries,
     }
-    files = write_batch_results(out, payload, records)
-    payload["files"] = {**files, **plot_batch(out, payload, kept, u_cr)}
+    files = write_paired_results(out, payload, records)
+    payload["files"] = {**files, **plot_paired(out, payload, kept, u_cr)}
     payload["wall_time_s"] = time.monotonic() - started
     (out / "results.json").write_text(json.dumps(payload, allow_nan=False))
     if args.json:

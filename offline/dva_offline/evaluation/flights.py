@@ -1,6 +1,6 @@
-"""The batch evaluation's flights and stability boundaries (``dva evaluate``).
+"""The paired evaluation's flights and stability boundaries (``dva evaluate``).
 
-:func:`fly_batch` flies every (case, seed, controller) of :mod:`dva_offline.evaluation.paired`
+:func:`fly_paired` flies every (case, seed, controller) of :mod:`dva_offline.evaluation.paired`
 with :func:`.closed_loop.fly`, seeds innermost per case so the controllers of a
 seed are flown one after the other; :func:`stability_boundaries` gives, per case, where the
 linear wing stops being stable under each analysable control law: the frozen-density
@@ -29,7 +29,7 @@ from dva_offline.evaluation.closed_loop import (
 )
 from dva_offline.evaluation.paired import DensityCase, FlightRecord, case_scenario, flight_record
 
-__all__ = ["EvaluationSetup", "case_table", "fly_batch", "fly_seed", "oracle_table",
+__all__ = ["EvaluationSetup", "case_table", "fly_paired", "fly_seed", "oracle_table",
            "stability_boundaries"]
 
 
@@ -92,7 +92,7 @@ def oracle_table(model, critical_airspeed: float, base_density: float,
 
 def fly_seed(setup: EvaluationSetup, controllers: Sequence[str], keep_seed: int | None,
              job: tuple[DensityCase, int]) -> tuple[list[FlightRecord], dict]:
-    """One job of the batch: every controller on one (case, seed), the same force realisation
+    """One job of the evaluation: every controller on one (case, seed), the same force realisation
     for all (paired); the outcomes too when the seed is ``keep_seed`` (for plots)."""
     case, seed = job
     scenario = case_scenario(setup.config.scenario, case, setup.critical_airspeed, seed)
@@ -107,7 +107,7 @@ def fly_seed(setup: EvaluationSetup, controllers: Sequence[str], keep_seed: int 
     return records, kept
 
 
-def fly_batch(setup: EvaluationSetup, cases: Sequence[DensityCase], seeds: Sequence[int],
+def fly_paired(setup: EvaluationSetup, cases: Sequence[DensityCase], seeds: Sequence[int],
               controllers: Sequence[str], progress: Callable[[str], None] | None = None,
               keep_seed: int | None = None, *, workers: int = 1, ray_address: str | None = None,
               done: Mapping[tuple[str, int], list[FlightRecord]] | None = None,

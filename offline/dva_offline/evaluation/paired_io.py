@@ -1,4 +1,4 @@
-"""Files of the batch evaluation (``dva evaluate``): records, the results table, plots.
+"""Files of the paired evaluation (``dva evaluate``): records, the results table, plots.
 
 In the evaluation directory::
 
@@ -20,7 +20,7 @@ import numpy as np
 
 from aero_dva.atomic_io import atomic_output
 
-__all__ = ["markdown_results", "plot_batch", "write_batch_results"]
+__all__ = ["markdown_results", "plot_paired", "write_paired_results"]
 
 LABELS = {"fixed": "best fixed c2", "schedule": "airspeed schedule", "rbf": "RBF network",
           "oracle": "oracle c2*(U, rho)"}
@@ -98,7 +98,7 @@ def markdown_results(payload: Mapping) -> str:
     return "\n".join(lines)
 
 
-def write_batch_results(out, payload: Mapping, records: Sequence) -> dict:
+def write_paired_results(out, payload: Mapping, records: Sequence) -> dict:
     """records.json and results.md (atomically); returns their paths."""
     out = Path(out)
     with atomic_output(out / "records.json") as handle:
@@ -118,7 +118,7 @@ def _plt():
     return plt
 
 
-def plot_batch(out, payload: Mapping, kept: Mapping, critical_airspeed: float) -> dict:
+def plot_paired(out, payload: Mapping, kept: Mapping, critical_airspeed: float) -> dict:
     """rms_change.png and c2_traces.png; returns their paths."""
     plt = _plt()
     out = Path(out)

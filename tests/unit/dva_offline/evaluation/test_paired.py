@@ -1,4 +1,4 @@
-"""The batch evaluation: cases, per-flight records, paired intervals, the CLI on a mini run."""
+"""The paired evaluation: cases, per-flight records, paired intervals, the CLI on a mini run."""
 from __future__ import annotations
 
 import json
