@@ -286,7 +286,7 @@ def study_ratios(wing: WingParameters, aero=None, density: float = AIR_DENSITY,
     0.5-2 U_cr, ``xtol = 1e-7``, ``optimise_passive``); ``fast=True`` brackets on 5 points
     over 0.95-1.6 U_cr (every study ratio lies there) with a coarser passive optimiser
     (:func:`_best_passive`), about 4 times faster and within ~1e-4 of the exact ratios on the
-    reference wing (``tests/unit/dva_offline/test_wing_calibration.py``).
+    reference wing (``tests/unit/dva_offline/wing/test_calibration.py``).
     """
     aero = QuasiSteadyAero() if aero is None else aero
     u_cr = flutter_speed(AeroelasticModel(wing, None, aero), density).critical_airspeed

@@ -9,7 +9,7 @@ from dva_offline import cli
 from dva_offline.discrepancy import loop, synthetic
 from dva_offline.discrepancy.frf_domain import FrfDomain
 from dva_offline.discrepancy.maxwell_starts import maxwell_from_stiffness, modal_term_scan
-from dva_offline.isolator import files as isolator_io
+from dva_offline.isolator import files as isolator_files
 from dva_offline.isolator.frf_data import FrfData, split_conditions
 from dva_offline.isolator.maxwell_model import dynamic_stiffness
 
@@ -228,8 +228,8 @@ def test_cli_reads_stacked_conditions(tmp_path, capsys):
     case = synthetic.generate_case(None, np.random.default_rng(5),
                                    clean_covariate="temperature_c")
     path = tmp_path / "temps.csv"
-    isolator_io.write_frf_csv(path, case.frequency_hz, case.values, case.covariates)
-    conditions = isolator_io.read_frf_csv_conditions(path, "receptance")
+    isolator_files.write_frf_csv(path, case.frequency_hz, case.values, case.covariates)
+    conditions = isolator_files.read_frf_csv_conditions(path, "receptance")
     assert len(conditions) == 3
     assert cli.main(["discrepancy", "frf", str(path), "--mass", str(case.mass),
                      "--static-stiffness", str(case.static_stiffness),
@@ -261,7 +261,7 @@ def test_cli_worked_example_of_the_readme(capsys):
 def test_cli_bad_column_is_one_line_error(tmp_path, capsys):
     case = synthetic.generate_case(None, np.random.default_rng(6))
     path = tmp_path / "c.csv"
-    isolator_io.write_frf_csv(path, case.frequency_hz, case.values)
+    isolator_files.write_frf_csv(path, case.frequency_hz, case.values)
     code = cli.main(["discrepancy", "frf", str(path), "--covariates", "temperature_c"])
     err = capsys.readouterr().err
     assert code == 2 and "temperature_c" in err and "Traceback" not in err

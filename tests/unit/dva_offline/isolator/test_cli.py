@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from dva_offline import cli
-from dva_offline.isolator import files as isolator_io
+from dva_offline.isolator import files as isolator_files
 from dva_offline.isolator.maxwell_model import MaxwellModel, frf, modal_properties
 
 KN = 1e3
@@ -21,7 +21,7 @@ def run(capsys, *argv):
 def write_frf(path, model, quantity="receptance", f=None, extra=None):
     f = np.linspace(0.5, 50.0, 200) if f is None else f
     h = frf(model, 2 * np.pi * f, quantity)
-    isolator_io.write_frf_csv(path, f, h, extra)
+    isolator_files.write_frf_csv(path, f, h, extra)
     return f, h
 
 
@@ -104,12 +104,12 @@ def test_identify_units_off_by_1000(capsys, tmp_path):
     assert code == 2 and "kN/m" in err
     mm_path = tmp_path / "mm.csv"
     f = np.linspace(0.5, 50.0, 200)
-    isolator_io.write_frf_csv(mm_path, f, 1000 * frf(SYSTEM_F, 2 * np.pi * f))
+    isolator_files.write_frf_csv(mm_path, f, 1000 * frf(SYSTEM_F, 2 * np.pi * f))
     code, _, err = run(capsys, "identify", mm_path, "--mass", 1, "--static-stiffness", 12000,
                        "--natural-frequency-rad-s", 214.8, "--damping-ratio", 0.18)
     assert code == 2 and "off by ~1000" in err
     stiff = tmp_path / "kn.csv"
-    isolator_io.write_frf_csv(stiff, f, frf(SYSTEM_F, 2 * np.pi * f, "stiffness") / 1000)
+    isolator_files.write_frf_csv(stiff, f, frf(SYSTEM_F, 2 * np.pi * f, "stiffness") / 1000)
     code, _, err = run(capsys, "identify", stiff, "--quantity", "stiffness", "--mass", 1,
                        "--static-stiffness", 12000, "--natural-frequency-rad-s", 214.8,
                        "--damping-ratio", 0.18)
@@ -137,7 +137,7 @@ def test_estimate_time_series_to_frf_csv(capsys, tmp_path):
     assert code == 0, err
     payload = json.loads(out)
     assert payload["fs_hz"] == pytest.approx(fs)
-    data = isolator_io.read_frf_csv(out_csv, "accelerance")
+    data = isolator_files.read_frf_csv(out_csv, "accelerance")
     np.testing.assert_allclose(data.values, 2.0, rtol=1e-9)
     np.testing.assert_allclose(data.covariates["coherence"], 1.0, rtol=1e-9)
     assert data.frequency_hz[0] == pytest.approx(1.0)  # fs / nfft, 0 Hz dropped
@@ -174,7 +174,7 @@ def test_uff58_round_trip(tmp_path):
                           ref_ent_name="mass", abscissa_spacing=1, ordinate_spec_data_type=12,
                           orddenom_spec_data_type=13)
     pyuff.UFF(str(path)).write_sets(ds, mode="overwrite")
-    data = isolator_io.read_uff58(path, "accelerance")
+    data = isolator_files.read_uff58(path, "accelerance")
     np.testing.assert_allclose(data.frequency_hz, f, rtol=1e-6)
     np.testing.assert_allclose(data.values, h, rtol=1e-5)
 
@@ -185,7 +185,7 @@ def test_point_selection_by_band_and_coherence(capsys, tmp_path):
     coherence = np.where(f < 5.0, 0.1, 0.99)  # weak low-frequency bins, as a boxcar Welch gives
     h = frf(SYSTEM_F, 2 * np.pi * f, "accelerance")
     h[f < 5.0] *= 3.0  # ... and wrong there
-    isolator_io.write_frf_csv(path, f, h, {"coherence": coherence})
+    isolator_files.write_frf_csv(path, f, h, {"coherence": coherence})
     modal = modal_properties(SYSTEM_F)
     common = ["--quantity", "accelerance", "--mass", 1, "--static-stiffness", 12000,
               "--natural-frequency-rad-s", modal.natural_frequency_rad_s,

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dva_offline.isolator import files as isolator_io
+from dva_offline.isolator import files as isolator_files
 from dva_offline.isolator.maxwell_model import MaxwellModel, frf, modal_properties
 
 KN = 1e3
@@ -53,11 +53,11 @@ def _set(i, j, value):
 def _prepare(d: Path) -> dict[str, list[str]]:
     """Write the input files into ``d``; return the command lines to run, by name."""
     f = np.linspace(0.5, 50.0, 200)
-    isolator_io.write_frf_csv(d / "f.csv", f, frf(SYSTEM_F, 2 * np.pi * f),
+    isolator_files.write_frf_csv(d / "f.csv", f, frf(SYSTEM_F, 2 * np.pi * f),
                               {"temperature_c": np.full(f.size, 23.0)})
     steps = np.arange(3.0, 80.0 + 0.25, 0.5)
     force = np.full(steps.size, 20.0 + 0j)
-    isolator_io.write_stepped_sine_csv(d / "steps.csv", steps, force,
+    isolator_files.write_stepped_sine_csv(d / "steps.csv", steps, force,
                                        force * frf(BUBBLE, 2 * np.pi * steps, "accelerance"))
     fs = 500.0
     rng = np.random.default_rng(0)
@@ -163,7 +163,7 @@ def test_estimate_writes_frf_csv(runs):
     stdout, d = _ok(runs, "estimate")
     payload = json.loads(stdout)
     assert payload["fs_hz"] == pytest.approx(500.0)
-    data = isolator_io.read_frf_csv(d / "est.csv", "accelerance")
+    data = isolator_files.read_frf_csv(d / "est.csv", "accelerance")
     np.testing.assert_allclose(data.values, 2.0, rtol=1e-9)
 
 

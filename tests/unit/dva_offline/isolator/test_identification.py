@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from dva_offline import cli
-from dva_offline.isolator import files as isolator_io
+from dva_offline.isolator import files as isolator_files
 from dva_offline.isolator.identification import identify
 from dva_offline.isolator.maxwell_model import MaxwellModel, frf, modal_properties
 from dva_offline.isolator.modal_fit import degenerate_elements
@@ -60,7 +60,7 @@ def test_table_3_1_as_uff58_gives_the_study_modal_values(capsys, tmp_path):
     pytest.importorskip("pyuff")
     path = tmp_path / "table_3_1.uff"
     h = add_complex_noise(frf(TABLE_3_1, 2 * np.pi * F_HZ), SIGMA, np.random.default_rng(7))
-    isolator_io.write_uff58(path, F_HZ, h, "receptance")
+    isolator_files.write_uff58(path, F_HZ, h, "receptance")
     code, out, err = run(capsys, "identify", path, "--quantity", "receptance", "--mass", 1,
                          "--static-stiffness", 12000, "--json")
     assert code == 0, err
@@ -110,7 +110,7 @@ def test_wrong_imposed_damping_ratio_is_flagged_and_json_has_both_fits(capsys, t
     path = tmp_path / "t31.csv"
     rng = np.random.default_rng(11)
     h = add_complex_noise(frf(TABLE_3_1, 2 * np.pi * F_HZ), SIGMA, rng)
-    isolator_io.write_frf_csv(path, F_HZ, h)
+    isolator_files.write_frf_csv(path, F_HZ, h)
     true = modal_properties(TABLE_3_1)
     common = ["identify", path, "--mass", 1, "--static-stiffness", 12000,
               "--natural-frequency-rad-s", true.natural_frequency_rad_s, "--json"]
@@ -149,7 +149,7 @@ def test_heavily_damped_system_with_no_half_power_point_is_not_refused(capsys, t
     path = tmp_path / "heavy.csv"
     h = add_complex_noise(frf(system, 2 * np.pi * f, "accelerance"), SIGMA,
                           np.random.default_rng(4))
-    isolator_io.write_frf_csv(path, f, h)
+    isolator_files.write_frf_csv(path, f, h)
     args = ["identify", path, "--quantity", "accelerance", "--mass", 1, "--static-stiffness",
             system.k, "--json"]
     code, out, err = run(capsys, *args)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from dva_offline import cli
-from dva_offline.isolator import files as isolator_io
+from dva_offline.isolator import files as isolator_files
 from dva_offline.isolator.frf_data import (
     FrfData,
     estimate_modal,
@@ -36,14 +36,14 @@ def write_steps(path, model, quantity="accelerance", f=STUDY_STEPS_HZ, seed=0, e
     rng = np.random.default_rng(seed)
     force = rng.uniform(10, 50, f.size) * np.exp(1j * rng.uniform(-np.pi, np.pi, f.size))
     h = frf(model, 2 * np.pi * f, quantity)
-    isolator_io.write_stepped_sine_csv(path, f, force, h * force, extra)
+    isolator_files.write_stepped_sine_csv(path, f, force, h * force, extra)
     return h
 
 
 def test_amplitude_phase_steps_read_back_as_the_model_frf(tmp_path):
     path = tmp_path / "steps.csv"
     h = write_steps(path, BUBBLE, extra={"temperature_c": np.full(STUDY_STEPS_HZ.size, 23.0)})
-    data = isolator_io.read_stepped_sine_csv(path, "accelerance")
+    data = isolator_files.read_stepped_sine_csv(path, "accelerance")
     np.testing.assert_allclose(data.values, h, rtol=1e-12)
     assert data.quantity == "accelerance"
     assert list(data.covariates) == ["temperature_c"]
@@ -57,7 +57,7 @@ def test_amplitude_phase_steps_read_back_as_the_model_frf(tmp_path):
         rows.append(",".join(repr(float(x)) for x in v))
     rad = tmp_path / "rad.csv"
     rad.write_text("\n".join([header, *rows]) + "\n")
-    np.testing.assert_allclose(isolator_io.read_stepped_sine_csv(rad, "accelerance").values, h,
+    np.testing.assert_allclose(isolator_files.read_stepped_sine_csv(rad, "accelerance").values, h,
                                rtol=1e-12)
 
 
@@ -96,7 +96,7 @@ def test_stepped_sine_cli_reproduces_table_5_2_bubble_mount(capsys, tmp_path):
     assert round(payload["damping_ratio"], 2) == 0.09
     assert payload["half_power_lower_hz"] < payload["peak_hz"] < payload["half_power_upper_hz"]
     assert payload["warnings"] == []
-    written = isolator_io.read_frf_csv(out_csv, "accelerance")
+    written = isolator_files.read_frf_csv(out_csv, "accelerance")
     np.testing.assert_allclose(written.values, frf(BUBBLE, 2 * np.pi * STUDY_STEPS_HZ,
                                                    "accelerance"), rtol=1e-9)
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -207,8 +207,8 @@ def test_identify_from_modulus_matches_identify_from_stiffness(capsys, tmp_path)
     f = np.linspace(0.5, 60.0, 120)
     k_star = frf(SYSTEM_F, 2 * np.pi * f, "stiffness")
     area, thickness = 4e-4, 0.02  # 20 mm x 20 mm x 20 mm block: A/h = 0.02 m
-    isolator_io.write_frf_csv(tmp_path / "dma.csv", f, k_star / (area / thickness))
-    isolator_io.write_frf_csv(tmp_path / "k.csv", f, k_star)
+    isolator_files.write_frf_csv(tmp_path / "dma.csv", f, k_star / (area / thickness))
+    isolator_files.write_frf_csv(tmp_path / "k.csv", f, k_star)
     modal = modal_properties(SYSTEM_F)
     common = ["--mass", 1, "--static-stiffness", 12000, "--elements", 2,
               "--natural-frequency-rad-s", modal.natural_frequency_rad_s,
@@ -228,7 +228,7 @@ def test_identify_from_modulus_matches_identify_from_stiffness(capsys, tmp_path)
         assert a["k"] == pytest.approx(b["k"], rel=1e-9)
         assert a["c"] == pytest.approx(b["c"], rel=1e-9)
     # Modulus in MPa where Pa was expected: the unit check says what to look at.
-    isolator_io.write_frf_csv(tmp_path / "mpa.csv", f, k_star / (area / thickness) / 1e6)
+    isolator_files.write_frf_csv(tmp_path / "mpa.csv", f, k_star / (area / thickness) / 1e6)
     code, _, err = run(capsys, "identify", tmp_path / "mpa.csv", "--quantity", "modulus",
                        "--geometry-factor", 0.02, *common[:-1])
     assert code == 2 and "Pa vs MPa" in err
@@ -257,6 +257,6 @@ def test_uff_without_pyuff_says_how_to_install(capsys, tmp_path, monkeypatch):
     path = tmp_path / "frf.uff"
     path.write_text("    -1\n")
     with pytest.raises(ValueError, match=r"pip install 'dva-offline\[uff\]'"):
-        isolator_io.read_uff58(path, "accelerance")
+        isolator_files.read_uff58(path, "accelerance")
     code, _, err = run(capsys, "identify", path, "--mass", 1, "--static-stiffness", 12000)
     assert code == 2 and "pyuff" in err and len(err.strip().splitlines()) == 1

@@ -1,6 +1,6 @@
 """Training from a recorded scenario sweep (``dva train sweep --scenario``, ``dva train rbf``).
 
-The planned sweep (the default) is tested in test_training_plan.py."""
+The planned sweep (the default) is tested in training/test_plan.py."""
 from __future__ import annotations
 
 import json
