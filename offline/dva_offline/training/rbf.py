@@ -413,7 +413,7 @@ class NetworkMetrics:
 def network_metrics(network, inputs: np.ndarray, targets: np.ndarray) -> NetworkMetrics:
     """:class:`NetworkMetrics` of ``network`` on ``inputs`` (n, 33) against ``targets`` (n,)."""
     hidden = network.hidden(inputs)
-    pred = hidden @ network.output_weights + network.output_bias
+    pred = network.predict(inputs)  # the network's own output, as the node computes it
     err = pred - targets
     sst = float(np.sum((targets - targets.mean()) ** 2))
     peak = hidden.max(axis=1) if hidden.shape[1] else np.zeros(len(targets))
