@@ -35,7 +35,7 @@ from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 
-from aero_dva.bag.bag_reader import bag_topics
+from aero_dva.bag.reader import bag_topics
 from aero_dva_sim.bag_player_node import BagPlayer
 from aero_dva_sim.bag_source import BagSource
 from aero_dva_sim.run_flight import die_with_parent, executable

@@ -12,7 +12,7 @@ Encoding only (no file), messages per second and the ratio:
 
 Recording the simulator's six messages per block (/clock, acceleration, displacement,
 excitation, flight condition, damper state; 1 kHz, 50-sample blocks) into a bag:
-  1. ``dict``: :class:`~aero_dva.bag.bag_writer.BagWriter` with message dicts (generic dict ->
+  1. ``dict``: :class:`~aero_dva.bag.writer.BagWriter` with message dicts (generic dict ->
      rosbags message -> CDR), the baseline;
   2. ``rosbags``: rosbags messages built per block and serialized by rosbags, one
      ``BagWriter.write`` of CDR bytes per message (what a per-message recorder does);
@@ -44,10 +44,10 @@ from pathlib import Path
 import numpy as np
 
 from aero_dva.bag import channels as ch
-from aero_dva.bag.bag_writer import BagWriter, qos_profile_yaml
 from aero_dva.bag.batch_cdr import cdr_layout, sample_fields, split_stamps, stamps_from_seconds
 from aero_dva.bag.batch_recorder import BatchRecorder
 from aero_dva.bag.schemas import typestore
+from aero_dva.bag.writer import BagWriter, qos_profile_yaml
 from aero_dva.flight.damper import DamperSnapshot, DamperStatus
 from aero_dva.flight.flight_runtime import FlightBlock
 

@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from aero_dva.bag.bag_reader import bag_topics
+from aero_dva.bag.reader import bag_topics
 from aero_dva.control.airspeed_schedule import fit_airspeed_schedule
 from aero_dva.control.dva_design import best_damping_curve
 from aero_dva.control.schedule_io import save_schedule
@@ -66,8 +66,8 @@ def network_file(directory: Path) -> Path:
     from aero_dva.control.rbf_network import spectrum_input_names, train_rbf_ols
     from aero_dva.control.spectrum import scaled_spectrum
     from aero_dva.wing.wing_io import default_wing_path
-    from dva_offline.training_plan import PlanSettings, make_training_plan, ratio_grid
-    from dva_offline.training_recording import simulate_dwells
+    from dva_offline.training.plan import PlanSettings, make_training_plan, ratio_grid
+    from dva_offline.training.recording import simulate_dwells
 
     config = load_wing(default_wing_path())
     model = AeroelasticModel(config.wing, config.absorber, config.aero)

@@ -28,7 +28,7 @@ import numpy as np
 from tqdm import tqdm
 
 from dva_offline import cli
-from dva_offline.isolator import isolator_io
+from dva_offline.isolator import files as isolator_files
 from dva_offline.isolator.maxwell_model import frf, modal_properties
 from dva_offline.isolator.synthetic_systems import add_complex_noise, random_mv_system
 
@@ -43,9 +43,9 @@ def run_case(rng, noise, quantity, fmt, workdir: Path, extra=(), k_factor=1.0) -
     h = add_complex_noise(frf(system, 2 * np.pi * F_HZ, quantity), noise, rng)
     path = workdir / ("frf.uff" if fmt == "uff58" else "frf.csv")
     if fmt == "uff58":
-        isolator_io.write_uff58(path, F_HZ, h, quantity)
+        isolator_files.write_uff58(path, F_HZ, h, quantity)
     else:
-        isolator_io.write_frf_csv(path, F_HZ, h)
+        isolator_files.write_frf_csv(path, F_HZ, h)
     out, err = io.StringIO(), io.StringIO()
     t0 = time.perf_counter()
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
@@ -97,7 +97,6 @@ def main() -> None:
     args = parser.parse_args()
     if args.cases < 1:
         parser.error("--cases must be >= 1")
-    cli.SUBCOMMAND_MODULES = {"isolator": "dva_offline.isolator.cli"}
     rng = np.random.default_rng(args.seed)
     rows = [(f"{100 * s:g} % | {q} | {f} | fit", s, q, f, (), 1.0)
             for s in NOISES for q in ("receptance", "accelerance") for f in ("csv", "uff58")]

@@ -54,7 +54,7 @@ from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
 from aero_dva.flight.scenario import AirspeedProfile, sweep_duration
 from aero_dva.wing.flutter import growth_rate
 from aero_dva.wing.model import AeroelasticModel
-from dva_offline.training import adapt_sweep
+from dva_offline.training.rbf import adapt_sweep
 
 TARGET = 1e4  # the issue: >= 10^4 x real time in aggregate
 

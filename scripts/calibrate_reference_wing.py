@@ -13,7 +13,7 @@ same command again resumes: earlier candidates are replayed from the file instea
 evaluated again (same ``--seed``). The best candidate so far is written to ``--candidate`` as
 a wing file whenever it improves, and at the end it is re-evaluated with the exact settings of
 ``dva wing design`` and printed next to the study and the current reference wing. The search
-itself is :mod:`dva_offline.wing_calibration`.
+itself is :mod:`dva_offline.wing.calibration`.
 """
 from __future__ import annotations
 
@@ -25,7 +25,7 @@ import time
 from pathlib import Path
 
 from aero_dva.wing.wing_io import WingConfig, load_wing, reference_wing_path, save_wing
-from dva_offline import wing_calibration as wc
+from dva_offline.wing import calibration as wc
 
 
 def read_checkpoint(path: Path) -> list:

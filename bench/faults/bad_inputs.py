@@ -101,7 +101,7 @@ def write_huge(path: Path, fmt: str) -> None:
 
 
 def _write_uff(path: Path) -> None:
-    from dva_offline.isolator.isolator_io import write_uff58
+    from dva_offline.isolator.files import write_uff58
 
     _, rows = _frf_rows()
     write_uff58(path, rows[:, 0], rows[:, 1] + 1j * rows[:, 2], "receptance")
@@ -174,7 +174,7 @@ def _write_network(path: Path, *, nan: bool = False, header: bool = True) -> Non
 
 def _write_bag_without_topics(path: Path) -> None:
     """A complete, valid bag directory holding only damper commands."""
-    from aero_dva.bag.bag_writer import BagWriter
+    from aero_dva.bag.writer import BagWriter
 
     with BagWriter(path) as writer:
         writer.add_topic("/dva/damper_command", "dva_msgs/msg/DamperCommand")

@@ -23,7 +23,7 @@ from mcap.records import Channel, Chunk, Message, Schema
 from mcap.stream_reader import StreamReader
 
 from aero_dva.bag import channels as ch
-from aero_dva.bag.bag_reader import TopicNotFoundError, read_messages
+from aero_dva.bag.reader import TopicNotFoundError, read_messages
 
 TOPIC = ch.ACCELERATION.absolute()
 
@@ -38,7 +38,7 @@ class Recovered:
 
 def has_bag_recover() -> bool:
     """Whether this tree has ``dva bag recover`` (the ``dva bag`` command group)."""
-    return importlib.util.find_spec("dva_offline.bag_cli") is not None
+    return importlib.util.find_spec("dva_offline.bag.cli") is not None
 
 
 def read_indexes(bag: Path, allow_truncated: bool = False) -> list[int]:

@@ -1,35 +1,44 @@
 """The ``dva`` command: one entry point, one subcommand per offline tool (git/ros2 style).
 
-Each subcommand lives in its own module exposing ``register(subparsers)``; the module adds a
-parser whose ``func`` default is called with the parsed arguments and returns an exit code.
+Each command family is a folder of ``dva_offline`` whose ``cli`` module exposes
+``register(subparsers)``: it adds a parser whose ``func`` default is called with the parsed
+arguments and returns an exit code. Those modules import their numerics inside the handlers,
+so building the parser (``dva --help``) loads neither scipy nor matplotlib.
 """
 from __future__ import annotations
 
 import argparse
-import importlib
 import os
 import sys
 import warnings
 
-from dva_offline import __version__
+from dva_offline import __version__, info
+from dva_offline.bag import cli as bag_cli
+from dva_offline.cli_tools import CliError
+from dva_offline.control import cli as control_cli
+from dva_offline.discrepancy import cli as discrepancy_cli
+from dva_offline.evaluation import cli as evaluation_cli
+from dva_offline.isolator import cli as isolator_cli
+from dva_offline.replay import cli as replay_cli
+from dva_offline.report import cli as report_cli
+from dva_offline.training import cli as training_cli
+from dva_offline.wing import cli as wing_cli
 
-# name -> module; a module registers exactly one top-level subcommand.
-SUBCOMMAND_MODULES = {
-    "info": "dva_offline.info_cli",
-    "wing": "dva_offline.wing_cli",
-    "isolator": "dva_offline.isolator.cli",
-    "discrepancy": "dva_offline.discrepancy.cli",
-    "control": "dva_offline.control_cli",
-    "train": "dva_offline.train_cli",
-    "evaluate": "dva_offline.evaluation_cli",
-    "report": "dva_offline.run_report_cli",
-    "replay": "dva_offline.replay_cli",
-    "bag": "dva_offline.bag_cli",
+__all__ = ["COMMANDS", "CliError", "build_parser", "main"]
+
+# name -> the function that adds it, in the order `dva --help` lists them
+COMMANDS = {
+    "info": info.register,
+    "wing": wing_cli.register,
+    "isolator": isolator_cli.register,
+    "discrepancy": discrepancy_cli.register,
+    "control": control_cli.register,
+    "train": training_cli.register,
+    "evaluate": evaluation_cli.register,
+    "report": report_cli.register,
+    "replay": replay_cli.register,
+    "bag": bag_cli.register,
 }
-
-
-class CliError(Exception):
-    """A user-facing error: printed as ``dva: error: ...`` with exit code 2, no traceback."""
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -42,8 +51,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"dva {__version__}")
     subparsers = parser.add_subparsers(dest="command", metavar="<command>")
-    for module_name in SUBCOMMAND_MODULES.values():
-        importlib.import_module(module_name).register(subparsers)
+    for register in COMMANDS.values():
+        register(subparsers)
     return parser
 
 

@@ -14,16 +14,18 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
 
-from aero_dva.bag.bag_reader import bag_topics, read_messages
-from aero_dva.bag.bag_writer import BagWriter, qos_profile_yaml
+from aero_dva.bag.reader import bag_topics, read_messages
+from aero_dva.bag.writer import BagWriter, qos_profile_yaml
 from aero_dva_sim.bag_player_node import BagPlayer
 from aero_dva_sim.mcap_recorder_node import McapRecorder
 from dva_controller.spectrum_node import SpectrumNode
-from dva_offline.replay import compare
-from dva_offline.replay_io import read_outputs, read_recording
+from dva_offline.replay.bag_io import read_outputs, read_recording
+from dva_offline.replay.rerun import compare
 from tests.unit.dva_offline.small_networks import small_spectrum_network
 
 from .conftest import ros2_run_path
+
+pytestmark = pytest.mark.ros
 
 FLIGHT_TOPICS = ["/wing/acceleration", "/wing/displacement", "/wing/excitation",
                  "/flight/condition", "/dva/damper_state", "/dva/damper_command",

@@ -17,14 +17,16 @@ from rclpy.node import Node
 from rclpy.serialization import deserialize_message, serialize_message
 
 from aero_dva.bag import channels as ch
-from aero_dva.bag.bag_reader import read_messages
 from aero_dva.bag.batch_cdr import cdr_layout, sample_fields
 from aero_dva.bag.batch_recorder import BatchRecorder
+from aero_dva.bag.reader import read_messages
 from aero_dva.bag.schemas import typestore
 from aero_dva.flight.damper import DamperSnapshot, DamperStatus
 from aero_dva.flight.flight_runtime import FlightBlock
 from dva_msgs.msg import AccelerationBlock
 from dva_ros_common import conversions
+
+pytestmark = pytest.mark.ros
 
 RATE = 1000.0
 STORE = typestore()

@@ -38,6 +38,8 @@ from dva_msgs.msg import (
     ForceBlock,
 )
 
+pytestmark = pytest.mark.ros
+
 POOR_C2 = 2500.0  # [N s/m] the damper's top end: far from the optimum at high airspeed
 MAX_GROWTH = 1.5  # [1/s] of the stuck damper at the test airspeed
 

@@ -33,6 +33,8 @@ from dva_ros_common import conversions
 
 from .conftest import ros2_run_path
 
+pytestmark = pytest.mark.ros
+
 FS = 1000.0  # [Hz]
 BLOCK = 50  # samples per acceleration block
 T0_NS = 100_000_000_000  # [ns] sim time of stream sample 0

@@ -4,9 +4,13 @@ from __future__ import annotations
 import json
 import subprocess
 
+import pytest
+
 from dva_offline.cli import main
 
 from .conftest import ros2_run_path
+
+pytestmark = pytest.mark.ros
 
 SCENARIO = """\
 name: hidden_delay

@@ -14,6 +14,8 @@ from dva_msgs.msg import DamperCommand
 
 from .conftest import ros2_run_path
 
+pytestmark = pytest.mark.ros
+
 NODES = {
     ("aero_dva_sim", "simulator"): ["-p", "wait_for_subscribers:=1", "-p", "wait_timeout:=600.0"],
     ("aero_dva_sim", "mcap_recorder"): ["-p", "output:={tmp}/bag"],

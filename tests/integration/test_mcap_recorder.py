@@ -5,6 +5,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from rclpy.duration import Duration
@@ -12,10 +13,12 @@ from rclpy.node import Node
 from rosbags.rosbag2 import Reader
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-from aero_dva.bag.bag_reader import bag_topics, read_messages
+from aero_dva.bag.reader import bag_topics, read_messages
 from dva_msgs.msg import AccelerationBlock, DamperCommand
 
 from .conftest import ros2_run_path
+
+pytestmark = pytest.mark.ros
 
 
 def _start_recorder(start_process, bag: Path, *extra: str):

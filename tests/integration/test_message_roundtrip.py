@@ -3,9 +3,12 @@ from __future__ import annotations
 
 import math
 
+import pytest
 from rclpy.node import Node
 
 from dva_msgs.msg import AccelerationBlock, DamperState, ScaledSpectrum
+
+pytestmark = pytest.mark.ros
 
 
 def _roundtrip(executor, spin, ros_context, msg_type, topic, msg):

@@ -10,6 +10,8 @@ from dva_controller.airspeed_controller_node import AirspeedController
 from dva_controller.fixed_controller_node import FixedController
 from dva_controller.spectrum_node import SpectrumNode
 
+pytestmark = pytest.mark.ros
+
 ROS_OWN = ("use_sim_time", "start_type_description_service")  # rclpy declares these itself
 
 

@@ -11,6 +11,8 @@ from dva_msgs.msg import DamperCommand
 
 from .conftest import ros2_run_path
 
+pytestmark = pytest.mark.ros
+
 
 def _first_command(executor, spin, ros_context, topic: str, timeout: float = 20.0):
     listener = Node("listener", context=ros_context)

@@ -20,6 +20,8 @@ from dva_msgs.msg import (
     ForceBlock,
 )
 
+pytestmark = pytest.mark.ros
+
 
 def _scenario(tmp_path, airspeed: str, duration: float = 1.0, block: int = 20) -> str:
     path = tmp_path / "scenario.yaml"

@@ -7,11 +7,14 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
-from aero_dva.bag.bag_reader import bag_topics, read_messages
 from aero_dva.bag.flight_log_io import load_flight_log
+from aero_dva.bag.reader import bag_topics, read_messages
 
 from .conftest import ros2_run_path
+
+pytestmark = pytest.mark.ros
 
 # 3 airspeeds x 2 c2 x 1 s, all stable: a small copy of the study's stepped sweep.
 SWEEP = """\

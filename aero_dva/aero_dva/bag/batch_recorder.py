@@ -36,7 +36,6 @@ import numpy as np
 from mcap.opcode import Opcode
 
 from aero_dva.bag import channels as ch
-from aero_dva.bag.bag_writer import BagSummary, qos_profile_yaml
 from aero_dva.bag.batch_cdr import (
     CdrLayout,
     cdr_layout,
@@ -48,6 +47,7 @@ from aero_dva.bag.batch_cdr import (
 )
 from aero_dva.bag.chunk_framing import COMPRESSIONS, MESSAGE_RECORD, ChunkedMcapFile
 from aero_dva.bag.schemas import message_fields, typestore_of
+from aero_dva.bag.writer import BagSummary, qos_profile_yaml
 from aero_dva.wing.model import ACCELERATION_NAMES, DISPLACEMENT_NAMES
 
 __all__ = ["DAMPER_COLUMNS", "BatchRecorder", "load_definitions", "recorded_topics"]

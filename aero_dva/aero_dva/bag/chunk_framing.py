@@ -3,7 +3,7 @@
 :class:`ChunkedMcapFile` takes message records already framed (opcode, length, channel,
 sequence, times, CDR bytes; :data:`MESSAGE_RECORD` is their head) in batches, as the batch
 recorder lays them out with numpy, and writes the rosbag2-layout MCAP file that
-:class:`~aero_dva.bag.bag_writer.BagWriter` (``mcap.writer.Writer`` with chunking, every
+:class:`~aero_dva.bag.writer.BagWriter` (``mcap.writer.Writer`` with chunking, every
 index, statistics, summary offsets and chunk CRCs) writes for the same messages: same records,
 same chunk boundaries (a chunk ends after the message that takes it over ``chunk_size``
 bytes), same message and chunk indexes, same metadata (a test compares the bytes). It exists
@@ -42,7 +42,9 @@ from mcap.records import (
     SummaryOffset,
 )
 
-from aero_dva.bag.bag_writer import (
+from aero_dva.bag.mcap_scan import MCAP_MAGIC
+from aero_dva.bag.schemas import message_definition, normalize_type_name
+from aero_dva.bag.writer import (
     BagSummary,
     bag_metadata,
     create_bag_directory,
@@ -51,8 +53,6 @@ from aero_dva.bag.bag_writer import (
     summary_of,
     write_metadata_yaml,
 )
-from aero_dva.bag.mcap_scan import MCAP_MAGIC
-from aero_dva.bag.schemas import message_definition, normalize_type_name
 
 __all__ = ["COMPRESSIONS", "MESSAGE_RECORD", "ChunkedMcapFile", "close_split_bag"]
 

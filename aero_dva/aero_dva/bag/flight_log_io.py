@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from aero_dva.bag import channels as ch
-from aero_dva.bag.bag_reader import BagReadError, bag_topics, read_messages
+from aero_dva.bag.reader import BagReadError, bag_topics, read_messages
 from aero_dva.wing.model import ACCELERATION_NAMES, DISPLACEMENT_NAMES
 
 #: Topics a flight log reads, relative to the simulator's namespace (``/diagnostics`` global).

@@ -8,8 +8,7 @@ import numpy as np
 
 from aero_dva.bag.flight_log_io import FlightLog
 from aero_dva.flight.divergence import divergence_airspeed
-
-LEADING_EDGE = 2  # row of the leading-edge displacement in FlightLog.displacements
+from aero_dva.wing.model import LEADING_EDGE
 
 
 @dataclass(frozen=True)

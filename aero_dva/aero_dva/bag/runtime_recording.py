@@ -15,8 +15,8 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
 from aero_dva.bag import channels as ch
-from aero_dva.bag.bag_writer import BagSummary
 from aero_dva.bag.batch_recorder import BatchRecorder
+from aero_dva.bag.writer import BagSummary
 from aero_dva.flight.damper import DamperStatus
 
 __all__ = ["RecordedFlight", "flight_status_values", "published_topics", "record_flight_blocks",

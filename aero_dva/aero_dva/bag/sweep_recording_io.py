@@ -28,7 +28,6 @@ from pathlib import Path
 
 import numpy as np
 
-from aero_dva.bag.bag_writer import BagSummary, create_bag_directory
 from aero_dva.bag.batch_recorder import DAMPER_COLUMNS, BatchRecorder, load_definitions
 from aero_dva.bag.chunk_framing import close_split_bag
 from aero_dva.bag.runtime_recording import (
@@ -37,6 +36,7 @@ from aero_dva.bag.runtime_recording import (
     published_topics,
     record_runtime,
 )
+from aero_dva.bag.writer import BagSummary, create_bag_directory
 from aero_dva.flight import sweep_simulator
 from aero_dva.flight.damper import DamperModel, DamperStatus
 from aero_dva.flight.discrete_model import ACCELERATION_OUTPUTS, OUTPUT_NAMES

@@ -24,17 +24,17 @@ from scipy.optimize import brentq, minimize, minimize_scalar
 
 from aero_dva.wing.absorbers import MaxwellAbsorber, PassiveAbsorber
 from aero_dva.wing.checks import positive
-from aero_dva.wing.flutter import NoFlutterError, flutter_speed
+from aero_dva.wing.flutter import NoFlutterError, bare_critical_airspeed, flutter_speed
 from aero_dva.wing.modal import min_damping_ratio
 from aero_dva.wing.model import N_FEATURES, AeroelasticModel
 
 __all__ = [
-    "SEED_MAXWELL_DESIGNS",
-    "SEED_POSITIONS",
+    "STUDY_MAXWELL_DESIGNS",
+    "STUDY_POSITIONS",
     "STUDY_TABLE_6_1",
     "STUDY_TABLE_6_2",
     "STUDY_TABLE_6_3",
-    "SEED_TUNED_RATIO",
+    "STUDY_TUNED_RATIO",
     "CriticalRatio",
     "DEFAULT_DAMPING_BOUNDS",
     "DEFAULT_STIFFNESS_BOUNDS",
@@ -272,7 +272,8 @@ def tuned_critical_airspeed(model, density: float, airspeed_range, n_grid: int =
 
 # -- the study's chapter-6 studies ---------------------------------------------------------------
 
-SEED_POSITIONS = {"rear_tip": -0.27, "rear_middle": -0.15, "front_middle": 0.80, "front_tip": 1.53}
+STUDY_POSITIONS = {"rear_tip": -0.27, "rear_middle": -0.15, "front_middle": 0.80,
+                   "front_tip": 1.53}
 """[m] DVA positions of table 6.1 / fig. 6.10 from the gravity centre, positive toward the
 leading edge. The study's captions print 0.27, 0.15, -0.8, -1.53 for rear tip .. front tip, i.e.
 with the opposite sign to its own eq. 6.11 (where ``w - l_a alpha`` makes positive ``l_a`` point
@@ -292,10 +293,10 @@ STUDY_TABLE_6_3 = (
 """Constant DVAs: ``(k1 [N/m], c1 [N s/m], critical ratio)``; DVA(2) is 1.07 in the table and
 1.074 in the text."""
 
-SEED_TUNED_RATIO = 1.141
+STUDY_TUNED_RATIO = 1.141
 """Tuned passive DVA (k1 and c1 tuned), front tip, m1/m = 0.04 (section 6.2.2)."""
 
-SEED_MAXWELL_DESIGNS = (
+STUDY_MAXWELL_DESIGNS = (
     (25.0e3, 150.0e3, 2.5e3, 1.065),
     (90.0e3, 70.0e3, 1.2e3, 1.149),
 )
@@ -331,15 +332,10 @@ def _tuned_ratio(model, density, u_cr, label, **kwargs) -> CriticalRatio:
     return CriticalRatio(label, tc.airspeed, tc.airspeed / u_cr, tc)
 
 
-def bare_critical_airspeed(wing, density: float, aero=None) -> float:
-    """Critical airspeed [m/s] of the wing without DVA (quasi-steady by default)."""
-    return flutter_speed(AeroelasticModel(wing, None, aero), density).critical_airspeed
-
-
 def position_study(wing, density: float, positions=None, mass_ratio: float = 0.04,
                    aero=None) -> list[CriticalRatio]:
     """Table 6.1: tuned passive DVA (``k1``, ``c1`` tuned) at several positions."""
-    positions = SEED_POSITIONS if positions is None else positions
+    positions = STUDY_POSITIONS if positions is None else positions
     u_cr = bare_critical_airspeed(wing, density, aero)
     out = []
     for label, x in positions.items():
@@ -348,7 +344,7 @@ def position_study(wing, density: float, positions=None, mass_ratio: float = 0.0
     return out
 
 
-def mass_study(wing, density: float, position: float = SEED_POSITIONS["front_tip"],
+def mass_study(wing, density: float, position: float = STUDY_POSITIONS["front_tip"],
                mass_ratios=tuple(STUDY_TABLE_6_2), aero=None) -> list[CriticalRatio]:
     """Table 6.2: tuned passive DVA at ``position`` with several mass ratios ``m1/m``."""
     u_cr = bare_critical_airspeed(wing, density, aero)
@@ -360,7 +356,7 @@ def mass_study(wing, density: float, position: float = SEED_POSITIONS["front_tip
 
 
 def constant_absorber_study(wing, density: float, absorbers=STUDY_TABLE_6_3,
-                            position: float = SEED_POSITIONS["front_tip"],
+                            position: float = STUDY_POSITIONS["front_tip"],
                             mass_ratio: float = 0.04, aero=None) -> list[CriticalRatio]:
     """Table 6.3: constant passive DVAs ``(k1, c1, ...)`` and the tuned one."""
     u_cr = bare_critical_airspeed(wing, density, aero)
@@ -379,8 +375,8 @@ def constant_absorber_study(wing, density: float, absorbers=STUDY_TABLE_6_3,
     return out
 
 
-def maxwell_study(wing, density: float, designs=SEED_MAXWELL_DESIGNS,
-                  position: float = SEED_POSITIONS["front_tip"], mass_ratio: float = 0.04,
+def maxwell_study(wing, density: float, designs=STUDY_MAXWELL_DESIGNS,
+                  position: float = STUDY_POSITIONS["front_tip"], mass_ratio: float = 0.04,
                   aero=None) -> list[CriticalRatio]:
     """Section 6.3.2: Maxwell DVAs ``(k1, k2, c2_max, ...)`` with ``c2`` tuned in [0, c2_max]."""
     u_cr = bare_critical_airspeed(wing, density, aero)

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = [
+    "DAMPER_RANGE",
     "CommandResult",
     "DamperConfig",
     "DamperModel",
@@ -32,6 +33,9 @@ __all__ = [
     "DamperStatus",
     "Rejection",
 ]
+
+#: [N s/m] the damper's default range of c2 (the simulator's, and the controllers' clamp).
+DAMPER_RANGE = (0.0, 2500.0)
 
 
 class DamperStatus(enum.IntEnum):

@@ -15,7 +15,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from aero_dva import data_files
-from aero_dva.flight.damper import CommandResult, DamperConfig, DamperModel, DamperSnapshot
+from aero_dva.flight.damper import (
+    DAMPER_RANGE,
+    CommandResult,
+    DamperConfig,
+    DamperModel,
+    DamperSnapshot,
+)
 from aero_dva.flight.discrete_model import FLIGHT_QUANTUM
 from aero_dva.flight.hidden_plant import PlantSimulator
 from aero_dva.flight.scenario import (
@@ -30,8 +36,8 @@ from aero_dva.flight.scenario import (
 from aero_dva.flight.scenario_io import load_scenario
 from aero_dva.flight.streaming_simulator import StreamingSimulator
 from aero_dva.wing.absorbers import MaxwellAbsorber
-from aero_dva.wing.flutter import flutter_speed
-from aero_dva.wing.model import AeroelasticModel, WingParameters
+from aero_dva.wing.flutter import bare_critical_airspeed
+from aero_dva.wing.model import WingParameters
 from aero_dva.wing.wing_io import load_wing
 
 ABSORBER_CHOICES = ("maxwell", "none")
@@ -116,8 +122,8 @@ def load_runtime_config(params: dict) -> RuntimeConfig:
             position=_nan_or(params.get("absorber_position"), design.position),
         )
         wing_file.wing.check_on_chord(absorber.position, "absorber_position")
-    low = float(params.get("damper_min", 0.0))
-    high = float(params.get("damper_max", 2500.0))
+    low = float(params.get("damper_min", DAMPER_RANGE[0]))
+    high = float(params.get("damper_max", DAMPER_RANGE[1]))
     fallback = _nan_or(params.get("damper_fallback"), min(max(design.damping, low), high))
     damper = DamperConfig(
         min_damping=low, max_damping=high, fallback_damping=fallback,
@@ -136,12 +142,13 @@ def load_runtime_config(params: dict) -> RuntimeConfig:
 class FlightRuntime:
     """Step a flight block by block (see module docstring)."""
 
-    def __init__(self, config: RuntimeConfig):
+    def __init__(self, config: RuntimeConfig, critical_airspeed: float | None = None):
         self.config = config
-        bare = AeroelasticModel(config.wing, None, config.aero)
-        # Relative airspeeds (U/U_cr, as the study states them) refer to the wing without DVA.
-        self.critical_airspeed = flutter_speed(
-            bare, density=config.scenario.density).critical_airspeed
+        # Relative airspeeds (U/U_cr, as the study states them) refer to the wing without DVA;
+        # a caller that flies many flights of one wing passes the U_cr it already has.
+        self.critical_airspeed = bare_critical_airspeed(
+            config.wing, config.scenario.density, config.aero) \
+            if critical_airspeed is None else float(critical_airspeed)
         self.scenario = resolve_airspeeds(config.scenario, self.critical_airspeed)
         self.sample_rate = self.scenario.sample_rate
         self.block_size = self.scenario.block_size

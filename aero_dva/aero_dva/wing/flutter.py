@@ -23,8 +23,8 @@ from scipy.optimize import brentq, minimize_scalar
 from aero_dva.wing.aerodynamics import TheodorsenAero
 from aero_dva.wing.checks import non_negative, real_scalar
 
-__all__ = ["FlutterResult", "NoFlutterError", "flutter_speed", "flutter_vs_density",
-           "growth_rate"]
+__all__ = ["FlutterResult", "NoFlutterError", "bare_critical_airspeed", "flutter_speed",
+           "flutter_vs_density", "growth_rate"]
 
 NEUTRAL = 1e-7
 """[rad/s] Eigenvalues smaller than this are neutral integrators, not instabilities."""
@@ -144,6 +144,14 @@ def growth_rate(model, airspeed, density: float, damping=None) -> np.ndarray:
     """
     g, _ = _EigenGrowth(model, density, damping).grid(airspeed)
     return g
+
+
+def bare_critical_airspeed(wing, density: float, aero=None) -> float:
+    """Critical airspeed [m/s] of the wing without DVA (quasi-steady by default): the
+    reference of every U/U_cr."""
+    from aero_dva.wing.model import AeroelasticModel  # the model module imports none of this
+
+    return flutter_speed(AeroelasticModel(wing, None, aero), density).critical_airspeed
 
 
 def flutter_speed(model, density: float = 1.2, airspeed_range=None, damping=None,

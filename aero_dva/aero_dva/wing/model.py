@@ -42,6 +42,7 @@ from aero_dva.wing.checks import finite, non_negative, positive, real_array
 __all__ = [
     "DISPLACEMENT_NAMES",
     "ACCELERATION_NAMES",
+    "LEADING_EDGE",
     "MAXWELL_RATE_LIMIT",
     "AeroelasticModel",
     "StateSpace",
@@ -50,6 +51,8 @@ __all__ = [
 
 DISPLACEMENT_NAMES = ("plunge", "pitch", "leading_edge", "absorber_stroke")
 ACCELERATION_NAMES = ("plunge", "pitch", "leading_edge")
+#: Row of the leading edge in the displacements and in the accelerations (the same in both).
+LEADING_EDGE = DISPLACEMENT_NAMES.index("leading_edge")
 
 MAXWELL_RATE_LIMIT = 1.0e8
 """[1/s] Above this relaxation rate ``k2/c2`` the Maxwell element is replaced by its limit, a

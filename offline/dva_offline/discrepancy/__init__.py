@@ -6,5 +6,5 @@ viscoelastic FRFs, :mod:`.modal_domain` for structures, :mod:`.flight_domain` fo
 supplies the data, the baseline model, the candidate library and its residual features.
 :mod:`.synthetic`, :mod:`.structure_synthetic` and :mod:`.flight_synthetic` generate test data
 with hidden effects and are not used by the loop. Pure numerics; file access only in the CLI
-(through :mod:`.table_io` and :mod:`dva_offline.isolator.isolator_io`).
+(through :mod:`.table_io` and :mod:`dva_offline.isolator.files`).
 """

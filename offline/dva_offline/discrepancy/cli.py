@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dva_offline.isolator import isolator_io
+from dva_offline.isolator import files as isolator_files
 
 EXIT_OK = 0
 
@@ -51,7 +51,7 @@ def _conditions(args):
         if columns or args.group_by or args.covariate_tolerance is not None:
             raise ValueError("--covariates/--group-by/--covariate-tolerance need a CSV file "
                              "(UFF 58 carries no covariates)")
-        data = isolator_io.read_uff58(path, quantity)
+        data = isolator_files.read_uff58(path, quantity)
         grouping = table_io.Grouping("a single sweep (UFF 58)", (), 1, ())
         return [data], columns, grouping, {}
     table = table_io.read_table(path)

@@ -61,7 +61,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from dva_offline.isolator.maxwell_fit import fit_unconstrained_least_squares
 from dva_offline.isolator.maxwell_model import (
     MaxwellModel,
     dynamic_stiffness,
@@ -234,6 +233,9 @@ def _left_after_maxwell_fit(model: MaxwellModel, omega, clean, quantity) -> floa
     """RMS relative residual of the noise-free data after the isolator tool's unconstrained
     fit of a Maxwell model with one element more than the base system (what an automatically
     sized baseline could absorb of the effect)."""
+    # imported here: the fit needs scipy, which `dva discrepancy --help` must not load
+    from dva_offline.isolator.maxwell_fit import fit_unconstrained_least_squares
+
     modal = modal_properties(model)
     n = min(model.n_elements + 1, 3)
     with warnings.catch_warnings():

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dva_offline.isolator import isolator_io
+from dva_offline.isolator import files as isolator_files
 from dva_offline.isolator.element_types import classify_elements
 from dva_offline.isolator.frf_data import (
     check_units,
@@ -98,11 +98,11 @@ def _read_frf(args):
         raise ValueError("--area/--thickness/--geometry-factor apply only to --quantity modulus")
     quantity = "stiffness" if modulus else args.quantity
     if path.suffix.lower() in (".uff", ".unv") or args.format == "uff58":
-        data = isolator_io.read_uff58(path, quantity)
+        data = isolator_files.read_uff58(path, quantity)
     elif args.format == "stepped-sine":
-        data = isolator_io.read_stepped_sine_csv(path, quantity)
+        data = isolator_files.read_stepped_sine_csv(path, quantity)
     else:
-        data = isolator_io.read_frf_csv(path, quantity)
+        data = isolator_files.read_frf_csv(path, quantity)
     try:
         data = select_points(data, args.fmin_hz, args.fmax_hz, args.min_coherence)
     except ValueError as exc:
@@ -285,13 +285,13 @@ def _cmd_identify(args) -> int:
 def _cmd_estimate(args) -> int:
     from dva_offline.isolator.frf_estimation import estimate_frf
 
-    series = isolator_io.read_time_series_csv(
+    series = isolator_files.read_time_series_csv(
         args.file, args.force_column, args.response_column, args.fs
     )
     est = estimate_frf(series.force, series.response, series.fs, args.nfft, args.window)
     h = est.h1 if args.estimator == "h1" else est.h2
     keep = (est.frequency_hz > 0) & (est.frequency_hz <= (args.fmax_hz or np.inf))
-    isolator_io.write_frf_csv(
+    isolator_files.write_frf_csv(
         args.out, est.frequency_hz[keep], h[keep], {"coherence": est.coherence[keep]}
     )
     payload = {
@@ -340,7 +340,7 @@ def _cmd_stepped_sine(args) -> int:
         "covariates": sorted(data.covariates),
     }
     if args.out:
-        isolator_io.write_frf_csv(args.out, data.frequency_hz, data.values, data.covariates)
+        isolator_files.write_frf_csv(args.out, data.frequency_hz, data.values, data.covariates)
         payload["out"] = str(args.out)
         payload["out_quantity"] = data.quantity
     if args.plot:
@@ -368,7 +368,7 @@ def _cmd_stepped_sine(args) -> int:
 def _cmd_static(args) -> int:
     from dva_offline.isolator.frf_estimation import static_stiffness_from_load_deflection
 
-    x, f = isolator_io.read_load_deflection_csv(args.file)
+    x, f = isolator_files.read_load_deflection_csv(args.file)
     res = static_stiffness_from_load_deflection(x, f, args.center_m, args.half_width_m)
     payload = {
         "static_stiffness_n_per_m": res.stiffness_n_per_m, "offset_n": res.offset_n,

@@ -15,7 +15,7 @@ The rule is symmetric on a log scale:
 * Type B  otherwise            (phase of K_i between 26.6 and 63.4 degrees).
 
 Checked against every label the study prints (see
-tests/unit/dva_offline/isolator/test_isolator_element_types.py and docs/isolator.md): it agrees
+tests/unit/dva_offline/isolator/test_element_types.py and docs/isolator.md): it agrees
 with all labels of Tables 3.3, 3.5-3.7, 4.1, 4.2, 4.5, 4.6, 5.4 and 5.5, and disagrees only with
 the three Type B labels of Table 5.6's first elements (w_n tau = 0.26-0.36), which the study
 assigns by an indirect argument. No threshold on w_n tau (nor on tau alone) can reproduce all of

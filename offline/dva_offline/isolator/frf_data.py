@@ -1,6 +1,6 @@
 """Measured FRF data in memory: validation, conversion to receptance, unit sanity checks.
 
-No file access here (that is :mod:`dva_offline.isolator.isolator_io`).
+No file access here (that is :mod:`dva_offline.isolator.files`).
 """
 from __future__ import annotations
 

@@ -11,7 +11,7 @@ from dva_offline import cli
 def test_help_lists_subcommands(capsys):
     assert cli.main([]) == 2
     out = capsys.readouterr().out
-    for name in cli.SUBCOMMAND_MODULES:
+    for name in cli.COMMANDS:
         assert name in out
 
 

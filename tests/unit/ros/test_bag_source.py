@@ -8,7 +8,7 @@ import yaml
 
 pytest.importorskip("aero_dva_sim", reason="needs the built workspace (source scripts/env.sh)")
 
-from aero_dva.bag.bag_writer import BagWriter, bag_metadata, qos_profile_yaml  # noqa: E402
+from aero_dva.bag.writer import BagWriter, bag_metadata, qos_profile_yaml  # noqa: E402
 from aero_dva_sim.bag_source import BagSource, RecordedQos  # noqa: E402
 
 LATCHED = qos_profile_yaml("best_effort", "transient_local", depth=7)

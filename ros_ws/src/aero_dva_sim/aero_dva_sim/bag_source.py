@@ -3,8 +3,8 @@
 Everything the player needs from a bag goes through here: the topics with their types, counts
 and recorded QoS (``offered_qos_profiles`` of ``metadata.yaml``), the bag's start time, and the
 messages in log-time order as raw CDR bytes. The reading itself is
-:func:`aero_dva.bag.bag_reader.read_messages` (``decode=False``) and
-:func:`~aero_dva.bag.bag_reader.bag_topics`; switching to another reader changes only this module.
+:func:`aero_dva.bag.reader.read_messages` (``decode=False``) and
+:func:`~aero_dva.bag.reader.bag_topics`; switching to another reader changes only this module.
 
 A bag that cannot be read whole (no metadata.yaml, a file cut short) is opened again allowing
 truncation: it plays up to its damage, and :attr:`BagSource.damage` says why.
@@ -18,7 +18,7 @@ from pathlib import Path
 
 import yaml
 
-from aero_dva.bag.bag_reader import BagReadError, bag_topics, read_messages
+from aero_dva.bag.reader import BagReadError, bag_topics, read_messages
 
 __all__ = ["BagReadError", "BagSource", "BagTopic", "RecordedQos"]
 

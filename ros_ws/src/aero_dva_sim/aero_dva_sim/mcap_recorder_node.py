@@ -21,8 +21,8 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile, QoSReliabilityPolicy
 
-from aero_dva.bag.bag_writer import BagWriter, qos_profile_yaml
 from aero_dva.bag.schemas import MessageDefinitionNotFound
+from aero_dva.bag.writer import BagWriter, qos_profile_yaml
 from dva_ros_common.conversions import message_class
 from dva_ros_common.node_params import NodeSpec, Param, declare_parameters
 from dva_ros_common.node_tools import run_node

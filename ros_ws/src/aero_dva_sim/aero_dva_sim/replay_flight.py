@@ -61,7 +61,7 @@ def build_commands(args, inputs: list[str]) -> dict[str, list[str]]:
 
 def run(args) -> dict:
     """Run the replay graph; return a summary (raises SystemExit on failure)."""
-    from aero_dva.bag.bag_reader import bag_topics
+    from aero_dva.bag.reader import bag_topics
 
     present = bag_topics(args.bag)
     inputs = [t for t in INPUTS if t in present]

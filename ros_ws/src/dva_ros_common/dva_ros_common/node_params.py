@@ -279,14 +279,27 @@ def check_value(p: Param, value):
     return value
 
 
+def refuse_changes(node, names) -> None:
+    """Refuse run-time changes of the parameters ``names``, which the node reads at start-up."""
+    from rcl_interfaces.msg import SetParametersResult
+
+    def check(params) -> SetParametersResult:
+        for param in params:
+            if param.name in names:
+                return SetParametersResult(
+                    successful=False, reason=f"'{param.name}' is read at start-up"
+                )
+        return SetParametersResult(successful=True)
+
+    node.add_on_set_parameters_callback(check)
+
+
 def declare_parameters(node, spec: NodeSpec, names: Iterable[str] | None = None) -> dict:
     """Declare the table's parameters (or only ``names``) on ``node``; return their values.
 
     Values outside a row's range or choices raise ValueError naming the parameter. Parameters
     not marked ``dynamic`` refuse run-time changes (they are read at start-up).
     """
-    from dva_ros_common.node_tools import refuse_changes
-
     rows = spec.params if names is None else tuple(spec[n] for n in names)
     values = {}
     from rclpy.exceptions import InvalidParameterValueException

@@ -23,11 +23,10 @@ import os
 import signal
 import sys
 import time
-from collections.abc import Callable, Collection, Mapping
+from collections.abc import Callable, Mapping
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
-from rcl_interfaces.msg import SetParametersResult
 from rclpy.exceptions import ParameterException
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
@@ -36,7 +35,12 @@ from rclpy.task import Future
 
 from aero_dva.bag.channels import DIAGNOSTICS
 from dva_ros_common.conversions import ERROR, WARN, diagnostic_array, diagnostic_status
-from dva_ros_common.node_params import NodeSpec, Param, command_line, declare_parameters
+from dva_ros_common.node_params import (
+    NodeSpec,
+    Param,
+    command_line,
+    declare_parameters,
+)
 
 #: The rows of :class:`InputHealth` for a node's parameter table.
 INPUT_HEALTH_PARAMS = (
@@ -48,20 +52,6 @@ INPUT_HEALTH_PARAMS = (
 
 #: A node's own status: level, message and extra key/values for ``/diagnostics``.
 Status = tuple[int, str, Mapping[str, object]]
-
-
-def refuse_changes(node: Node, names: Collection[str]) -> None:
-    """Refuse run-time changes of the parameters ``names``, which the node reads at start-up."""
-
-    def check(params) -> SetParametersResult:
-        for param in params:
-            if param.name in names:
-                return SetParametersResult(
-                    successful=False, reason=f"'{param.name}' is read at start-up"
-                )
-        return SetParametersResult(successful=True)
-
-    node.add_on_set_parameters_callback(check)
 
 
 class InputHealth:

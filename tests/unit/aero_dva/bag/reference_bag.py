@@ -9,8 +9,8 @@ displacement blocks; log time of every message of a block = ``t_end``.
 from __future__ import annotations
 
 from aero_dva.bag import channels as ch
-from aero_dva.bag.bag_writer import BagWriter, qos_profile_yaml
 from aero_dva.bag.schemas import typestore
+from aero_dva.bag.writer import BagWriter, qos_profile_yaml
 
 STORE = typestore()
 T = STORE.types

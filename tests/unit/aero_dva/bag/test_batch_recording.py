@@ -14,12 +14,12 @@ from mcap.records import Chunk
 from mcap.stream_reader import StreamReader
 
 from aero_dva.bag import sweep_recording_io as sr
-from aero_dva.bag.bag_reader import bag_topics, read_messages
-from aero_dva.bag.bag_writer import qos_profile_yaml
 from aero_dva.bag.batch_recorder import DAMPER_COLUMNS, BatchRecorder, recorded_topics
 from aero_dva.bag.flight_log_io import load_flight_log
+from aero_dva.bag.reader import bag_topics, read_messages
 from aero_dva.bag.runtime_recording import record_flight_blocks, record_runtime
 from aero_dva.bag.schemas import message_definition
+from aero_dva.bag.writer import qos_profile_yaml
 from aero_dva.flight.damper import DamperSnapshot, DamperStatus
 from aero_dva.flight.flight_runtime import FlightBlock
 from tests.unit.aero_dva.bag.reference_bag import ReferenceBag

@@ -6,10 +6,10 @@ import math
 import numpy as np
 import pytest
 
-from aero_dva.bag.bag_reader import BagReadError
-from aero_dva.bag.bag_writer import BagWriter
 from aero_dva.bag.flight_log_io import load_flight_log
 from aero_dva.bag.flight_summary import summarize
+from aero_dva.bag.reader import BagReadError
+from aero_dva.bag.writer import BagWriter
 
 RATE, BLOCK = 1000.0, 50
 

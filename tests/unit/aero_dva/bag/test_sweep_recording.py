@@ -9,8 +9,8 @@ import pytest
 from mcap.reader import make_reader
 
 from aero_dva.bag import sweep_recording_io as sr
-from aero_dva.bag.bag_reader import bag_topics, read_messages
 from aero_dva.bag.chunk_framing import ChunkedMcapFile
+from aero_dva.bag.reader import bag_topics, read_messages
 from aero_dva.flight import sweep_simulator
 from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
 from tests.unit.aero_dva.bag.test_batch_recording import SWEEP
@@ -180,8 +180,8 @@ def test_a_simulation_error_stops_the_writer(tmp_path, scenario, monkeypatch):
 
 
 def test_training_names_the_missing_displacement_of_a_measured_only_bag(tmp_path, scenario):
-    from aero_dva.bag.bag_reader import TopicNotFoundError
-    from dva_offline.train_rbf_cli import _check_topics
+    from aero_dva.bag.reader import TopicNotFoundError
+    from dva_offline.training.rbf_cli import _check_topics
 
     sr.record_sweep(tmp_path / "bag", _runtime(scenario), displacement=False)
     with pytest.raises(TopicNotFoundError, match=r"no topic /wing/displacement \(the "

@@ -8,11 +8,11 @@ import pytest
 import yaml
 from mcap.reader import make_reader
 
-from aero_dva.bag import bag_reader
+from aero_dva.bag import reader as bag_reader
 from aero_dva.bag import sweep_recording_io as sr
-from aero_dva.bag.bag_reader import BagReadError, bag_topics, read_messages
 from aero_dva.bag.batch_recorder import BatchRecorder
 from aero_dva.bag.flight_log_io import load_flight_log
+from aero_dva.bag.reader import BagReadError, bag_topics, read_messages
 from aero_dva.flight import sweep_simulator
 from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
 from tests.unit.aero_dva.bag.test_batch_recording import SWEEP

@@ -36,8 +36,8 @@ def test_every_ratio_within_tolerance(studies):
     pairs = [(studies["6.1"][k], v) for k, v in dd.STUDY_TABLE_6_1.items()]
     pairs += [(studies["6.2"][k], v) for k, v in dd.STUDY_TABLE_6_2.items()]
     pairs += [(got, seed) for got, (_, _, seed) in zip(studies["6.3"], dd.STUDY_TABLE_6_3)]
-    pairs += [(studies["6.3"][-1], dd.SEED_TUNED_RATIO)]
-    pairs += [(got, d[3]) for got, d in zip(studies["maxwell"], dd.SEED_MAXWELL_DESIGNS)]
+    pairs += [(studies["6.3"][-1], dd.STUDY_TUNED_RATIO)]
+    pairs += [(got, d[3]) for got, d in zip(studies["maxwell"], dd.STUDY_MAXWELL_DESIGNS)]
     errors = np.array([got - seed for got, seed in pairs])
     assert len(pairs) == 14 and np.abs(errors).max() < TOL, errors
 

@@ -9,7 +9,7 @@ from dva_offline import cli
 from dva_offline.discrepancy import loop, synthetic
 from dva_offline.discrepancy.frf_domain import FrfDomain
 from dva_offline.discrepancy.maxwell_starts import maxwell_from_stiffness, modal_term_scan
-from dva_offline.isolator import isolator_io
+from dva_offline.isolator import files as isolator_files
 from dva_offline.isolator.frf_data import FrfData, split_conditions
 from dva_offline.isolator.maxwell_model import dynamic_stiffness
 
@@ -201,13 +201,7 @@ def test_domain_validation():
         FrfDomain([data, other])
 
 
-@pytest.fixture
-def only_discrepancy(monkeypatch):
-    monkeypatch.setattr(cli, "SUBCOMMAND_MODULES",
-                        {"discrepancy": "dva_offline.discrepancy.cli"})
-
-
-def test_cli_synth_then_frf_json(tmp_path, capsys, only_discrepancy):
+def test_cli_synth_then_frf_json(tmp_path, capsys):
     csv_path = tmp_path / "delay.csv"
     assert cli.main(["discrepancy", "synth", "--effect", "sensor_delay", "--seed", "2",
                      "--out", str(csv_path), "--json"]) == 0
@@ -230,12 +224,12 @@ def test_cli_synth_then_frf_json(tmp_path, capsys, only_discrepancy):
                ("discrepancy_frf.png", "discrepancy_residual.png", "discrepancy_candidates.png"))
 
 
-def test_cli_reads_stacked_conditions(tmp_path, capsys, only_discrepancy):
+def test_cli_reads_stacked_conditions(tmp_path, capsys):
     case = synthetic.generate_case(None, np.random.default_rng(5),
                                    clean_covariate="temperature_c")
     path = tmp_path / "temps.csv"
-    isolator_io.write_frf_csv(path, case.frequency_hz, case.values, case.covariates)
-    conditions = isolator_io.read_frf_csv_conditions(path, "receptance")
+    isolator_files.write_frf_csv(path, case.frequency_hz, case.values, case.covariates)
+    conditions = isolator_files.read_frf_csv_conditions(path, "receptance")
     assert len(conditions) == 3
     assert cli.main(["discrepancy", "frf", str(path), "--mass", str(case.mass),
                      "--static-stiffness", str(case.static_stiffness),
@@ -246,7 +240,7 @@ def test_cli_reads_stacked_conditions(tmp_path, capsys, only_discrepancy):
     assert payload["augmented"] is None
 
 
-def test_cli_worked_example_of_the_readme(capsys, only_discrepancy):
+def test_cli_worked_example_of_the_readme(capsys):
     """The shipped three-temperature CSV (docs/discrepancy.md, README): the temperature shift
     is named and removes the residual down to the noise; b near the hidden WLF truth
     (C1/C2 referred to 23 C: 17.44 x 51.6 / 145.6^2 = 0.0424 1/K)."""
@@ -264,10 +258,10 @@ def test_cli_worked_example_of_the_readme(capsys, only_discrepancy):
     assert abs(b["value"] - 0.0424) < 4 * b["std"] + 0.002
 
 
-def test_cli_bad_column_is_one_line_error(tmp_path, capsys, only_discrepancy):
+def test_cli_bad_column_is_one_line_error(tmp_path, capsys):
     case = synthetic.generate_case(None, np.random.default_rng(6))
     path = tmp_path / "c.csv"
-    isolator_io.write_frf_csv(path, case.frequency_hz, case.values)
+    isolator_files.write_frf_csv(path, case.frequency_hz, case.values)
     code = cli.main(["discrepancy", "frf", str(path), "--covariates", "temperature_c"])
     err = capsys.readouterr().err
     assert code == 2 and "temperature_c" in err and "Traceback" not in err

@@ -1,0 +1,1 @@
+"""dva bag: inspect and recover rosbag2 MCAP bags."""

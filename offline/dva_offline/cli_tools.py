@@ -1,0 +1,85 @@
+"""What every ``dva`` command shares: its error, help, ranges on the command line, JSON output.
+
+Kept free of numerics imports (numpy is looked up only when a value is one) so that building
+the parser stays fast.
+"""
+from __future__ import annotations
+
+import json
+import math
+
+__all__ = ["CliError", "emit", "finite", "json_safe", "range2", "range3", "show_help"]
+
+
+class CliError(Exception):
+    """A user-facing error: printed as ``dva: error: ...`` with exit code 2, no traceback."""
+
+
+def show_help(parser) -> int:
+    """A command group called without its subcommand: its help, exit code 2."""
+    parser.print_help()
+    return 2
+
+
+def range3(option: str, text: str, names: str = "START:STOP:N", minimum: float | None = None):
+    """``START:STOP:N`` -> (start, stop, n): finite ``start < stop`` (both >= ``minimum`` if
+    given) and ``n >= 2``; a one-line ValueError naming ``option`` otherwise."""
+    parts = text.split(":")
+    try:
+        if len(parts) != 3:
+            raise ValueError
+        start, stop, n = float(parts[0]), float(parts[1]), int(parts[2])
+    except ValueError:
+        raise ValueError(f"{option} expects {names}, got {text!r}") from None
+    if not (math.isfinite(start) and math.isfinite(stop)) or n < 2 or stop <= start \
+            or (minimum is not None and start < minimum):
+        low = "" if minimum is None else f"{minimum:g} <= "
+        raise ValueError(f"{option} needs finite {low}{names.split(':')[0]} < "
+                         f"{names.split(':')[1]} and N >= 2, got {text!r}")
+    return start, stop, n
+
+
+def range2(option: str, text: str):
+    """``MIN:MAX`` -> (low, high), finite and ``low < high``."""
+    parts = text.split(":")
+    try:
+        if len(parts) != 2:
+            raise ValueError
+        low, high = float(parts[0]), float(parts[1])
+    except ValueError:
+        raise ValueError(f"{option} expects MIN:MAX, got {text!r}") from None
+    if not (math.isfinite(low) and math.isfinite(high)) or high <= low:
+        raise ValueError(f"{option} needs finite MIN < MAX, got {text!r}")
+    return low, high
+
+
+def finite(value) -> float | None:
+    """``float(value)``, or None for None, NaN and infinities (JSON has no NaN)."""
+    if value is None:
+        return None
+    value = float(value)
+    return value if math.isfinite(value) else None
+
+
+def json_safe(value):
+    """A copy fit for strict JSON: numpy scalars and arrays as Python values, NaN and
+    infinities as None, tuples as lists, mapping keys as strings."""
+    if isinstance(value, dict):
+        return {str(k): json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_safe(v) for v in value]
+    if isinstance(value, bool) or value is None or isinstance(value, (int, str)):
+        return value
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if hasattr(value, "tolist"):  # numpy arrays and scalars
+        return json_safe(value.tolist())
+    return value
+
+
+def emit(args, payload: dict, lines: list[str]) -> None:
+    """Print ``payload`` as one strict JSON object (``--json``) or ``lines`` as text."""
+    if args.json:
+        print(json.dumps(json_safe(payload), allow_nan=False))
+    else:
+        print("\n".join(lines))

@@ -1,0 +1,1 @@
+"""dva control: the optimal c2, the airspeed schedule and their plots."""

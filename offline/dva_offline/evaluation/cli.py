@@ -1,0 +1,247 @@
+"""``dva evaluate``: can the controllers be told apart? Paired flights, differences, boundaries.
+
+Flies the study's ramp (0.8 -> 1.2 U_cr in 30 s, 1 kN white aileron force) for the controllers
+``fixed`` (the best constant c2), ``schedule`` (eq. 7.1), ``rbf`` (spectrum + network) and
+``oracle`` (c2*(U, rho) at the true airspeed and density: the upper bound) in six density cases
+(constant rho0, x0.9, x1.1; mu = 0.1 with a 20 s period, at 1 Hz, and near twice the flutter
+frequency), each with the same excitation seeds, so the controllers meet the same gusts. All
+in one process (the simulator node's runtime with the nodes' arithmetic in the loop, command lag
+one block; docs/evaluation.md). Reports per (controller, case) the mean divergence airspeed
+U_div/U_cr and the leading-edge RMS below flutter (``--rms-range``) as a ratio to the best
+fixed c2 on the same seed, with paired 95 % intervals, and the eigenvalue and Floquet
+boundaries of each analysable control law beside them.
+
+What it needs and is not given, it makes (into DIR/inputs, with the project's commands): the
+schedule (dva control schedule), the best fixed c2, the network (dva train sweep + dva train
+rbf, about two minutes). ``--graph`` flies the earlier evaluation through the ROS 2 graph
+instead (run_flight per flight; mu cases, resumable; its own options below).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+__all__ = ["register"]
+
+DEFAULT_SEEDS = 30
+DEFAULT_RMS_RANGE = "0.8:1.05"
+
+
+def register(subparsers) -> None:
+    """Add the ``evaluate`` command."""
+    p = subparsers.add_parser(
+        "evaluate", help="paired evaluation flights: best fixed c2, schedule, RBF, oracle x "
+                         "density cases x seeds; differences with 95 %% intervals",
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--out", metavar="DIR",
+                   help="evaluation directory (default runs/evaluation_<UTC time>)")
+    p.add_argument("--seeds", type=int, default=None,
+                   help=f"excitation seeds per case (default {DEFAULT_SEEDS}; --graph: 10)")
+    p.add_argument("--first-seed", type=int, default=1, help="first excitation seed (1)")
+    p.add_argument("--controllers", default=None,
+                   help="subset of fixed,schedule,rbf,oracle (default all; fixed is always "
+                        "flown, the reference); --graph: of none,fixed,schedule,rbf")
+    p.add_argument("--cases", default=None,
+                   help="subset of rho0,x0.9,x1.1,slow,1Hz,2f (default all)")
+    p.add_argument("--rms-range", metavar="LOW:HIGH", default=DEFAULT_RMS_RANGE,
+                   help=f"airspeeds U/U_cr of the leading-edge RMS (default "
+                        f"{DEFAULT_RMS_RANGE}; the first 2 s are left out)")
+    p.add_argument("--scenario", metavar="FILE",
+                   help="base ramp scenario YAML (default the package's scenario_ramp.yaml)")
+    p.add_argument("--schedule", metavar="FILE", help="airspeed schedule JSON (default: made "
+                   "by dva control schedule into DIR/inputs)")
+    p.add_argument("--fixed-c2", type=float, default=None,
+                   help="[N s/m] c2 of the fixed controller (default: the c2 with the highest "
+                        "flutter airspeed)")
+    p.add_argument("--network", metavar="FILE.npz", help="RBF network (default: trained)")
+    p.add_argument("--sweep-bag", metavar="BAG",
+                   help="recorded training sweep to train the network from (default: record "
+                        "one with dva train sweep)")
+    p.add_argument("--no-boundaries", action="store_true",
+                   help="skip the eigenvalue and Floquet boundaries")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.add_argument("--workers", type=int, default=1, metavar="N",
+                   help="flights in parallel: N local processes (default 1); with --graph, N "
+                        "flights at a time, each in its own ROS domain")
+    p.add_argument("--ray", metavar="ADDRESS", default=None,
+                   help="hand the flights to a Ray cluster: its address, 'auto' (the cluster "
+                        "this machine is part of) or 'local' (start one here with --workers "
+                        "CPUs); needs the 'ray' extra")
+    g = p.add_argument_group("--graph: the evaluation through the ROS 2 graph")
+    g.add_argument("--graph", action="store_true",
+                   help="fly every flight through run_flight (nodes over DDS) instead")
+    g.add_argument("--mu", default="0,0.05,0.1",
+                   help="density variations at 1 Hz, comma-separated (default 0,0.05,0.1)")
+    g.add_argument("--timeout", type=float, default=300.0,
+                   help="[s] wall time allowed per flight (default 300)")
+    g.add_argument("--retries", type=int, default=1,
+                   help="times a failed flight is flown again (default 1)")
+    g.add_argument("--real-time-factor", type=float, default=0.0,
+                   help="run_flight --real-time-factor (default 0: as fast as possible)")
+    g.add_argument("--reports", choices=("first", "none"), default="first",
+                   help="per-run report of the first seed of each case (default) or none")
+    g.add_argument("--no-rrd", action="store_true", help="reports without the .rrd")
+    p.set_defaults(func=_evaluate)
+
+
+def _evaluate(args) -> int:
+    if args.graph:
+        from dva_offline.evaluation.graph import GRAPH_CONTROLLERS, evaluate_graph
+
+        args.seeds = 10 if args.seeds is None else args.seeds
+        args.controllers = args.controllers or ",".join(GRAPH_CONTROLLERS)
+        return evaluate_graph(args)
+    return _paired(args)
+
+
+def _choose(option: str, text: str | None, known: tuple[str, ...]) -> tuple[str, ...]:
+    if text is None:
+        return known
+    names = [v.strip() for v in text.split(",") if v.strip()]
+    bad = [n for n in names if n not in known]
+    if bad or not names:
+        raise ValueError(f"{option} must be a comma-separated subset of {','.join(known)}, "
+                         f"got {text!r}")
+    return tuple(n for n in known if n in names)
+
+
+def _rms_range(text: str) -> tuple[float, float]:
+    try:
+        low, high = (float(v) for v in text.split(":"))
+    except ValueError:
+        raise ValueError(f"--rms-range expects LOW:HIGH (U/U_cr), got {text!r}") from None
+    if not (math.isfinite(low) and math.isfinite(high) and 0 < low < high):
+        raise ValueError(f"--rms-range needs 0 < LOW < HIGH, got {text!r}")
+    return low, high
+
+
+def _paired(args) -> int:
+    from tqdm import tqdm
+
+    from aero_dva import data_files
+    from aero_dva.control.rbf_io import load_rbf_network
+    from aero_dva.control.schedule_io import load_schedule
+    from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
+    from aero_dva.wing.model import AeroelasticModel
+    from dva_offline.evaluation.flights import (
+        EvaluationSetup,
+        case_table,
+        fly_paired,
+        oracle_table,
+        stability_boundaries,
+    )
+    from dva_offline.evaluation.inputs import evaluation_directory, log
+    from dva_offline.evaluation.paired import (
+        CASE_NAMES,
+        EVALUATION_CONTROLLERS,
+        default_cases,
+        summarise,
+    )
+    from dva_offline.evaluation.paired_io import plot_paired, write_paired_results
+
+    seeds_n = DEFAULT_SEEDS if args.seeds is None else args.seeds
+    if seeds_n < 1 or args.first_seed < 0:
+        raise ValueError(f"--seeds must be >= 1 and --first-seed >= 0, got {seeds_n}, "
+                         f"{args.first_seed}")
+    controllers = _choose("--controllers", args.controllers, EVALUATION_CONTROLLERS)
+    controllers = tuple(c for c in EVALUATION_CONTROLLERS if c in controllers or c == "fixed")
+    case_names = _choose("--cases", args.cases, CASE_NAMES)
+    rms_low, rms_high = _rms_range(args.rms_range)
+    seeds = list(range(args.first_seed, args.first_seed + seeds_n))
+    scenario_path = Path(args.scenario) if args.scenario else \
+        data_files.data_file("scenario_ramp.yaml")
+    config = load_runtime_config({"scenario": str(scenario_path)})
+    if config.scenario.airspeed.kind != "ramp":
+        raise ValueError(f"--scenario {scenario_path}: the evaluation flies a ramp, got "
+                         f"airspeed kind {config.scenario.airspeed.kind!r}")
+    started = time.monotonic()
+    out, made = evaluation_directory(args, controllers)
+    model = AeroelasticModel(config.wing, config.absorber, config.aero)
+    u_cr = FlightRuntime(config).critical_airspeed
+    fixed = made["fixed_c2"]
+    flutter_frequency = fixed.get("flutter_frequency") or _flutter_frequency(model, config,
+                                                                             fixed["damping"])
+    cases = {k: v for k, v in default_cases(flutter_frequency).items() if k in case_names}
+    ramp = config.scenario.airspeed.values
+    if not config.scenario.airspeed.relative:
+        ramp = tuple(v / u_cr for v in ramp)
+    table = oracle_table(model, u_cr, config.scenario.density, list(cases.values()), ramp) \
+        if "oracle" in controllers else None
+    setup = EvaluationSetup(
+        config=config, model=model, critical_airspeed=u_cr, fixed_damping=fixed["damping"],
+        schedule=load_schedule(made["schedule"]) if "schedule" in made else None,
+        network=load_rbf_network(made["network"], expected_input_dim=33)
+        if "network" in made else None,
+        table=table, rms_range=(rms_low * u_cr, rms_high * u_cr))
+    total = len(cases) * len(seeds) * len(controllers)
+    bar = tqdm(total=total, desc="flights", unit="flight", file=sys.stderr, leave=False)
+
+    def progress(text):
+        bar.set_postfix_str(text)
+        bar.update(1)
+
+    from dva_offline.evaluation.resume import FlightStore
+
+    store = FlightStore(out / "flights", {
+        "scenario": str(scenario_path), "controllers": list(controllers),
+        "cases": case_table(cases), "rms_range_ratio": [rms_low, rms_high],
+        "fixed_c2": fixed["damping"], "schedule": made.get("schedule"),
+        "network": made.get("network")})
+    done = store.load(seeds)
+    if done:
+        log(f"resuming: {len(done)} of {len(cases) * len(seeds)} (case, seed) jobs already "
+            f"flown in {store.directory}")
+        bar.update(sum(len(v) for k, v in done.items() if k[1] != seeds[0]))
+    flights_started = time.monotonic()
+    try:
+        records, kept = fly_paired(setup, list(cases.values()), seeds, controllers, progress,
+                                  keep_seed=seeds[0], workers=args.workers,
+                                  ray_address=args.ray, done=done, finished=store.save)
+    finally:
+        bar.close()
+    flight_time = time.monotonic() - flights_started
+    rows = summarise(records, controllers, list(cases))
+    boundaries = {} if args.no_boundaries else stability_boundaries(
+        setup, list(cases.values()), controllers)
+    payload = {
+        "out": str(out), "scenario": str(scenario_path), "controllers": list(controllers),
+        "cases": case_table(cases), "seeds": seeds, "inputs": made,
+        "critical_airspeed_no_dva": u_cr, "fixed_c2": fixed["damping"],
+        "rms_range_ratio": [rms_low, rms_high], "flights": len(records),
+        "flight_wall_time_s": flight_time, "workers": args.workers, "ray": args.ray,
+        "resumed_jobs": len(done),
+        "results": [_row_json(r) for r in rows], "boundaries": boundaries,
+    }
+    files = write_paired_results(out, payload, records)
+    payload["files"] = {**files, **plot_paired(out, payload, kept, u_cr)}
+    payload["wall_time_s"] = time.monotonic() - started
+    (out / "results.json").write_text(json.dumps(payload, allow_nan=False))
+    if args.json:
+        print(json.dumps(payload, allow_nan=False))
+    else:
+        from dva_offline.evaluation.paired_io import markdown_results
+
+        print(markdown_results(payload))
+        print(f"results: {out / 'results.md'} ({len(records)} flights in {flight_time:.0f} s)")
+    return 0
+
+
+def _flutter_frequency(model, config, damping: float) -> float:
+    from aero_dva.wing.flutter import flutter_speed
+
+    return flutter_speed(model, config.scenario.density, damping=damping).flutter_frequency
+
+
+def _row_json(row: dict) -> dict:
+    def clean(v):
+        return None if isinstance(v, float) and not math.isfinite(v) else v
+
+    stats = ("divergence_difference", "rms_change", "divergence_to_oracle",
+             "divergence_to_schedule", "rms_to_schedule")
+    out = {k: clean(v) for k, v in row.items() if k not in stats}
+    out.update({k: row[k].to_dict() for k in stats})
+    return out

@@ -1,0 +1,196 @@
+"""The paired evaluation's flights and stability boundaries (``dva evaluate``).
+
+:func:`fly_paired` flies every (case, seed, controller) of :mod:`dva_offline.evaluation.paired`
+with :func:`.closed_loop.fly`, seeds innermost per case so the controllers of a
+seed are flown one after the other; :func:`stability_boundaries` gives, per case, where the
+linear wing stops being stable under each analysable control law: the frozen-density
+eigenvalue boundary (at the case's density, or at the worst density of its cycle) and, for a
+varying density, the Floquet boundary of the periodic system
+(:mod:`aero_dva.control.periodic_stability`). The RBF network's law depends on the spectra, so
+it has no such boundary; its flights are the measurement.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, replace
+from functools import partial
+
+import numpy as np
+
+from aero_dva.control.periodic_stability import floquet_boundary, frozen_boundary
+from dva_offline.evaluation.closed_loop import (
+    FixedControl,
+    OptimalDampingTable,
+    OracleControl,
+    ScheduleControl,
+    SpectrumRBFControl,
+    fly,
+)
+from dva_offline.evaluation.paired import DensityCase, FlightRecord, case_scenario, flight_record
+
+__all__ = ["EvaluationSetup", "case_table", "fly_paired", "fly_seed", "oracle_table",
+           "stability_boundaries"]
+
+
+@dataclass(frozen=True)
+class EvaluationSetup:
+    """What the flights share.
+
+    Attributes
+    ----------
+    config : RuntimeConfig
+        The base flight (scenario = the ramp, relative to U_cr; wing, absorber, damper).
+    model : AeroelasticModel
+        The wing with its Maxwell DVA.
+    critical_airspeed : float
+        [m/s] U_cr of the bare wing at the base density.
+    fixed_damping : float
+        [N s/m] the best fixed c2.
+    schedule, network, table
+        AirspeedSchedule, RBFNetwork, OptimalDampingTable (None where not flown).
+    rms_range : (float, float)
+        [m/s] airspeeds of the RMS.
+    """
+
+    config: object
+    model: object
+    critical_airspeed: float
+    fixed_damping: float
+    schedule: object = None
+    network: object = None
+    table: OptimalDampingTable | None = None
+    rms_range: tuple[float, float] = (80.0, 105.0)
+
+    def controller(self, name: str):
+        if name == "fixed":
+            return FixedControl(self.fixed_damping)
+        damper = self.config.damper
+        if name == "schedule":
+            return ScheduleControl(self.schedule, (damper.min_damping, damper.max_damping))
+        if name == "rbf":
+            return SpectrumRBFControl(self.network, self.config.scenario.sample_rate,
+                                      (damper.min_damping, damper.max_damping))
+        if name == "oracle":
+            return OracleControl(self.table)
+        raise ValueError(f"unknown controller {name!r}")
+
+
+def oracle_table(model, critical_airspeed: float, base_density: float,
+                 cases: Sequence[DensityCase], ramp: tuple[float, float]
+                 ) -> OptimalDampingTable:
+    """c2*(U, rho) over the ramp's airspeeds and every case's densities (1 m/s x 0.04 rho0
+    grid, bilinear between: c2* changes by about 10 N s/m per grid step)."""
+    low = min(ramp) * critical_airspeed - 2.0
+    high = max(ramp) * critical_airspeed + 2.0
+    rho = [base_density * c.factor * (1 + s * c.variation) for c in cases for s in (-1, 1)]
+    r_lo, r_hi = min(rho) - 0.02 * base_density, max(rho) + 0.02 * base_density
+    n_rho = max(3, int(math.ceil((r_hi - r_lo) / (0.04 * base_density))) + 1)
+    return OptimalDampingTable.build(model, np.arange(math.floor(low), high + 1.0, 1.0),
+                                     np.linspace(r_lo, r_hi, n_rho))
+
+
+def fly_seed(setup: EvaluationSetup, controllers: Sequence[str], keep_seed: int | None,
+             job: tuple[DensityCase, int]) -> tuple[list[FlightRecord], dict]:
+    """One job of the evaluation: every controller on one (case, seed), the same force realisation
+    for all (paired); the outcomes too when the seed is ``keep_seed`` (for plots)."""
+    case, seed = job
+    scenario = case_scenario(setup.config.scenario, case, setup.critical_airspeed, seed)
+    config = replace(setup.config, scenario=scenario)
+    records, kept = [], {}
+    for name in controllers:
+        outcome = fly(config, setup.controller(name), setup.critical_airspeed)
+        records.append(flight_record(name, case.name, seed, outcome, setup.critical_airspeed,
+                                     setup.rms_range))
+        if seed == keep_seed:
+            kept[(name, case.name, seed)] = outcome
+    return records, kept
+
+
+def fly_paired(setup: EvaluationSetup, cases: Sequence[DensityCase], seeds: Sequence[int],
+              controllers: Sequence[str], progress: Callable[[str], None] | None = None,
+              keep_seed: int | None = None, *, workers: int = 1, ray_address: str | None = None,
+              done: Mapping[tuple[str, int], list[FlightRecord]] | None = None,
+              finished: Callable[[tuple[str, int], list[FlightRecord]], None] | None = None
+              ) -> tuple[list[FlightRecord], dict]:
+    """Fly everything; returns the records (in case, seed, controller order, whatever the
+    route) and the outcomes of ``keep_seed`` (for plots).
+
+    The jobs are the (case, seed) pairs, run by :func:`.campaign.run_jobs`: in
+    order, on ``workers`` forked processes, or on Ray (``ray_address``). ``done`` maps a
+    (case name, seed) already flown (a resumed evaluation) to its records: that job is not
+    flown again unless its outcomes are wanted for plots. ``finished(key, records)`` is called
+    in this process as each job completes (to save it).
+    """
+    from dva_offline.evaluation.campaign import run_jobs
+
+    done = dict(done or {})
+    jobs = [(case, seed) for case in cases for seed in seeds
+            if seed == keep_seed or (case.name, seed) not in done]
+    # The jobs whose outcomes come back (large) first, so they are not the last to finish.
+    jobs.sort(key=lambda job: job[1] != keep_seed)
+    results: dict[tuple[str, int], list[FlightRecord]] = dict(done)
+    kept: dict = {}
+    work = partial(fly_seed, setup, tuple(controllers), keep_seed)
+    for job, (records, outcomes) in run_jobs(jobs, work, workers=workers,
+                                             ray_address=ray_address, processes=True):
+        _finish(job, records, results, finished, progress)
+        kept.update(outcomes)
+    ordered = [r for case in cases for seed in seeds for r in results[(case.name, seed)]]
+    return ordered, kept
+
+
+def _finish(job, records, results, finished, progress) -> None:
+    key = (job[0].name, job[1])
+    results[key] = records
+    if finished is not None:
+        finished(key, records)
+    if progress is not None:
+        for r in records:
+            progress(f"{key[0]} seed {key[1]} {r.controller}")
+
+
+def _laws(setup: EvaluationSetup, controllers: Sequence[str]) -> dict:
+    laws = {"fixed": setup.fixed_damping}
+    if "schedule" in controllers and setup.schedule is not None:
+        laws["schedule"] = lambda u, rho: setup.schedule.evaluate(u)
+    if "oracle" in controllers and setup.table is not None:
+        laws["oracle"] = setup.table
+    return laws
+
+
+def stability_boundaries(setup: EvaluationSetup, cases: Sequence[DensityCase],
+                         controllers: Sequence[str]) -> dict[str, dict[str, dict]]:
+    """Per case and control law: ``{"frozen": U/U_cr, "floquet": U/U_cr or None}``.
+
+    ``frozen``: the eigenvalue boundary at the case's density, or for a varying density the
+    lowest one over the cycle's extremes; ``floquet``: the periodic system's (varying density
+    only).
+    """
+    u_cr = setup.critical_airspeed
+    rho0 = setup.config.scenario.density
+    span = (0.7 * u_cr, 1.6 * u_cr)
+    out: dict[str, dict[str, dict]] = {}
+    for case in cases:
+        rows = {}
+        base = rho0 * case.factor
+        for name, law in _laws(setup, controllers).items():
+            extremes = (base,) if case.variation == 0 else \
+                (base * (1 - case.variation), base * (1 + case.variation))
+            frozen = min(frozen_boundary(setup.model, r, law, span) for r in extremes)
+            floquet = None
+            if case.variation > 0:
+                floquet = floquet_boundary(setup.model, base, case.variation, case.frequency,
+                                           law, span) / u_cr
+            rows[name] = {"frozen": frozen / u_cr if math.isfinite(frozen) else None,
+                          "floquet": floquet if floquet is None or math.isfinite(floquet)
+                          else None}
+        out[case.name] = rows
+    return out
+
+
+def case_table(cases: Mapping[str, DensityCase]) -> list[dict]:
+    """The cases as JSON rows."""
+    return [{"case": c.name, "density_factor": c.factor, "variation": c.variation,
+             "frequency_hz": c.frequency, "description": c.description}
+            for c in cases.values()]

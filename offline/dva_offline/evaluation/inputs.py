@@ -1,0 +1,163 @@
+"""What an evaluation needs and was not given: the schedule, the best fixed c2, the network.
+
+  schedule   ``dva control schedule`` (exact stationary RMS, eq. 7.1 fit)
+  fixed c2   the constant c2 with the highest flutter airspeed (eigenvalues, base density)
+  network    ``dva train rbf`` on --sweep-bag, or on the default training sweep recorded
+             first by ``dva train sweep``
+
+Made by the project's own commands (as a user would run them) into ``DIR/inputs`` and reused
+by a later run with the same ``--out``.
+"""
+from __future__ import annotations
+
+import json
+import math
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+__all__ = ["best_fixed_damping_of", "check_given_inputs", "evaluation_directory", "inputs",
+           "log"]
+
+
+def _run(argv: list[str], what: str, timeout: float = 3600.0) -> str:
+    """Run a helper command; its stdout, or ValueError with its last error line."""
+    result = subprocess.run(argv, capture_output=True, text=True, timeout=timeout)
+    if result.returncode != 0:
+        lines = (result.stderr or result.stdout).strip().splitlines()
+        raise ValueError(f"{what} failed ({result.returncode}): "
+                         f"{lines[-1] if lines else 'no output'}")
+    return result.stdout
+
+
+def _dva(*args: str) -> list[str]:
+    return [sys.executable, "-m", "dva_offline.cli", *args]
+
+
+def log(text: str) -> None:
+    """A line of ``dva evaluate`` on stderr that keeps its progress bar intact."""
+    from tqdm import tqdm
+
+    tqdm.write(f"dva evaluate: {text}", file=sys.stderr)
+
+
+def evaluation_directory(args, controllers) -> tuple[Path, dict]:
+    """The evaluation's directory (``--out``, default ``runs/evaluation_<UTC time>``) and the
+    inputs given or made into its ``inputs/``; a directory created here is removed again when
+    making the inputs fails, so nothing is left that looks like an evaluation."""
+    check_given_inputs(args, controllers)
+    stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
+    out = Path(args.out or f"runs/evaluation_{stamp}").resolve()
+    created = not out.exists()
+    out.mkdir(parents=True, exist_ok=True)
+    try:
+        return out, inputs(args, controllers, out / "inputs", log)
+    except BaseException:
+        if created:
+            shutil.rmtree(out, ignore_errors=True)
+        raise
+
+
+def inputs(args, controllers, inputs: Path, log) -> dict:
+    """Schedule, fixed c2 and network for the chosen controllers (given or made)."""
+    made: dict = {}
+    inputs.mkdir(parents=True, exist_ok=True)
+    if "schedule" in controllers:
+        if args.schedule:
+            made["schedule"] = str(Path(args.schedule).resolve())
+        else:
+            path = inputs / "schedule.json"
+            if not path.is_file():
+                log("making the airspeed schedule (dva control schedule)")
+                _run(_dva("control", "schedule", "--out", str(path), "--plot",
+                          str(inputs / "schedule.png"), "--json"), "dva control schedule")
+            made["schedule"] = str(path)
+        if not Path(made["schedule"]).is_file():
+            raise FileNotFoundError(f"--schedule: no file {made['schedule']}")
+    if "fixed" in controllers:
+        if args.fixed_c2 is not None:
+            if not (math.isfinite(args.fixed_c2) and args.fixed_c2 >= 0):
+                raise ValueError(f"--fixed-c2 must be a finite c2 >= 0, got {args.fixed_c2}")
+            made["fixed_c2"] = {"damping": args.fixed_c2, "source": "--fixed-c2"}
+        else:
+            path = inputs / "fixed_c2.json"
+            if not path.is_file():
+                log("choosing the fixed c2 (highest flutter airspeed)")
+                _save(path, best_fixed_damping_of(None))
+            made["fixed_c2"] = json.loads(path.read_text())
+    if "rbf" in controllers:
+        if args.network:
+            made["network"] = str(Path(args.network).resolve())
+            if not Path(made["network"]).is_file():
+                raise FileNotFoundError(f"--network: no file {made['network']}")
+        else:
+            path = inputs / "rbf.npz"
+            if not path.is_file():
+                bag = Path(args.sweep_bag) if args.sweep_bag else inputs / "train_sweep"
+                if not args.sweep_bag and not (bag / "metadata.yaml").is_file():
+                    shutil.rmtree(bag, ignore_errors=True)  # an interrupted recording
+                    log("recording the training sweep (dva train sweep, several minutes)")
+                    _run(_dva("train", "sweep", "--out", str(bag), "--json"), "dva train sweep")
+                log(f"training the RBF network from {bag} (dva train rbf)")
+                _run(_dva("train", "rbf", str(bag), "--out", str(path), "--plot",
+                          str(inputs / "rbf_fig7_11.png"), "--json"), "dva train rbf")
+            made["network"] = str(path)
+    return made
+
+
+def _save(path, payload):
+    from dva_offline.evaluation.graph_io import save_json
+
+    return save_json(path, payload)
+
+
+def check_given_inputs(args, controllers) -> None:
+    """Read the input files the user gave, before anything is made or flown: a bad one ends
+    the run here with the file named, instead of failing (or, for a controller that cannot
+    start, flying on the damper's fallback) in every flight."""
+    from aero_dva.bag.reader import bag_topics
+    from aero_dva.control.rbf_io import load_rbf_network
+    from aero_dva.control.schedule_io import load_schedule
+
+    if "schedule" in controllers and args.schedule:
+        load_schedule(args.schedule)
+    if "rbf" in controllers and args.network:
+        load_rbf_network(args.network)
+    elif "rbf" in controllers and args.sweep_bag:
+        bag_topics(args.sweep_bag)
+
+
+def best_fixed_damping_of(wing) -> dict:
+    """The c2 in 0..2500 N s/m with the highest flutter airspeed of ``wing`` (a file; None:
+    the default wing) with its Maxwell DVA, c2 held fixed, at the file's density."""
+    import numpy as np
+
+    from aero_dva.flight.damper import DAMPER_RANGE
+    from aero_dva.wing.flutter import NoFlutterError, flutter_speed
+    from aero_dva.wing.model import AeroelasticModel
+    from aero_dva.wing.wing_io import load_wing
+    from dva_offline.evaluation.graph_cases import best_fixed_damping
+
+    cfg = load_wing(wing)
+    model = AeroelasticModel(cfg.wing, cfg.absorber, cfg.aero)
+    rho = cfg.air_density
+
+    def critical(c2):
+        try:
+            return flutter_speed(model, rho, damping=c2).critical_airspeed
+        except NoFlutterError:
+            return math.nan
+
+    grid = np.linspace(*DAMPER_RANGE, 51)
+    choice = best_fixed_damping(critical, grid)
+    u_cr = flutter_speed(AeroelasticModel(cfg.wing, None, cfg.aero), rho).critical_airspeed
+    return {"damping": choice.damping, "critical_airspeed": choice.critical_airspeed,
+            "critical_ratio": choice.critical_airspeed / u_cr, "density": rho,
+            "flutter_frequency": flutter_speed(model, rho,
+                                               damping=choice.damping).flutter_frequency,
+            "source": "c2 in 0..2500 N s/m maximising the flutter airspeed of the wing with "
+                      "its Maxwell DVA and c2 held fixed (eigenvalues, base density)"}
+
+

@@ -1,0 +1,173 @@
+"""Files of the paired evaluation (``dva evaluate``): records, the results table, plots.
+
+In the evaluation directory::
+
+    inputs/             schedule, fixed c2, network (made if not given)
+    records.json        every flight's numbers (controller, case, seed, U_div/U_cr, RMS, c2)
+    results.json        the summary (what --json prints)
+    results.md          the table with the paired differences and the boundaries
+    c2_traces.png       applied c2 versus U/U_cr of the first seed, per case and controller
+    rms_change.png      RMS change against the best fixed c2 with its 95 % interval, per case
+"""
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from aero_dva.atomic_io import atomic_output
+
+__all__ = ["markdown_results", "plot_paired", "write_paired_results"]
+
+LABELS = {"fixed": "best fixed c2", "schedule": "airspeed schedule", "rbf": "RBF network",
+          "oracle": "oracle c2*(U, rho)"}
+
+
+def _f(value, spec: str) -> str:
+    return "-" if value is None or (isinstance(value, float) and not math.isfinite(value)) \
+        else format(value, spec)
+
+
+def _interval(stat: Mapping, scale: float, spec: str) -> str:
+    low, high = stat["ci95"]
+    if stat["mean"] is None:
+        return "-"
+    text = format(stat["mean"] * scale, spec)
+    if low is None or high is None:
+        return text
+    mark = " *" if (low > 0 or high < 0) else ""
+    return f"{text} [{format(low * scale, spec)}, {format(high * scale, spec)}]{mark}"
+
+
+def _oracle(row: Mapping) -> str:
+    stat = row.get("divergence_to_oracle")
+    if row["controller"] == "oracle" or not stat or not stat["n"]:
+        return "-"
+    return _interval(stat, 1.0, "+.4f")
+
+
+def markdown_results(payload: Mapping) -> str:
+    """The results table and the boundaries as markdown."""
+    lines = [
+        f"U_cr = {payload['critical_airspeed_no_dva']:.3f} m/s (bare wing, base density); "
+        f"best fixed c2 = {payload['fixed_c2']:.1f} N s/m; {len(payload['seeds'])} seeds "
+        f"per case; RMS over {payload['rms_range_ratio'][0]:g} .. "
+        f"{payload['rms_range_ratio'][1]:g} U_cr. Differences are paired (same seed) "
+        "against the best fixed c2, with 95 % t-intervals over the seeds; * marks an interval "
+        "that excludes zero.", "",
+        "| case | controller | U_div/U_cr | diff. to fixed [U_cr] | diff. to oracle [U_cr] | "
+        "RMS ratio | RMS change [%] | mean c2 [N s/m] | activation |",
+        "|---|---|---|---|---|---|---|---|---|"]
+    for row in payload["results"]:
+        div = _f(row["mean_divergence_ratio"], ".4f")
+        if row["diverged"] < row["flights"]:
+            div += f" ({row['flights'] - row['diverged']} reached the end)"
+        fixed = row["controller"] == "fixed"
+        lines.append(
+            f"| {row['case']} | {LABELS.get(row['controller'], row['controller'])} | {div} | "
+            f"{'-' if fixed else _interval(row['divergence_difference'], 1.0, '+.4f')} | "
+            f"{_oracle(row)} | {_f(row['mean_rms_ratio'], '.4f')} | "
+            f"{'-' if fixed else _interval(row['rms_change'], 100.0, '+.2f')} | "
+            f"{_f(row['mean_c2'], '.0f')} | {_f(row['median_peak_activation'], '.3f')} |")
+    rbf = [r for r in payload["results"] if r["controller"] == "rbf"
+           and (r.get("divergence_to_schedule") or {}).get("n")]
+    if rbf:
+        lines += ["", "RBF network minus airspeed schedule, same seeds (the study's key claim: "
+                  "under density variation the network beats the schedule):", "",
+                  "| case | U_div/U_cr difference | RMS change [%] |", "|---|---|---|"]
+        lines += [f"| {r['case']} | {_interval(r['divergence_to_schedule'], 1.0, '+.4f')} | "
+                  f"{_interval(r['rms_to_schedule'], 100.0, '+.2f')} |" for r in rbf]
+    bounds = payload.get("boundaries") or {}
+    if bounds:
+        laws = sorted({law for rows in bounds.values() for law in rows},
+                      key=lambda n: list(LABELS).index(n))
+        lines += ["", "Stability boundaries of the control laws [U/U_cr] (frozen: eigenvalues "
+                  "at the case's density, or the lowest over its cycle; Floquet: the periodic "
+                  "system):", "",
+                  "| case | " + " | ".join(f"{LABELS[n]} frozen | Floquet" for n in laws) + " |",
+                  "|---|" + "---|---|" * len(laws)]
+        for case, rows in bounds.items():
+            cells = []
+            for law in laws:
+                b = rows.get(law, {})
+                cells += [_f(b.get("frozen"), ".4f"), _f(b.get("floquet"), ".4f")]
+            lines.append(f"| {case} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def write_paired_results(out, payload: Mapping, records: Sequence) -> dict:
+    """records.json and results.md (atomically); returns their paths."""
+    out = Path(out)
+    with atomic_output(out / "records.json") as handle:
+        json.dump([r.to_dict() for r in records], handle, allow_nan=False)
+    with atomic_output(out / "results.md") as handle:
+        handle.write("# Evaluation flights (dva evaluate)\n\n" + markdown_results(payload)
+                     + "\n\n![rms change](rms_change.png)\n\n![c2 traces](c2_traces.png)\n")
+    return {"records": str(out / "records.json"), "results_md": str(out / "results.md")}
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def plot_paired(out, payload: Mapping, kept: Mapping, critical_airspeed: float) -> dict:
+    """rms_change.png and c2_traces.png; returns their paths."""
+    plt = _plt()
+    out = Path(out)
+    cases = [c["case"] for c in payload["cases"]]
+    controllers = [c for c in payload["controllers"] if c != "fixed"]
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.5))
+    for k, controller in enumerate(controllers):
+        rows = {r["case"]: r for r in payload["results"] if r["controller"] == controller}
+        x = np.arange(len(cases)) + (k - (len(controllers) - 1) / 2) * 0.2
+        for ax, key, scale in ((axes[0], "rms_change", 100.0),
+                               (axes[1], "divergence_difference", 1.0)):
+            mean = np.array([_num(rows[c][key]["mean"]) * scale for c in cases])
+            low = np.array([_num(rows[c][key]["ci95"][0]) * scale for c in cases])
+            high = np.array([_num(rows[c][key]["ci95"][1]) * scale for c in cases])
+            ax.errorbar(x, mean, yerr=[mean - low, high - mean], fmt="o", capsize=3,
+                        label=LABELS[controller], color=f"C{k}")
+    for ax, title in ((axes[0], "leading-edge RMS change against the best fixed c2 [%]"),
+                      (axes[1], "U_div/U_cr difference to the best fixed c2")):
+        ax.axhline(0.0, color="k", lw=0.8)
+        ax.set_xticks(np.arange(len(cases)), cases)
+        ax.set_title(title, fontsize=10)
+        ax.grid(True, alpha=0.3)
+    axes[0].legend(fontsize=8)
+    fig.suptitle("paired differences (same seeds), mean and 95 % interval", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(out / "rms_change.png", dpi=100)
+    plt.close(fig)
+    files = {"rms_change_plot": str(out / "rms_change.png")}
+    if kept:
+        fig, axes = plt.subplots(2, (len(cases) + 1) // 2, figsize=(14, 7), squeeze=False)
+        for ax, case in zip(axes.ravel(), cases):
+            for k, controller in enumerate(payload["controllers"]):
+                hit = [v for (c, n, _), v in kept.items() if c == controller and n == case]
+                if hit:
+                    ax.plot(hit[0].airspeed / critical_airspeed, hit[0].damping, lw=0.8,
+                            color=f"C{k - 1}" if controller != "fixed" else "k",
+                            label=LABELS[controller])
+            ax.set_title(case, fontsize=9)
+            ax.set_xlabel("U / U_cr")
+            ax.set_ylabel("applied c2 [N s/m]")
+            ax.grid(True, alpha=0.3)
+        axes.ravel()[0].legend(fontsize=7)
+        fig.suptitle("applied c2 along the ramp, first seed", fontsize=10)
+        fig.tight_layout()
+        fig.savefig(out / "c2_traces.png", dpi=100)
+        plt.close(fig)
+        files["c2_traces_plot"] = str(out / "c2_traces.png")
+    return files
+
+
+def _num(value) -> float:
+    return math.nan if value is None else float(value)

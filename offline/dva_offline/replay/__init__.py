@@ -1,0 +1,1 @@
+"""dva replay: a recorded flight's controller re-run offline, and the comparison."""

@@ -1,0 +1,1 @@
+"""dva report: what one recorded run says, as numbers, markdown, plots and a rerun file."""

@@ -1,0 +1,1 @@
+"""dva wing: flutter, modal and time analyses of the wing, and its calibration."""
