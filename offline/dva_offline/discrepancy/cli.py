@@ -72,6 +72,7 @@ def _run_loop(args, domain):
     """The loop on ``domain`` with the held-out split and step limit of the loop options,
     with a progress bar."""
     from dva_offline.discrepancy import loop
+    from dva_offline.discrepancy.fitting import DataError
 
     rng = None if args.holdout_seed is None else np.random.default_rng(args.holdout_seed)
     split = loop.holdout_split(domain.observations.groups, args.holdout_every, rng)
@@ -79,6 +80,8 @@ def _run_loop(args, domain):
     try:
         return loop.run(domain, rule=loop.DecisionRule(max_steps=args.max_steps), split=split,
                         progress=step)
+    except DataError as exc:  # the data as given cannot be analysed: say which file
+        raise ValueError(f"{args.file}: {exc}") from None
     finally:
         bar.close()
 
@@ -100,7 +103,8 @@ def _cmd_frf(args) -> int:
             ) from None
     conditions, columns, grouping, info = _conditions(args)
     domain = FrfDomain(conditions, mass=args.mass, static_stiffness=args.static_stiffness,
-                       elements=elements, max_elements=args.max_elements, covariates=columns)
+                       elements=elements, max_elements=args.max_elements, covariates=columns,
+                       modulus=args.quantity == "modulus")
     result = _run_loop(args, domain)
     sel = domain.order_selection
     extra = {
@@ -280,8 +284,9 @@ def _summary_lines(result, baseline_detail: str = "") -> list[str]:
         label = f" ({c.label})" if c.label else ""
         if c.applicable:
             lines.append(f"  {c.effect}{label}: {c.fit.error:.4f}, {c.delta_bic:.1f}")
-        else:
-            lines.append(f"  {c.effect}{label}: not applicable: {c.reason}")
+        else:  # a failed start or fit says "failed: reason"
+            lines.append(f"  {c.effect}{label}: "
+                         + (c.reason if c.failed else f"not applicable: {c.reason}"))
     return lines
 
 

@@ -174,8 +174,8 @@ class FrfLibrary:
             n_corner = 12 + int(round(2 * (below + above)))
             out.append(spec(
                 "maxwell_element",
-                (ParamSpec("k_e", "N/m", ke0, s["k_ref"] * 1e-3, s["k_ref"] * 1e3, log=True),
-                 ParamSpec("c_e", "N s/m", ke0 * tau0, s["c_ref"] * 1e-3 / 10**above,
+                (ParamSpec("k_e", self.units["k"], ke0, s["k_ref"] * 1e-3, s["k_ref"] * 1e3, log=True),
+                 ParamSpec("c_e", self.units["c"], ke0 * tau0, s["c_ref"] * 1e-3 / 10**above,
                            s["c_ref"] * 1e3 * 10**below, log=True)),
                 Term("maxwell_element", "", "element", 2),
                 starts=[np.array([r * k_b, r * k_b * t]) for t in
@@ -211,7 +211,7 @@ class FrfLibrary:
             lower = -0.9 * m_ref if self.quantity != "stiffness" else -100 * m_ref
             out.append(spec(
                 "fixture_mass",
-                (ParamSpec("dm", "kg", 0.0, lower, 100 * m_ref, scale=0.01 * m_ref),),
+                (ParamSpec("dm", self.units["m"], 0.0, lower, 100 * m_ref, scale=0.01 * m_ref),),
                 Term("fixture_mass", "", "mass", 1),
                 starts=[np.array([r * m_ref]) for r in np.linspace(-0.3, 0.5, 17)]))
 
@@ -249,7 +249,7 @@ class FrfLibrary:
                 (ParamSpec("f_f", "Hz", first[0], max(0.5 * f_n, 0.5 * f_min), 2.0 * f_max,
                            log=True),
                  ParamSpec("zeta_f", "-", first[1], 1e-3, 0.15, log=True),
-                 ParamSpec("m_f", "kg", first[2], 1e-5 * m_ref, 1e4 * m_ref, log=True)),
+                 ParamSpec("m_f", self.units["m"], first[2], 1e-5 * m_ref, 1e4 * m_ref, log=True)),
                 Term("foundation_mode", "", "series", 3), found_starts[1:], priority=informed))
 
         # covariate candidates

@@ -145,6 +145,8 @@ class CandidateScore:
     explained_fraction : float
         R (module docstring); NaN when the baseline has no excess over the noise floor.
     signature : str
+    failed : bool
+        The start or the fit failed (``reason`` says why); the loop went on without it.
     """
 
     effect: str
@@ -156,6 +158,7 @@ class CandidateScore:
     p_value: float
     explained_fraction: float
     signature: str
+    failed: bool = False
 
 
 @dataclass(frozen=True)
@@ -377,18 +380,53 @@ def _capped_fractions(base: ModelFit, scores: list, sigma: float) -> list:
     return out
 
 
+def _failed(effect: str, label: str, exc: Exception) -> CandidateScore:
+    """A candidate whose start or fit failed: listed with the reason, never fatal."""
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    return CandidateScore(effect, label, False, f"failed: {text}", None, np.nan, np.nan,
+                          np.nan, "", failed=True)
+
+
+def _fit_or_none(spec, obs, split):
+    """fit_model, or the exception when the fit fails (numerical trouble of one candidate
+    must not end the run: real data reach corners no generated set does)."""
+    try:
+        fit = fit_model(spec, obs, split)
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+        return None, exc
+    if not np.isfinite(fit.rss_held) or fit.rss_held <= 0 or not np.isfinite(fit.rss_train):
+        return None, ValueError("the fit's residual is not finite")
+    return fit, None
+
+
+def _library(domain, base, features):
+    """The domain's library; when building it fails (an informed start on data no start rule
+    foresaw), one failed entry instead."""
+    try:
+        return list(domain.candidates(base, features))
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+        return [_failed("library", "", exc)]
+
+
 def _candidates(domain, obs, split, base, features, noise, rule, progress, n_variants):
-    """Fit and score every library entry (and the variants of the best) against ``base``."""
+    """Fit and score every library entry (and the variants of the best) against ``base``;
+    a candidate whose fit fails is listed as failed and the others go on."""
     scores, specs = [], {}
-    for item in domain.candidates(base, features):
+    for item in _library(domain, base, features):
+        if isinstance(item, CandidateScore):
+            scores.append(item)
+            continue
         if isinstance(item, NotApplicable):
             scores.append(CandidateScore(item.effect, item.label, False, item.reason, None,
                                          np.nan, np.nan, np.nan, ""))
             continue
         if progress:
             progress(item.effect + (f" ({item.label})" if item.label else ""))
+        fit, exc = _fit_or_none(item, obs, split)
+        if fit is None:
+            scores.append(_failed(item.effect, item.label, exc))
+            continue
         specs[(item.effect, item.label)] = item
-        fit = fit_model(item, obs, split)
         dbic, p, frac = score_candidate(base, fit, noise.sigma)
         scores.append(CandidateScore(item.effect, item.label, True, "", fit, dbic, p, frac,
                                      item.signature))
@@ -400,10 +438,16 @@ def _candidates(domain, obs, split, base, features, noise, rule, progress, n_var
                         key=lambda c: c.delta_bic)[:n_variants]
         ranked = [c for c in ranked if c.fit.error > rule.consistency_ratio * noise.sigma]
         for c in ranked:
-            for spec in variants(specs[(c.effect, c.label)]):
+            try:
+                forms = variants(specs[(c.effect, c.label)])
+            except (ValueError, ArithmeticError, np.linalg.LinAlgError):
+                forms = []  # the candidate's own form stands
+            for spec in forms:
                 if progress:
                     progress(f"{spec.name}")
-                fit = fit_model(spec, obs, split)
+                fit, _ = _fit_or_none(spec, obs, split)
+                if fit is None:
+                    continue
                 dbic, p, frac = score_candidate(base, fit, noise.sigma)
                 if dbic < c.delta_bic:
                     i = scores.index(c)

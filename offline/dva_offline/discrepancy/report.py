@@ -81,7 +81,7 @@ def _features(f: ResidualFeatures) -> dict:
 def _candidate(c: CandidateScore) -> dict:
     covariate, _, form = (c.label or "").partition(", ")
     item = {"effect": c.effect, "covariate": covariate or None, "form": form or None,
-            "applicable": c.applicable}
+            "applicable": c.applicable, "failed": c.failed}
     if not c.applicable:
         item.update(error=None, reason=c.reason)
         return item
