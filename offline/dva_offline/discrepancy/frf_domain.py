@@ -306,7 +306,7 @@ class FrfDomain(FrfLibrary):
 
     def _maxwell_params(self, model: MaxwellModel) -> tuple[ParamSpec, ...]:
         s = self._setup
-        k_ref, c_ref = s["k_ref"], s["c_ref"]
+        c_ref = s["c_ref"]
         params = []
         u = self.units
         if s["free_m"]:
@@ -315,17 +315,40 @@ class FrfDomain(FrfLibrary):
         if s["free_k"]:
             params.append(ParamSpec("k", u["k"], model.k, model.k * 1e-3, model.k * 1e3,
                                     log=True))
-        params.append(ParamSpec("c", u["c"], model.c, -100 * c_ref, 100 * c_ref, scale=c_ref))
+        params.append(ParamSpec("c", u["c"], model.c, -s["c_abs"], s["c_abs"], scale=c_ref))
         dormant = "a dormant element (the data do not need it in the band)"
         for i, ki in enumerate(model.maxwell_k):
-            params.append(ParamSpec(f"k_{i + 1}", u["k"], ki, k_ref * 1e-3, k_ref * 1e3, log=True,
+            params.append(ParamSpec(f"k_{i + 1}", u["k"], ki, s["k_lo"], s["k_hi"], log=True,
                                     at_lower=dormant, at_upper=dormant))
         below, above = self._reduced_span()
         for i, ci in enumerate(model.maxwell_c):
-            params.append(ParamSpec(f"c_{i + 1}", u["c"], ci, c_ref * 1e-3 / 10**above,
-                                    c_ref * 1e3 * 10**below, log=True, at_lower=dormant,
+            params.append(ParamSpec(f"c_{i + 1}", u["c"], ci, s["c_lo"] / 10**above,
+                                    s["c_hi"] * 10**below, log=True, at_lower=dormant,
                                     at_upper=dormant))
         return tuple(params)
+
+    def _data_span(self, m: float) -> dict:
+        """Ranges of the stiffness and damping parameters that follow the data's magnitude.
+
+        The nominal k_ref = m w_n^2 and c_ref = m w_n come from a resonance, which a material's
+        modulus (or a mount measured far from its resonance) does not have: the bounds are
+        widened until they reach at least a decade beyond the largest apparent stiffness
+        |K_app| in the data and the damper that gives it at the lowest frequency, so no
+        element is held below the data by a ceiling in SI units.
+        """
+        s = self._setup
+        w, kapp, _ = self._apparent_stiffness(m, np.ones(self.omega.size, dtype=bool))
+        mag = np.abs(kapp[np.isfinite(kapp)])
+        mag = mag[mag > 0]
+        k_ref, c_ref = s["k_ref"], s["c_ref"]
+        if mag.size == 0:
+            return dict(k_lo=1e-3 * k_ref, k_hi=1e3 * k_ref, c_lo=1e-3 * c_ref, c_hi=1e3 * c_ref,
+                        c_abs=100 * c_ref)
+        k_max, k_min = float(mag.max()), float(mag.min())
+        c_max = k_max / float(w.min())
+        return dict(k_lo=min(1e-3 * k_ref, 0.1 * k_min), k_hi=max(1e3 * k_ref, 10 * k_max),
+                    c_lo=min(1e-3 * c_ref, 0.1 * k_min / float(w.max())),
+                    c_hi=max(1e3 * c_ref, c_max), c_abs=max(100 * c_ref, c_max))
 
     def _reduced_span(self) -> tuple[float, float]:
         """Decades by which the material's reduced frequency w a_T reaches below the lowest
@@ -388,6 +411,7 @@ class FrfDomain(FrfLibrary):
         wn, zeta = self._modal_estimate(m)
         self._setup = dict(m=m, k=k, free_m=free_m, free_k=free_k, n=0, k_ref=m * wn**2,
                            c_ref=m * wn, wn=wn, order=None, order_errors=None, refined={})
+        self._setup.update(self._data_span(m))
         models, sel = self._isolator_models(train, m, k, wn, zeta)
         self._setup["order"] = sel
         idx = np.nonzero(train)[0]

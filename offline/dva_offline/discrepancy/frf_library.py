@@ -174,11 +174,9 @@ class FrfLibrary:
             n_corner = 12 + int(round(2 * (below + above)))
             out.append(spec(
                 "maxwell_element",
-                (ParamSpec("k_e", self.units["k"], ke0, s["k_ref"] * 1e-3, s["k_ref"] * 1e3,
-                           log=True),
-                 ParamSpec("c_e", self.units["c"], ke0 * tau0,
-                           s["c_ref"] * 1e-3 / 10**above, s["c_ref"] * 1e3 * 10**below,
-                           log=True)),
+                (ParamSpec("k_e", self.units["k"], ke0, s["k_lo"], s["k_hi"], log=True),
+                 ParamSpec("c_e", self.units["c"], ke0 * tau0, s["c_lo"] / 10**above,
+                           s["c_hi"] * 10**below, log=True)),
                 Term("maxwell_element", "", "element", 2),
                 starts=[np.array([r * k_b, r * k_b * t]) for t in
                         1.0 / (2 * np.pi * np.geomspace(f_min / 10**below, f_max * 10**above,
