@@ -260,6 +260,12 @@ def _summary_lines(result, baseline_detail: str = "") -> list[str]:
         f"verdict: {v.status}" + (f" -> {v.effect}" + (f" ({v.label})" if v.label else "")
                                   if v.effect else ""),
     ]
+    ref = getattr(result, "reference", None)
+    if ref is not None:
+        lines.insert(1, f"per-condition reference (baseline fitted to each of "
+                        f"{ref.n_fitted}/{ref.n_conditions} conditions): held-out error "
+                        f"{ref.error:.4f}" + ("" if result.reference_used else
+                                              " (no better than the baseline: not used)"))
     if result.augmented is not None:
         a = result.augmented
         lines.append(f"augmented {a.name}: held-out error {a.error:.4f} "
@@ -270,7 +276,9 @@ def _summary_lines(result, baseline_detail: str = "") -> list[str]:
         lines.append(f"step {i + 1}: + {st.effect}{label}: held-out error {st.error_before:.4f} "
                      f"-> {st.error_after:.4f} (noise floor {st.noise_before:.4f}, dBIC "
                      f"{st.delta_bic:.1f}, explains {100 * st.explained_fraction:.0f} % of the "
-                     "excess)")
+                     "excess" + (f", {100 * st.achieved_fraction:.0f} % of what the "
+                                 "per-condition fits reach" if np.isfinite(st.achieved_fraction)
+                                 else "") + ")")
         lines += [f"    {e.name} = {e.value:.6g} +- {e.std:.2g} {e.unit}" for e in st.fit.added]
         lines += [f"    caveat: {c}" for c in st.caveats]
     if result.final is not None:
