@@ -572,9 +572,9 @@ def run(domain: Domain, rule: DecisionRule | None = None, split: HoldoutSplit | 
     base = fit_model(base_spec, obs, split)
     features = _features(obs, base)
     noise = features.noise
-    # (only for the domains whose conditions are test conditions of one baseline: FRF, modal)
+    # (a domain whose groups are no test conditions of a covariate says so)
     reference = None
-    if hasattr(domain, "augment"):
+    if getattr(domain, "per_condition_reference", True):
         if progress:
             progress("per-condition reference")
         reference = saturated_reference(base_spec, obs, split, base)
