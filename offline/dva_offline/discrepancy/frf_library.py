@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from dva_offline.discrepancy.covariate_kinds import is_level
 from dva_offline.discrepancy.fitting import ModelSpec, NotApplicable, ParamSpec
 from dva_offline.discrepancy.frf_terms import Term, absolute_temperature
 from dva_offline.discrepancy.maxwell_starts import (
@@ -284,7 +285,13 @@ class FrfLibrary:
                 out.append(NotApplicable("amplitude_dependence",
                                          f"covariate {name!r} has values <= 0 (not a level)",
                                          name))
-            if wanted("covariate_shift", name):
+            if is_level(name) and np.all(col > 0):
+                # a shift with an excitation level is the amplitude law above, by its name
+                if only is None:
+                    out.append(NotApplicable(
+                        "covariate_shift", f"covariate {name!r} is an excitation level (a "
+                        "shift with it is amplitude_dependence)", name))
+            elif wanted("covariate_shift", name):
                 dt = col - ref
                 c2_min = float(max(-dt.min(), 0.0)) + 1.0
 
