@@ -161,3 +161,31 @@ def test_polymer_melt_is_a_wlf_temperature_shift(capsys):
     fitted = log_a(np.array([-45, -40, -30, -20, -10, 0, 10, 25.0])) - log_a(-35.0)
     from_data = np.array([1.218, 0.539, -0.539, -1.352, -2.031, -2.597, -3.080, -3.667])
     assert np.sqrt(np.mean((fitted - from_data) ** 2)) < 0.2
+
+
+def test_hits_order_and_verdict_stand_a_change_of_a_twentieth_of_the_noise():
+    """The model order and the verdict of the repeated hits do not move when every point
+    changes by 1/20 of the noise floor (complex, relative, seeded)."""
+    from dva_offline.discrepancy import loop, table_io
+    from dva_offline.discrepancy.modal_domain import ModalDomain, to_receptance
+    from dva_offline.isolator.frf_data import FrfData
+
+    table = table_io.read_table(REAL / "impact_hits_pyfrf.csv")
+    raw, _, _ = table_io.conditions_from_table(
+        table, "accelerance", table_io.ColumnMap.parse(None), None, None, "hit", None,
+        ["force_peak_n"], internal_quantity="receptance")
+    outcomes = []
+    for seed in (None, 1):
+        rng = np.random.default_rng(seed)
+        conds = []
+        for c in raw:
+            v = to_receptance(c.frequency_hz, c.values, "accelerance")
+            if seed is not None:
+                z = rng.standard_normal(v.size) + 1j * rng.standard_normal(v.size)
+                v = v * (1 + 0.019 / 20 / np.sqrt(2) * z)  # noise floor 0.019
+            conds.append(FrfData(c.frequency_hz, v, "receptance", c.covariates))
+        dom = ModalDomain(conds, quantity="accelerance", covariates=["force_peak_n"])
+        res = loop.run(dom, rule=loop.DecisionRule(max_steps=1))
+        outcomes.append((dom.baseline_order, res.verdict.status, res.verdict.effect))
+    assert outcomes[0] == outcomes[1]
+    assert outcomes[0][2] is None
