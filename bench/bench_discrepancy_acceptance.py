@@ -13,7 +13,8 @@ bench 0..) and prints the acceptance rate the issue asks for:
   at most halved; wrong confident names are counted separately;
 * ``none`` (clean data; cycling single sweep / three temperatures / single sweep / three
   excitation levels): ``consistent``;
-* effects outside the library: never ``explained``.
+* effects outside the library: never ``explained`` (a cubic spring at three levels may be
+  named ``amplitude_dependence``, what it is at those levels: issue 23).
 
 ``--log`` writes one JSON line per case (truth, verdict, best candidates) for looking at the
 failures. Not a timed test: the machine is shared, times are indicative.
@@ -53,6 +54,8 @@ def accepted(effect: str | None, res) -> bool:
     v = res.verdict
     if effect is None:
         return v.status == "consistent"
+    if effect == "cubic_stiffness":  # at three levels it is an amplitude dependence (issue 23)
+        return v.status != "explained" or v.effect == "amplitude_dependence"
     if effect in synthetic.OUTSIDE_EFFECTS:
         return v.status != "explained"
     return (v.status == "explained" and v.effect == effect

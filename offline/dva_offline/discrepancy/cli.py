@@ -72,6 +72,7 @@ def _run_loop(args, domain):
     """The loop on ``domain`` with the held-out split and step limit of the loop options,
     with a progress bar."""
     from dva_offline.discrepancy import loop
+    from dva_offline.discrepancy.fitting import DataError
 
     rng = None if args.holdout_seed is None else np.random.default_rng(args.holdout_seed)
     split = loop.holdout_split(domain.observations.groups, args.holdout_every, rng)
@@ -79,6 +80,8 @@ def _run_loop(args, domain):
     try:
         return loop.run(domain, rule=loop.DecisionRule(max_steps=args.max_steps), split=split,
                         progress=step)
+    except DataError as exc:  # the data as given cannot be analysed: say which file
+        raise ValueError(f"{args.file}: {exc}") from None
     finally:
         bar.close()
 
@@ -100,7 +103,8 @@ def _cmd_frf(args) -> int:
             ) from None
     conditions, columns, grouping, info = _conditions(args)
     domain = FrfDomain(conditions, mass=args.mass, static_stiffness=args.static_stiffness,
-                       elements=elements, max_elements=args.max_elements, covariates=columns)
+                       elements=elements, max_elements=args.max_elements, covariates=columns,
+                       modulus=args.quantity == "modulus")
     result = _run_loop(args, domain)
     sel = domain.order_selection
     extra = {
@@ -256,6 +260,12 @@ def _summary_lines(result, baseline_detail: str = "") -> list[str]:
         f"verdict: {v.status}" + (f" -> {v.effect}" + (f" ({v.label})" if v.label else "")
                                   if v.effect else ""),
     ]
+    ref = getattr(result, "reference", None)
+    if ref is not None:
+        lines.insert(1, f"per-condition reference (baseline fitted to each of "
+                        f"{ref.n_fitted}/{ref.n_conditions} conditions): held-out error "
+                        f"{ref.error:.4f}" + ("" if result.reference_used else
+                                              " (no better than the baseline: not used)"))
     if result.augmented is not None:
         a = result.augmented
         lines.append(f"augmented {a.name}: held-out error {a.error:.4f} "
@@ -266,7 +276,9 @@ def _summary_lines(result, baseline_detail: str = "") -> list[str]:
         lines.append(f"step {i + 1}: + {st.effect}{label}: held-out error {st.error_before:.4f} "
                      f"-> {st.error_after:.4f} (noise floor {st.noise_before:.4f}, dBIC "
                      f"{st.delta_bic:.1f}, explains {100 * st.explained_fraction:.0f} % of the "
-                     "excess)")
+                     "excess" + (f", {100 * st.achieved_fraction:.0f} % of what the "
+                                 "per-condition fits reach" if np.isfinite(st.achieved_fraction)
+                                 else "") + ")")
         lines += [f"    {e.name} = {e.value:.6g} +- {e.std:.2g} {e.unit}" for e in st.fit.added]
         lines += [f"    caveat: {c}" for c in st.caveats]
     if result.final is not None:
@@ -280,8 +292,9 @@ def _summary_lines(result, baseline_detail: str = "") -> list[str]:
         label = f" ({c.label})" if c.label else ""
         if c.applicable:
             lines.append(f"  {c.effect}{label}: {c.fit.error:.4f}, {c.delta_bic:.1f}")
-        else:
-            lines.append(f"  {c.effect}{label}: not applicable: {c.reason}")
+        else:  # a failed start or fit says "failed: reason"
+            lines.append(f"  {c.effect}{label}: "
+                         + (c.reason if c.failed else f"not applicable: {c.reason}"))
     return lines
 
 

@@ -43,6 +43,11 @@ ERROR_DEFINITION = (
 )
 
 
+class DataError(ValueError):
+    """The data cannot be analysed as given, and the user can fix it (a flag, another file):
+    the CLI reports it in one line naming the file."""
+
+
 @dataclass(frozen=True)
 class ParamSpec:
     """One free parameter of a model.
@@ -480,6 +485,12 @@ def fit_model(spec: ModelSpec, obs: Observations, split: HoldoutSplit,
         if start.shape != (n_p,):
             raise ValueError(f"{spec.name}: a start has shape {start.shape}, expected ({n_p},)")
     internal = list(coords.to_z(np.array(starts).reshape(len(starts), n_p)))
+    # a start with no image in the bounded coordinates (not finite, a log parameter <= 0:
+    # e.g. an informed start from a negative static modulus) is replaced by a valid one
+    valid = [u for u in internal if np.all(np.isfinite(u))]
+    if not valid:
+        raise ValueError(f"{spec.name}: no start inside the parameter bounds")
+    internal = [u if np.all(np.isfinite(u)) else valid[0] for u in internal]
     n_starts = len(internal)
     if n_p and len(internal) > n_refine:
         # Screen a grid of starts: cost at each start, a few iterations from the best

@@ -187,6 +187,8 @@ class FlightDomain:
     """
 
     name = "flight"
+    # segments of one flight are no test conditions of a covariate: no saturated reference
+    per_condition_reference = False
     # H1 estimates of neighbouring segments share windows and the noise floor from second
     # differences is only approximate here: a clearly significant candidate is not hidden by
     # a high noise floor estimate (loop.DecisionRule.strict_consistency).

@@ -55,6 +55,7 @@ from functools import partial
 import numpy as np
 
 from dva_offline.discrepancy.fitting import (
+    DataError,
     HoldoutSplit,
     ModelFit,
     ModelSpec,
@@ -107,6 +108,9 @@ class FrfDomain(FrfLibrary):
         residual is white.
     whiteness_alpha : float
         Ljung-Box level of the order choice (the loop's default whiteness level).
+    modulus : bool
+        The data are a material's modulus (stiffness data per unit geometry factor): the
+        parameters are reported in Pa, Pa s and Pa s^2 instead of N/m, N s/m and kg.
     """
 
     name = "frf"
@@ -114,7 +118,8 @@ class FrfDomain(FrfLibrary):
     def __init__(self, conditions: Sequence[FrfData], mass: float | None = None,
                  static_stiffness: float | None = None, elements: int | None = None,
                  max_elements: int = 3, covariates: Sequence[str] | None = None,
-                 order_tolerance: float = 0.15, whiteness_alpha: float = 1e-3) -> None:
+                 order_tolerance: float = 0.15, whiteness_alpha: float = 1e-3,
+                 modulus: bool = False) -> None:
         conditions = list(conditions)
         if not conditions or not all(isinstance(c, FrfData) for c in conditions):
             raise TypeError("conditions must be a non-empty sequence of FrfData")
@@ -134,6 +139,9 @@ class FrfDomain(FrfLibrary):
             raise ValueError(f"order_tolerance must be >= 0, got {order_tolerance}")
         if not 0 < whiteness_alpha < 1:
             raise ValueError(f"whiteness_alpha must be in (0, 1), got {whiteness_alpha}")
+        # a modulus is a stiffness per unit geometry factor: its parameters in Pa, Pa s, Pa s^2
+        self.units = (dict(m="Pa s^2", k="Pa", c="Pa s") if modulus else
+                      dict(m="kg", k="N/m", c="N s/m"))
         self.order_tolerance = float(order_tolerance)
         self.whiteness_alpha = float(whiteness_alpha)
         self.conditions = conditions
@@ -184,7 +192,8 @@ class FrfDomain(FrfLibrary):
                 top = w >= np.quantile(w, 0.9)
                 m_guess = float(np.median(np.real(-1.0 / (w[top] ** 2 * rec[top]))))
                 if not m_guess > 0:
-                    raise ValueError("cannot estimate the mass from the FRF; give --mass")
+                    raise DataError("cannot estimate the mass from the FRF (its high-frequency "
+                                    "end is not mass-like); give --mass")
             stiff = 1.0 / rec + m_guess * w**2
         k = self.static_stiffness
         if k is None:
@@ -297,25 +306,49 @@ class FrfDomain(FrfLibrary):
 
     def _maxwell_params(self, model: MaxwellModel) -> tuple[ParamSpec, ...]:
         s = self._setup
-        k_ref, c_ref = s["k_ref"], s["c_ref"]
+        c_ref = s["c_ref"]
         params = []
+        u = self.units
         if s["free_m"]:
-            params.append(ParamSpec("m", "kg", model.mass, model.mass * 1e-2, model.mass * 1e2,
+            params.append(ParamSpec("m", u["m"], model.mass, model.mass * 1e-2, model.mass * 1e2,
                                     log=True))
         if s["free_k"]:
-            params.append(ParamSpec("k", "N/m", model.k, model.k * 1e-3, model.k * 1e3,
+            params.append(ParamSpec("k", u["k"], model.k, model.k * 1e-3, model.k * 1e3,
                                     log=True))
-        params.append(ParamSpec("c", "N s/m", model.c, -100 * c_ref, 100 * c_ref, scale=c_ref))
+        params.append(ParamSpec("c", u["c"], model.c, -s["c_abs"], s["c_abs"], scale=c_ref))
         dormant = "a dormant element (the data do not need it in the band)"
         for i, ki in enumerate(model.maxwell_k):
-            params.append(ParamSpec(f"k_{i + 1}", "N/m", ki, k_ref * 1e-3, k_ref * 1e3, log=True,
+            params.append(ParamSpec(f"k_{i + 1}", u["k"], ki, s["k_lo"], s["k_hi"], log=True,
                                     at_lower=dormant, at_upper=dormant))
         below, above = self._reduced_span()
         for i, ci in enumerate(model.maxwell_c):
-            params.append(ParamSpec(f"c_{i + 1}", "N s/m", ci, c_ref * 1e-3 / 10**above,
-                                    c_ref * 1e3 * 10**below, log=True, at_lower=dormant,
+            params.append(ParamSpec(f"c_{i + 1}", u["c"], ci, s["c_lo"] / 10**above,
+                                    s["c_hi"] * 10**below, log=True, at_lower=dormant,
                                     at_upper=dormant))
         return tuple(params)
+
+    def _data_span(self, m: float) -> dict:
+        """Ranges of the stiffness and damping parameters that follow the data's magnitude.
+
+        The nominal k_ref = m w_n^2 and c_ref = m w_n come from a resonance, which a material's
+        modulus (or a mount measured far from its resonance) does not have: the bounds are
+        widened until they reach at least a decade beyond the largest apparent stiffness
+        |K_app| in the data and the damper that gives it at the lowest frequency, so no
+        element is held below the data by a ceiling in SI units.
+        """
+        s = self._setup
+        w, kapp, _ = self._apparent_stiffness(m, np.ones(self.omega.size, dtype=bool))
+        mag = np.abs(kapp[np.isfinite(kapp)])
+        mag = mag[mag > 0]
+        k_ref, c_ref = s["k_ref"], s["c_ref"]
+        if mag.size == 0:
+            return dict(k_lo=1e-3 * k_ref, k_hi=1e3 * k_ref, c_lo=1e-3 * c_ref, c_hi=1e3 * c_ref,
+                        c_abs=100 * c_ref)
+        k_max, k_min = float(mag.max()), float(mag.min())
+        c_max = k_max / float(w.min())
+        return dict(k_lo=min(1e-3 * k_ref, 0.1 * k_min), k_hi=max(1e3 * k_ref, 10 * k_max),
+                    c_lo=min(1e-3 * c_ref, 0.1 * k_min / float(w.max())),
+                    c_hi=max(1e3 * c_ref, c_max), c_abs=max(100 * c_ref, c_max))
 
     def _reduced_span(self) -> tuple[float, float]:
         """Decades by which the material's reduced frequency w a_T reaches below the lowest
@@ -378,6 +411,7 @@ class FrfDomain(FrfLibrary):
         wn, zeta = self._modal_estimate(m)
         self._setup = dict(m=m, k=k, free_m=free_m, free_k=free_k, n=0, k_ref=m * wn**2,
                            c_ref=m * wn, wn=wn, order=None, order_errors=None, refined={})
+        self._setup.update(self._data_span(m))
         models, sel = self._isolator_models(train, m, k, wn, zeta)
         self._setup["order"] = sel
         idx = np.nonzero(train)[0]

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from dva_offline.discrepancy.covariate_kinds import is_level
 from dva_offline.discrepancy.fitting import ModelSpec, NotApplicable, ParamSpec
 from dva_offline.discrepancy.frf_terms import Term, absolute_temperature
 from dva_offline.discrepancy.maxwell_starts import (
@@ -174,9 +175,9 @@ class FrfLibrary:
             n_corner = 12 + int(round(2 * (below + above)))
             out.append(spec(
                 "maxwell_element",
-                (ParamSpec("k_e", "N/m", ke0, s["k_ref"] * 1e-3, s["k_ref"] * 1e3, log=True),
-                 ParamSpec("c_e", "N s/m", ke0 * tau0, s["c_ref"] * 1e-3 / 10**above,
-                           s["c_ref"] * 1e3 * 10**below, log=True)),
+                (ParamSpec("k_e", self.units["k"], ke0, s["k_lo"], s["k_hi"], log=True),
+                 ParamSpec("c_e", self.units["c"], ke0 * tau0, s["c_lo"] / 10**above,
+                           s["c_hi"] * 10**below, log=True)),
                 Term("maxwell_element", "", "element", 2),
                 starts=[np.array([r * k_b, r * k_b * t]) for t in
                         1.0 / (2 * np.pi * np.geomspace(f_min / 10**below, f_max * 10**above,
@@ -211,7 +212,7 @@ class FrfLibrary:
             lower = -0.9 * m_ref if self.quantity != "stiffness" else -100 * m_ref
             out.append(spec(
                 "fixture_mass",
-                (ParamSpec("dm", "kg", 0.0, lower, 100 * m_ref, scale=0.01 * m_ref),),
+                (ParamSpec("dm", self.units["m"], 0.0, lower, 100 * m_ref, scale=0.01 * m_ref),),
                 Term("fixture_mass", "", "mass", 1),
                 starts=[np.array([r * m_ref]) for r in np.linspace(-0.3, 0.5, 17)]))
 
@@ -249,7 +250,7 @@ class FrfLibrary:
                 (ParamSpec("f_f", "Hz", first[0], max(0.5 * f_n, 0.5 * f_min), 2.0 * f_max,
                            log=True),
                  ParamSpec("zeta_f", "-", first[1], 1e-3, 0.15, log=True),
-                 ParamSpec("m_f", "kg", first[2], 1e-5 * m_ref, 1e4 * m_ref, log=True)),
+                 ParamSpec("m_f", self.units["m"], first[2], 1e-5 * m_ref, 1e4 * m_ref, log=True)),
                 Term("foundation_mode", "", "series", 3), found_starts[1:], priority=informed))
 
         # covariate candidates
@@ -284,7 +285,13 @@ class FrfLibrary:
                 out.append(NotApplicable("amplitude_dependence",
                                          f"covariate {name!r} has values <= 0 (not a level)",
                                          name))
-            if wanted("covariate_shift", name):
+            if is_level(name) and np.all(col > 0):
+                # a shift with an excitation level is the amplitude law above, by its name
+                if only is None:
+                    out.append(NotApplicable(
+                        "covariate_shift", f"covariate {name!r} is an excitation level (a "
+                        "shift with it is amplitude_dependence)", name))
+            elif wanted("covariate_shift", name):
                 dt = col - ref
                 c2_min = float(max(-dt.min(), 0.0)) + 1.0
 

@@ -43,6 +43,7 @@ from dva_offline.discrepancy.fitting import (
     holdout_split,
 )
 from dva_offline.discrepancy.residual import NoiseFloor, ResidualFeatures, characterise
+from dva_offline.discrepancy.saturated import SaturatedReference, saturated_reference
 
 # the model pieces a domain or a caller needs with the loop
 __all__ = [
@@ -51,6 +52,11 @@ __all__ = [
     "LoopOutcome", "Observations", "ParamSpec", "Step", "Verdict", "choose_step", "decide",
     "fit_model", "holdout_split", "run", "score_candidate",
 ]
+
+# effects whose parameters make the model depend on a condition covariate: what they can
+# explain at most is what the baseline fitted to each condition explains (the saturated
+# reference, :mod:`.saturated`)
+COVARIATE_EFFECTS = ("amplitude_dependence", "covariate_shift")
 
 
 class Domain(Protocol):
@@ -108,7 +114,14 @@ class DecisionRule:
         When no single effect explains >= min_explained, the effects the loop added in turn
         count as the explanation if the final held-out error is within this x the noise floor
         (whiteness not required: with hundreds of points Ljung-Box flags the smallest
-        difference between the data's law and the library's, e.g. Kraus vs logarithmic).
+        difference between the data's law and the library's, e.g. Kraus vs logarithmic), or,
+        when a covariate effect was added and the saturated reference counts, within this x
+        the reference's held-out error.
+    min_reference_gain : float
+        The saturated reference (baseline fitted to each condition) counts only when it
+        lowers the baseline's held-out residual power by at least this share: the covariate
+        can then explain something, and a covariate effect's share of that is reported and
+        used beside the share of the excess over the noise.
     """
 
     consistency_ratio: float = 1.25
@@ -121,6 +134,7 @@ class DecisionRule:
     min_step_explained: float = 0.1
     max_steps: int = 12
     joint_ratio: float = 1.5
+    min_reference_gain: float = 0.2
 
     def __post_init__(self) -> None:
         if not isinstance(self.max_steps, (int, np.integer)) or self.max_steps < 1:
@@ -145,6 +159,11 @@ class CandidateScore:
     explained_fraction : float
         R (module docstring); NaN when the baseline has no excess over the noise floor.
     signature : str
+    failed : bool
+        The start or the fit failed (``reason`` says why); the loop went on without it.
+    achieved_fraction : float
+        For a covariate effect, when the saturated reference counts: the share of the
+        held-out residual power above max(noise, reference) that it removes (NaN otherwise).
     """
 
     effect: str
@@ -156,6 +175,8 @@ class CandidateScore:
     p_value: float
     explained_fraction: float
     signature: str
+    failed: bool = False
+    achieved_fraction: float = np.nan
 
 
 @dataclass(frozen=True)
@@ -205,6 +226,8 @@ class DiscrepancyResult:
     error_definition: str = ERROR_DEFINITION
     steps: tuple = ()
     final: LoopOutcome | None = None
+    reference: SaturatedReference | None = None
+    reference_used: bool = False
 
     @property
     def error_reduction(self) -> float | None:
@@ -230,6 +253,7 @@ class Step:
     explained_fraction: float
     fit: ModelFit
     caveats: tuple = ()
+    achieved_fraction: float = np.nan
 
 
 @dataclass(frozen=True)
@@ -285,11 +309,32 @@ def condition_levels(obs: Observations) -> dict:
     return out
 
 
+def share(c) -> float:
+    """What a candidate (or step) explains for the verdict: the larger of its share of the
+    excess over the noise floor and, for a covariate effect, its share of what the
+    per-condition fits reach (NaN when neither is defined)."""
+    both = [x for x in (c.explained_fraction, c.achieved_fraction) if np.isfinite(x)]
+    return max(both) if both else np.nan
+
+
+def achieved_fraction(base: ModelFit, fit: ModelFit, sigma: float,
+                      reference: SaturatedReference | None) -> float:
+    """Share of the held-out residual power above max(noise, saturated reference) that a
+    covariate effect's fit removes; NaN without a reference or with nothing above it."""
+    if reference is None or fit.effect not in COVARIATE_EFFECTS:
+        return np.nan
+    floor = max(fit.n_held * sigma**2, reference.rss_held)
+    room = base.rss_held - floor
+    return float((base.rss_held - fit.rss_held) / room) if room > 0 else np.nan
+
+
 def _describe(c: CandidateScore) -> str:
     label = f" ({c.label})" if c.label else ""
+    reach = (f", recovers {100 * c.achieved_fraction:.0f} % of what the per-condition fits "
+             "reach" if np.isfinite(c.achieved_fraction) else "")
     return (f"{c.effect}{label}: held-out error {c.fit.error:.4f}, dBIC {c.delta_bic:.1f}, "
             f"F-test p = {c.p_value:.2g}, explains {100 * c.explained_fraction:.0f} % of the "
-            "excess" + "".join(f" ({h.name} on its {h.side} bound {h.bound:.4g} {h.unit})"
+            f"excess{reach}" + "".join(f" ({h.name} on its {h.side} bound {h.bound:.4g} {h.unit})"
                                for h in _added_hits(c)))
 
 
@@ -327,7 +372,7 @@ def decide(base: ModelFit, noise: NoiseFloor, features: ResidualFeatures,
         return Verdict("unexplained", None, "",
                        f"{head}; no candidate improves the held-out score significantly{tail}")
     best = _best_eligible(eligible, rule)
-    frac = best.explained_fraction
+    frac = share(best)
     if not frac >= rule.min_explained:
         return Verdict(
             "unexplained", None, "",
@@ -336,7 +381,7 @@ def decide(base: ModelFit, noise: NoiseFloor, features: ResidualFeatures,
         )
     # (forms of the same effect, e.g. WLF and Arrhenius, are no rivals: the name is the same)
     rivals = [c for c in eligible if c.effect != best.effect
-              and c.explained_fraction >= rule.min_explained
+              and share(c) >= rule.min_explained
               and c.delta_bic - best.delta_bic < rule.ambiguity_margin]
     if rivals:
         return Verdict(
@@ -377,21 +422,58 @@ def _capped_fractions(base: ModelFit, scores: list, sigma: float) -> list:
     return out
 
 
-def _candidates(domain, obs, split, base, features, noise, rule, progress, n_variants):
-    """Fit and score every library entry (and the variants of the best) against ``base``."""
+def _failed(effect: str, label: str, exc: Exception) -> CandidateScore:
+    """A candidate whose start or fit failed: listed with the reason, never fatal."""
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    return CandidateScore(effect, label, False, f"failed: {text}", None, np.nan, np.nan,
+                          np.nan, "", failed=True)
+
+
+def _fit_or_none(spec, obs, split):
+    """fit_model, or the exception when the fit fails (numerical trouble of one candidate
+    must not end the run: real data reach corners no generated set does)."""
+    try:
+        fit = fit_model(spec, obs, split)
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+        return None, exc
+    if not np.isfinite(fit.rss_held) or fit.rss_held <= 0 or not np.isfinite(fit.rss_train):
+        return None, ValueError("the fit's residual is not finite")
+    return fit, None
+
+
+def _library(domain, base, features):
+    """The domain's library; when building it fails (an informed start on data no start rule
+    foresaw), one failed entry instead."""
+    try:
+        return list(domain.candidates(base, features))
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+        return [_failed("library", "", exc)]
+
+
+def _candidates(domain, obs, split, base, features, noise, rule, progress, n_variants,
+                reference=None):
+    """Fit and score every library entry (and the variants of the best) against ``base``;
+    a candidate whose fit fails is listed as failed and the others go on."""
     scores, specs = [], {}
-    for item in domain.candidates(base, features):
+    for item in _library(domain, base, features):
+        if isinstance(item, CandidateScore):
+            scores.append(item)
+            continue
         if isinstance(item, NotApplicable):
             scores.append(CandidateScore(item.effect, item.label, False, item.reason, None,
                                          np.nan, np.nan, np.nan, ""))
             continue
         if progress:
             progress(item.effect + (f" ({item.label})" if item.label else ""))
+        fit, exc = _fit_or_none(item, obs, split)
+        if fit is None:
+            scores.append(_failed(item.effect, item.label, exc))
+            continue
         specs[(item.effect, item.label)] = item
-        fit = fit_model(item, obs, split)
         dbic, p, frac = score_candidate(base, fit, noise.sigma)
         scores.append(CandidateScore(item.effect, item.label, True, "", fit, dbic, p, frac,
-                                     item.signature))
+                                     item.signature, achieved_fraction=achieved_fraction(
+                                         base, fit, noise.sigma, reference)))
     # Promising candidates (lowest dBIC, significant) get their variants tried too.
     variants = getattr(domain, "variants", None)
     if variants is not None:
@@ -400,15 +482,22 @@ def _candidates(domain, obs, split, base, features, noise, rule, progress, n_var
                         key=lambda c: c.delta_bic)[:n_variants]
         ranked = [c for c in ranked if c.fit.error > rule.consistency_ratio * noise.sigma]
         for c in ranked:
-            for spec in variants(specs[(c.effect, c.label)]):
+            try:
+                forms = variants(specs[(c.effect, c.label)])
+            except (ValueError, ArithmeticError, np.linalg.LinAlgError):
+                forms = []  # the candidate's own form stands
+            for spec in forms:
                 if progress:
                     progress(f"{spec.name}")
-                fit = fit_model(spec, obs, split)
+                fit, _ = _fit_or_none(spec, obs, split)
+                if fit is None:
+                    continue
                 dbic, p, frac = score_candidate(base, fit, noise.sigma)
                 if dbic < c.delta_bic:
                     i = scores.index(c)
                     c = CandidateScore(c.effect, c.label, True, "", fit, dbic, p, frac,
-                                       c.signature)
+                                       c.signature, achieved_fraction=achieved_fraction(
+                                           base, fit, noise.sigma, reference))
                     scores[i] = c
                     specs[(c.effect, c.label)] = spec
     if rule.strict_consistency:
@@ -439,10 +528,10 @@ def choose_step(scores, rule) -> tuple[CandidateScore | None, str]:
         tail = f" (best: {_describe(best)})" if best is not None else ""
         return None, f"no candidate improves the held-out score significantly{tail}"
     best = _best_eligible(eligible, rule)
-    frac = best.explained_fraction
+    frac = share(best)
     if frac >= rule.min_explained:
         rivals = [c for c in eligible if c.effect != best.effect
-                  and c.explained_fraction >= rule.min_explained
+                  and share(c) >= rule.min_explained
                   and c.delta_bic - best.delta_bic < rule.ambiguity_margin]
         if rivals:
             return None, (f"ambiguous: {_describe(best)} and {_describe(rivals[0])} explain the "
@@ -479,17 +568,27 @@ def run(domain: Domain, rule: DecisionRule | None = None, split: HoldoutSplit | 
         raise ValueError("split must have the observations' shape and >= 5 held-out points")
     if progress:
         progress("baseline")
-    base = fit_model(domain.baseline(split.train), obs, split)
+    base_spec = domain.baseline(split.train)
+    base = fit_model(base_spec, obs, split)
     features = _features(obs, base)
     noise = features.noise
+    # (a domain whose groups are no test conditions of a covariate says so)
+    reference = None
+    if getattr(domain, "per_condition_reference", True):
+        if progress:
+            progress("per-condition reference")
+        reference = saturated_reference(base_spec, obs, split, base)
+    used = (reference is not None
+            and reference.rss_held <= (1 - rule.min_reference_gain) * base.rss_held)
     scores, specs = _candidates(domain, obs, split, base, features, noise, rule, progress,
-                                n_variants)
+                                n_variants, reference if used else None)
     verdict = decide(base, noise, features, scores, rule)
     steps, final = (), None
     if hasattr(domain, "augment"):
         steps, final = _iterate(domain, obs, split, base, features, noise, scores, specs, rule,
-                                progress, n_variants)
-        verdict = _loop_verdict(verdict, steps, final, rule.joint_ratio)
+                                progress, n_variants, reference if used else None)
+        verdict = _loop_verdict(verdict, steps, final, rule.joint_ratio,
+                                reference if used else None)
     augmented = aug_features = None
     if verdict.status == "explained":
         chosen = (steps[0].fit if steps else
@@ -500,11 +599,12 @@ def run(domain: Domain, rule: DecisionRule | None = None, split: HoldoutSplit | 
     # a domain whose weights are not plain 1/|y| states its own definition
     definition = getattr(domain, "error_definition", ERROR_DEFINITION)
     return DiscrepancyResult(domain.name, split, base, noise, features, tuple(scores), verdict,
-                             augmented, aug_features, rule, definition, tuple(steps), final)
+                             augmented, aug_features, rule, definition, tuple(steps), final,
+                             reference, used)
 
 
 def _iterate(domain, obs, split, base, features, noise, scores, specs, rule, progress,
-             n_variants):
+             n_variants, reference=None):
     """Add effects one at a time (:func:`choose_step`) until the residual is consistent with
     the noise, nothing in the library explains the rest, or ``rule.max_steps`` is reached."""
     steps = []
@@ -517,7 +617,7 @@ def _iterate(domain, obs, split, base, features, noise, scores, specs, rule, pro
             break
         if steps:  # the candidates on the new baseline, only when they can be used
             scores, specs = _candidates(domain, obs, split, base, features, noise, rule,
-                                        progress, n_variants)
+                                        progress, n_variants, reference)
         choice, reason = choose_step(scores, rule)
         if choice is None:
             status = "stopped"
@@ -529,7 +629,8 @@ def _iterate(domain, obs, split, base, features, noise, scores, specs, rule, pro
         steps.append(Step(choice.effect, choice.label, choice.fit.name, base.error,
                           choice.fit.error, noise.sigma, choice.delta_bic, choice.p_value,
                           choice.explained_fraction, choice.fit,
-                          tuple(h.describe() for h in _added_hits(choice))))
+                          tuple(h.describe() for h in _added_hits(choice)),
+                          choice.achieved_fraction))
         if progress:
             progress(f"step {len(steps) + 1}")
         base = choice.fit
@@ -545,22 +646,29 @@ def _iterate(domain, obs, split, base, features, noise, scores, specs, rule, pro
     return steps, final
 
 
-def _loop_verdict(first: Verdict, steps, final, joint_ratio: float) -> Verdict:
+def _loop_verdict(first: Verdict, steps, final, joint_ratio: float,
+                  reference: SaturatedReference | None = None) -> Verdict:
     """The first step's verdict, unless no single effect explained enough but the effects
     added in turn left a residual consistent with the noise or within ``joint_ratio`` x the
-    noise floor (then explained, naming the first; all are in ``steps``)."""
+    floor (then explained, naming the first; all are in ``steps``). The floor is the noise
+    floor, or the saturated reference's error when that is higher and a covariate effect
+    was added (what a covariate can explain at all)."""
     names = ", ".join(s.effect + (f" ({s.label})" if s.label else "") for s in steps)
     if first.status == "explained" or not steps:
         tail = (f"; the loop then added {names} and stopped: {final.reason}"
                 if len(steps) > 1 else "")
         return Verdict(first.status, first.effect, first.label, first.evidence + tail,
                        first.caveats)
-    if final.status == "consistent" or final.error <= joint_ratio * final.noise:
+    floor, what = final.noise, "the noise floor"
+    if (reference is not None and reference.error > floor
+            and any(s.effect in COVARIATE_EFFECTS for s in steps)):
+        floor, what = reference.error, "the per-condition fits' held-out error"
+    if final.status == "consistent" or final.error <= joint_ratio * floor:
         caveats = tuple(c for s in steps for c in s.caveats)
         return Verdict("explained", steps[0].effect, steps[0].label,
                        f"{first.evidence}; no single effect explains the residual, but {names} "
                        f"added in turn leave a held-out error of {final.error:.4f} = "
-                       f"{final.error / final.noise:.2f} x the noise floor: {final.reason}",
+                       f"{final.error / floor:.2f} x {what} {floor:.4f}: {final.reason}",
                        caveats)
     return Verdict(first.status, None, "",
                    f"{first.evidence}; the loop added {names} and stopped without reaching "

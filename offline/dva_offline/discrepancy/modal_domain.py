@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from dva_offline.discrepancy.covariate_kinds import is_level
 from dva_offline.discrepancy.fitting import (
     HoldoutSplit,
     ModelFit,
@@ -60,7 +61,9 @@ SIGNATURES = {
 
 @dataclass(frozen=True)
 class ModalTerm:
-    """An effect in the modal model: ``kind`` level (one mode), shift (all modes) or delay."""
+    """An effect in the modal model: ``kind`` level (one mode), level_all (every mode, one
+    log-level law), per_level (every mode, a free factor per level), shift (all modes) or
+    delay."""
 
     effect: str
     label: str
@@ -188,6 +191,14 @@ class ModalDomain:
                 z_fac[:, t.mode] = z_fac[:, t.mode] * (1 + p[:, 1, None] * t.data["log_level"])
             elif t.kind == "shift":
                 f_fac = f_fac * 10.0 ** (-p[:, 0, None, None] * t.data["dc"])
+            elif t.kind == "level_all":  # every mode by one log-level law
+                f_fac = f_fac * (1 + p[:, 0, None, None] * t.data["log_level"])
+                z_fac = z_fac * (1 + p[:, 1, None, None] * t.data["log_level"])
+            elif t.kind == "per_level":  # a free factor per level (k: levels but the ref)
+                ind = t.data["indicator"]  # (k, N)
+                k = ind.shape[0]
+                f_fac = f_fac * (1 + (p[:, :k] @ ind)[:, None, :])
+                z_fac = z_fac * (1 + (p[:, k:2 * k] @ ind)[:, None, :])
             elif t.kind == "delay":
                 delay = delay + p[:, 0, None]
         wr = 2 * np.pi * fr * f_fac
@@ -364,7 +375,9 @@ class ModalDomain:
                 out.append(NotApplicable("amplitude_dependence",
                                          f"covariate {name!r} has values <= 0 (not a level)",
                                          name))
-            if ("covariate_shift", name) not in present:
+            if is_level(name) and np.all(col > 0):
+                out += self._level_laws(name, col, ref, values, stack_params, present)
+            elif ("covariate_shift", name) not in present:
                 dc = col - ref
                 span = float(np.max(np.abs(dc))) or 1.0
                 out.append(self._spec(
@@ -376,6 +389,40 @@ class ModalDomain:
         for effect in ("maxwell_element", "fixture_mass", "foundation_mode"):
             out.append(NotApplicable(effect, "an isolator effect; the modal baseline of a "
                                              "structure has no mount"))
+        return out
+
+    def _level_laws(self, name, col, ref, values, stack_params, present):
+        """A level covariate shifts every mode: the smooth log-level law, and a free
+        frequency and damping factor per level (follows a jump between levels, e.g. a joint
+        that slips above some force), each an ``amplitude_dependence`` of all modes."""
+        out = []
+        lev = np.log(col / ref)
+        bound = 0.5 / float(np.max(np.abs(lev)))
+        label = f"{name}, all modes"
+        if ("amplitude_dependence", label) not in present:
+            out.append(self._spec(
+                values, stack_params,
+                ModalTerm("amplitude_dependence", label, "level_all", 2,
+                          data={"log_level": lev}),
+                (ParamSpec("s_f", "-", 0.0, -bound, bound, scale=0.01),
+                 ParamSpec("s_z", "-", 0.0, -1.5 * bound, 1.5 * bound, scale=0.1)),
+                [np.array([a, b]) for a in (-0.03, -0.01, 0.01, 0.03) for b in (-0.3, 0.0, 0.3)],
+                label))
+        groups = self.observations.groups
+        levels = [g for g in np.unique(groups) if g != self.reference]
+        label = f"{name}, per level, all modes"
+        if levels and ("amplitude_dependence", label) not in present:
+            ind = np.array([(groups == g).astype(float) for g in levels])
+            k = len(levels)
+            params = tuple(ParamSpec(f"df_{i + 1}", "-", 0.0, -0.5, 0.5, scale=0.01)
+                           for i in range(k)) + tuple(
+                ParamSpec(f"dz_{i + 1}", "-", 0.0, -0.9, 5.0, scale=0.1) for i in range(k))
+            out.append(self._spec(
+                values, stack_params,
+                ModalTerm("amplitude_dependence", label, "per_level", 2 * k,
+                          data={"indicator": ind}),
+                params, [np.concatenate([np.full(k, a), np.full(k, b)])
+                         for a in (-0.02, 0.02) for b in (0.0, 0.5)], label))
         return out
 
     @property

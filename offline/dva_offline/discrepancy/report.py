@@ -81,14 +81,15 @@ def _features(f: ResidualFeatures) -> dict:
 def _candidate(c: CandidateScore) -> dict:
     covariate, _, form = (c.label or "").partition(", ")
     item = {"effect": c.effect, "covariate": covariate or None, "form": form or None,
-            "applicable": c.applicable}
+            "applicable": c.applicable, "failed": c.failed}
     if not c.applicable:
         item.update(error=None, reason=c.reason)
         return item
     item.update(
         model=c.fit.name, error=c.fit.error, error_l2=c.fit.error_l2,
         train_error=c.fit.train_error, delta_bic=c.delta_bic, p_value=c.p_value,
-        explained_fraction=c.explained_fraction, n_added=c.fit.n_added,
+        explained_fraction=c.explained_fraction, achieved_fraction=c.achieved_fraction,
+        n_added=c.fit.n_added,
         parameters=_params(c.fit.added), signature=c.signature, bound_hits=_hits(c.fit),
     )
     return item
@@ -101,6 +102,7 @@ def _step(number: int, st) -> dict:
             "error_before": st.error_before, "error_after": st.error_after,
             "noise_floor_before": st.noise_before, "delta_bic": st.delta_bic,
             "p_value": st.p_value, "explained_fraction": st.explained_fraction,
+            "achieved_fraction": st.achieved_fraction,
             "parameters": _params(st.fit.added), "bound_hits": _hits(st.fit),
             "caveats": list(st.caveats)}
 
@@ -125,6 +127,11 @@ def result_to_dict(result: DiscrepancyResult, extra: dict | None = None) -> dict
         "holdout": {"scheme": result.split.scheme, "n_train": int(result.split.train.sum()),
                     "n_held_out": int(result.split.held.sum())},
         "noise_floor": {"sigma": result.noise.sigma, "method": result.noise.method},
+        "saturated_reference": None if result.reference is None else {
+            "error": result.reference.error, "n_fitted": result.reference.n_fitted,
+            "n_conditions": result.reference.n_conditions, "used": result.reference_used,
+            "definition": "the baseline fitted separately to each condition, held-out error "
+                          "on the same points"},
         "baseline": _fit(result.baseline),
         "residual": _features(result.residual),
         "verdict": {"status": v.status, "effect": v.effect,

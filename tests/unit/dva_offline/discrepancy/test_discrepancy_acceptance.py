@@ -8,7 +8,9 @@ stiffness, plus ``elements=1`` for the missing-element case):
 * clean data, N_CLEAN cases (half single sweeps, half three-temperature or three-level sets):
   ``consistent`` in >= 90 %, never ``explained``;
 * each effect outside the library, N_OUTSIDE cases: never ``explained`` (a weak partial
-  attribution is reported only as evidence of an ``unexplained`` verdict).
+  attribution is reported only as evidence of an ``unexplained`` verdict), except that a
+  cubic spring measured at three levels may be named ``amplitude_dependence`` (what it is at
+  those levels; issue 23).
 
 The multi-covariate data sets are the amplitude/temperature effects, the Duffing case and half
 of the clean cases (test_discrepancy_frf.py adds one with two covariates). The rates on 40
@@ -73,6 +75,9 @@ def test_effect_outside_library_never_confidently_named(effect):
     # the full loop by bench/bench_discrepancy_acceptance.py; this keeps the suite's runtime)
     verdicts = [run(effect, seed, max_steps=3).verdict
                 for seed in range(SEED0, SEED0 + N_OUTSIDE)]
-    assert all(v.status != "explained" for v in verdicts), [(v.status, v.effect)
-                                                           for v in verdicts]
+    # A cubic spring measured at three excitation levels is an amplitude dependence of the
+    # mount (issue 23: the Duffing oscillator at three levels): that name is right, no other.
+    allowed = {"amplitude_dependence"} if effect == "cubic_stiffness" else set()
+    assert all(v.status != "explained" or v.effect in allowed for v in verdicts), [
+        (v.status, v.effect) for v in verdicts]
     assert all(v.status == "unexplained" for v in verdicts if v.status != "consistent")

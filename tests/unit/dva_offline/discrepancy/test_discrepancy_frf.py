@@ -172,8 +172,12 @@ def test_two_covariates_the_one_that_matters_is_named():
     assert res.augmented.error <= 0.5 * res.baseline.error
     assert res.augmented.error < 1.5 * case.sigma
     tried = {(c.effect, c.label) for c in res.candidates if c.applicable}
-    assert {("amplitude_dependence", "excitation_n"), ("covariate_shift", "excitation_n"),
+    assert {("amplitude_dependence", "excitation_n"),
             ("covariate_shift", "temperature_c, Arrhenius")} <= tried
+    # a shift with an excitation level is named by its kind: amplitude dependence
+    level_shift = next(c for c in res.candidates if c.effect == "covariate_shift"
+                       and c.label == "excitation_n")
+    assert not level_shift.applicable and "excitation level" in level_shift.reason
     with pytest.raises(ValueError, match="depends on"):
         synthetic.generate_case("covariate_shift", np.random.default_rng(1),
                                 clean_covariate="temperature_c")

@@ -164,3 +164,100 @@ def test_a_fit_on_its_bound_is_reported_with_its_meaning():
     assert np.isnan(drift.fit.added[0].std)  # no standard error at a bound
     if res.verdict.effect == "parameter_drift":
         assert res.verdict.caveats and "bound" in res.verdict.evidence
+
+
+class FailingCandidateDomain(ToyDomain):
+    """The toy library plus a candidate whose model is not finite anywhere and one whose only
+    start has no image in its bounds (a log parameter started at a negative value, as an
+    informed start from a negative static modulus)."""
+
+    def candidates(self, baseline, features):
+        p = eg.ParamSpec("p", "s", baseline.value("p"), 1e-3, 1e3, log=True)
+        never_finite = eg.ModelSpec(
+            "first-order + mass", "fixture_mass",
+            (p, eg.ParamSpec("dm", "kg", 0.0, -1.0, 1.0, scale=0.1)), 1,
+            lambda v: np.full(X.size, np.nan + 0j))
+        bad_start = eg.ModelSpec(
+            "first-order + foundation", "foundation_mode",
+            (p, eg.ParamSpec("m_f", "kg", -5.0, 1e-3, 1e3, log=True)), 1,
+            lambda v: 1 / (1 + 1j * X * v[0]) * (1 + 0 * v[1]))
+        return [*super().candidates(baseline, features), never_finite, bad_start]
+
+
+def test_a_failing_candidate_is_listed_and_the_loop_goes_on():
+    res = eg.run(FailingCandidateDomain(data(np.random.default_rng(0), tau=0.03)))
+    assert res.verdict.status == "explained" and res.verdict.effect == "sensor_delay"
+    failed = [c for c in res.candidates if c.failed]
+    assert [c.effect for c in failed] == ["fixture_mass", "foundation_mode"]
+    assert all(c.reason.startswith("failed: ") and not c.applicable for c in failed)
+    assert "no start inside the parameter bounds" in failed[1].reason
+
+
+def test_a_start_outside_the_bounds_is_replaced_by_a_valid_one():
+    y = data(np.random.default_rng(3))
+    obs = eg.Observations(y, 1 / np.abs(y), X, np.zeros(X.size, int))
+    split = eg.holdout_split(obs.groups)
+    spec = eg.ModelSpec("first-order", None,
+                        (eg.ParamSpec("p", "s", -0.3, 1e-3, 1e3, log=True),), 0,
+                        lambda v: 1 / (1 + 1j * X * v[0]), starts=(np.array([0.5]),))
+    fit = eg.fit_model(spec, obs, split)
+    assert fit.value("p") == pytest.approx(0.2, rel=0.02)
+    only_bad = eg.ModelSpec("first-order", None, spec.params, 0, spec.predict)
+    with pytest.raises(ValueError, match="no start inside the parameter bounds"):
+        eg.fit_model(only_bad, obs, split)
+
+
+class LevelToyDomain(ToyDomain):
+    """Three conditions; a candidate whose pole moves with the level by a log law, which the
+    data follow only in part (the rest is a level-dependent ripple no candidate has)."""
+
+    def __init__(self, y, level):
+        n = X.size
+        groups = np.repeat([0, 1, 2], n)
+        self.level = level
+        self.observations = eg.Observations(y, 1 / np.abs(y), np.tile(X, 3), groups,
+                                            {"force_n": level})
+        self.x = np.tile(X, 3)
+
+    def baseline(self, train):
+        x = self.x
+        return eg.ModelSpec("first-order", None, (eg.ParamSpec("p", "s", 0.3, 1e-3, 1e3,
+                                                                log=True),),
+                            0, lambda v: 1 / (1 + 1j * x * v[0]))
+
+    def candidates(self, baseline, features):
+        x, lev = self.x, np.log(self.level / 5.0)
+        p = eg.ParamSpec("p", "s", baseline.value("p"), 1e-3, 1e3, log=True)
+        return [eg.ModelSpec("first-order + level", "amplitude_dependence",
+                             (p, eg.ParamSpec("s", "-", 0.0, -0.5, 0.5, scale=0.01)), 1,
+                             lambda v: 1 / (1 + 1j * x * v[0] * (1 + v[1] * lev)),
+                             label="force_n")]
+
+
+def test_saturated_reference_lets_a_covariate_effect_explain_what_the_data_allow():
+    rng = np.random.default_rng(4)
+    level = np.repeat([1.0, 5.0, 25.0], X.size)
+    x = np.tile(X, 3)
+    lev = np.log(level / 5.0)
+    ripple = 0.08 * np.sin(3 * x) * (level > 10)  # level-dependent, no candidate has it
+    h = 1 / (1 + 1j * x * 0.2 * (1 + 0.05 * lev)) * (1 + ripple)
+    eps = 0.005 / np.sqrt(2) * (rng.standard_normal(x.size) + 1j * rng.standard_normal(x.size))
+    res = eg.run(LevelToyDomain(h * (1 + eps), level))
+    ref = res.reference
+    assert ref is not None and ref.n_fitted == 3 and res.reference_used
+    assert ref.error < 0.8 * res.baseline.error and ref.error > 2 * res.noise.sigma
+    cand = next(c for c in res.candidates if c.effect == "amplitude_dependence")
+    assert cand.explained_fraction < 0.9 <= cand.achieved_fraction
+    assert res.verdict.status == "explained" and res.verdict.effect == "amplitude_dependence"
+
+
+def test_saturated_reference_is_not_used_when_the_levels_do_not_differ():
+    rng = np.random.default_rng(5)
+    level = np.repeat([1.0, 5.0, 25.0], X.size)
+    x = np.tile(X, 3)
+    h = 1 / (1 + 1j * x * 0.2) * (1 + 0.02 * np.sin(3 * x))  # same at every level
+    eps = 0.005 / np.sqrt(2) * (rng.standard_normal(x.size) + 1j * rng.standard_normal(x.size))
+    res = eg.run(LevelToyDomain(h * (1 + eps), level))
+    assert res.reference is not None and not res.reference_used
+    assert all(np.isnan(c.achieved_fraction) for c in res.candidates)
+    assert res.verdict.status != "explained"

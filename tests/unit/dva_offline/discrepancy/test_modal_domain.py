@@ -108,3 +108,30 @@ def test_batched_model_rows_equal_single_evaluations(effect):
     case = structure_synthetic.generate_structure(effect, np.random.default_rng(2000),
                                                   jitter=True)
     assert batch_rows_equal_predict(domain_for(case)) >= 3
+
+
+def test_a_jump_of_every_mode_between_levels_is_an_amplitude_dependence():
+    """Three modes measured at three force levels; above the middle level every mode drops
+    by 1.5 % and its damping rises by half (a joint that slips): no mode alone, no smooth
+    law, no covariate shift: the per-level form of all modes is named."""
+    rng = np.random.default_rng(11)
+    f = np.geomspace(5.0, 200.0, 300)
+    w = 2 * np.pi * f
+    modes = ((12.0, 0.02, 1.0), (37.0, 0.015, 0.6), (110.0, 0.01, 0.8))
+    conds = []
+    for level, df, dz in ((2.0, 0.0, 0.0), (6.3, 0.0, 0.0), (20.0, -0.015, 0.5)):
+        h = sum(a / ((2 * np.pi * fr * (1 + df)) ** 2 - w**2
+                     + 2j * z * (1 + dz) * 2 * np.pi * fr * (1 + df) * w)
+                for fr, z, a in modes)
+        h = h * (1 + 0.01 / np.sqrt(2) * (rng.standard_normal(f.size)
+                                          + 1j * rng.standard_normal(f.size)))
+        conds.append(FrfData(f, h, "receptance", {"force_n": np.full(f.size, level)}))
+    dom = ModalDomain(conds, quantity="receptance", covariates=["force_n"])
+    res = loop.run(dom, rule=loop.DecisionRule(max_steps=1))
+    v = res.verdict
+    assert v.status == "explained" and v.effect == "amplitude_dependence"
+    assert v.label == "force_n, per level, all modes"
+    assert res.augmented.error <= 0.5 * res.baseline.error
+    df2 = res.augmented.value("df_2")  # the top level (the reference is the middle one)
+    assert df2 == pytest.approx(-0.015, abs=0.003)
+    assert not any(c.effect == "covariate_shift" for c in res.candidates)
