@@ -15,8 +15,9 @@ with ``p0`` the solution at ``r_ref``, ``X = L_ref^-1 U``, ``H = W^T X`` (``n x 
 ``H = S diag(eta) S^-1`` (one eigenproblem per airspeed) every output variance is a rational
 function of ``delta``, ``v0 + delta sum_j a_j b_j / (1 - delta eta_j)``, evaluated for all ``c2``
 at once (where ``S`` is ill-conditioned the ``n x n`` system is solved per pair instead).
-Stability comes from the Routh-Hurwitz test of ``det(sI - A(r)) = chi_ref(s) + delta chi_d(s)`` (``chi_d`` the characteristic
-polynomial of ``A_ref`` without row and column ``d``), also linear in ``delta``.
+Stability comes from the Routh-Hurwitz test of ``det(sI - A(r)) = chi_ref(s) + delta chi_d(s)``
+(``chi_d`` the characteristic polynomial of ``A_ref`` without row and column ``d``), also
+affine in ``delta``.
 
 Columns where the damper is not a Maxwell element in the model (``c2 = 0`` and the plain-damper
 limit, ``c2 = inf``) and airspeeds where ``A_ref`` has a pair of eigenvalues summing to nearly
