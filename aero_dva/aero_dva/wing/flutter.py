@@ -197,7 +197,8 @@ def flutter_speed(model, density: float = 1.2, airspeed_range=None, damping=None
         Air density [kg/m^3], > 0.
     airspeed_range : (float, float), optional
         Searched airspeeds [m/s], ``0 <= low < high``; the model must be stable at ``low``.
-        Default: ``(0, 100)``, then ``(100, 400)``, ``(400, 1600)``, ... up to 1e5 m/s.
+        Default: ``(0, 100)``, then on to 400, 1600, ... up to 1e5 m/s, each range starting
+        at the previous range's last stable sample.
     damping : float, optional
         Tunable damper [N s/m] (``c2`` or ``c1``), held fixed; default the absorber's.
     n_grid : int, optional
@@ -240,12 +241,14 @@ def flutter_speed(model, density: float = 1.2, airspeed_range=None, damping=None
         while True:
             try:
                 return _newton_flutter(growth, rho, low, high, n, xtol, first=low == 0.0)
-            except NoFlutterError:
+            except NoFlutterError as exc:
                 if high >= 1e5:
                     raise NoFlutterError(
                         f"no flutter or divergence below {high:g} m/s at density {rho:g} kg/m^3"
                     ) from None
-                low, high = high, 4.0 * high
+                # Continue from the last strictly stable sample: the range's end may already
+                # be neutral to round-off (a wing tuned to flutter exactly there).
+                low, high = exc.resume, 4.0 * high
     try:
         low, high = (real_scalar(v, "airspeed_range") for v in airspeed_range)
     except (TypeError, ValueError) as exc:
@@ -266,10 +269,13 @@ def _newton_flutter(growth, rho, low, high, n_grid, xtol, first):
         )
     bracket = _first_bracket(growth, u, g, high, tol)
     if bracket is None:
-        raise NoFlutterError(
+        exc = NoFlutterError(
             f"no flutter or divergence between {low:g} and {high:g} m/s at density {rho:g} "
             "kg/m^3"
         )
+        negative = np.flatnonzero(g < 0)
+        exc.resume = float(u[negative[-1]]) if negative.size else high
+        raise exc
     a, b = bracket
     i = int(np.searchsorted(u, a))
     gb = g[i + 1] if b == u[i + 1] else growth.at(b)[0]
