@@ -73,8 +73,9 @@ def _pick(eigs: np.ndarray):
 class _EigenGrowth:
     """Growth rate from the polynomial ``A(U)`` (quasi-steady and finite-state models)."""
 
-    def __init__(self, model, density, damping):
-        self.a0, self.a1, self.a2 = model.polynomial(density, damping)
+    def __init__(self, model, density, damping, checked: bool = False):
+        poly = model.polynomial_unchecked if checked else model.polynomial
+        self.a0, self.a1, self.a2 = poly(density, damping)
 
     def matrices(self, u):
         u = np.asarray(u, dtype=float)[..., None, None]
@@ -98,19 +99,19 @@ class _EigenGrowth:
         return masked[k, j], float(np.max(np.abs(lam[k, j])))
 
     def at(self, u: float):
-        """Growth rate, critical eigenvalue and ``dg/dU`` at one airspeed [m/s].
+        """Growth rate, critical eigenvalue and its derivative ``dlambda/dU`` at one airspeed.
 
         One LAPACK ``dgeev`` call gives the right and left eigenvectors ``v``, ``w`` of the
-        critical eigenvalue, and ``dlambda/dU = w^H A'(U) v / (w^H v)``; the slope is its real
-        part (NaN for a defective, coalescing pair). Returns ``(g, lambda, slope)`` scalars.
+        critical eigenvalue, and ``dlambda/dU = w^H A'(U) v / (w^H v)`` (NaN for a defective,
+        coalescing pair); the slope of the growth rate is its real part.
         """
         a = self.a0 + u * self.a1 + (u * u) * self.a2
         wr, wi, vl, vr, info = dgeev(a)
-        lam = wr + 1j * wi
-        masked = np.where(np.abs(lam) < NEUTRAL, -np.inf, wr)
-        j = int(np.argmax(masked))
+        masked = np.where(wr * wr + wi * wi < NEUTRAL * NEUTRAL, -np.inf, wr)
+        j = int(masked.argmax())
+        g, lam = float(masked[j]), complex(wr[j], wi[j])
         if info != 0:
-            return float(masked[j]), complex(lam[j]), np.nan
+            return g, lam, complex(np.nan)
         # dgeev packs a complex pair's vectors as (real part, imaginary part) columns.
         if wi[j] > 0:
             v, w = vr[:, j] + 1j * vr[:, j + 1], vl[:, j] + 1j * vl[:, j + 1]
@@ -120,9 +121,8 @@ class _EigenGrowth:
             v, w = vr[:, j], vl[:, j]
         den = np.vdot(w, v)
         if den == 0:
-            return float(masked[j]), complex(lam[j]), np.nan
-        dlam = np.vdot(w, (self.a1 + (2.0 * u) * self.a2) @ v) / den
-        return float(masked[j]), complex(lam[j]), float(dlam.real)
+            return g, lam, complex(np.nan)
+        return g, lam, complex(np.vdot(w, (self.a1 + (2.0 * u) * self.a2) @ v) / den)
 
 
 class _PkGrowth:
@@ -235,7 +235,9 @@ def flutter_speed(model, density: float = 1.2, airspeed_range=None, damping=None
     n = 16 if n_grid is None else int(n_grid)
     if n < 4:
         raise ValueError("n_grid must be >= 4")
-    growth = _EigenGrowth(model, rho, damping)
+    if damping is not None:
+        damping = non_negative(damping, "damping", allow_inf=getattr(model, "has_maxwell", False))
+    growth = _EigenGrowth(model, rho, damping, checked=True)
     if airspeed_range is None:
         low, high = 0.0, 100.0
         while True:
@@ -259,7 +261,7 @@ def flutter_speed(model, density: float = 1.2, airspeed_range=None, damping=None
 
 
 def _newton_flutter(growth, rho, low, high, n_grid, xtol, first):
-    u = np.linspace(low, high, n_grid)
+    u = low + (high - low) * np.arange(n_grid) / (n_grid - 1)
     g, lam_max = growth.samples(u)
     # Zero structural damping leaves the wind-off modes exactly neutral: allow round-off.
     tol = 1e-9 * max(lam_max, 1.0)
@@ -295,25 +297,33 @@ def _safeguarded_newton(growth, a, b, ga, gb, xtol, maxiter: int = 100):
 
     Newton steps with the eigenvalue derivative from the secant point on, bisection whenever a
     step would leave the bracket or not halve the step before it (Press et al., Numerical
-    Recipes, ``rtsafe``). Returns the last airspeed evaluated once the next step is below
-    ``xtol`` relative: its error is below that step.
+    Recipes, ``rtsafe``). Two Newton steps in a row measure the convergence: with
+    ``K = |dx| / dx_prev^2`` the point after ``dx`` is within about ``K dx^2`` of the root; once
+    that is below ``xtol / 10`` relative it is returned without another eigenvalue problem, its
+    eigenvalue carried along by the derivative. Otherwise the search ends when a step is below
+    ``xtol`` relative.
     """
     x = a - ga * (b - a) / (gb - ga) if gb > ga else 0.5 * (a + b)
     dx_old = dx = b - a
+    newton_dx = None  # the previous step, if it was a Newton step
     for _ in range(maxiter):
-        g, lam, slope = growth.at(x)
+        g, lam, dlam = growth.at(x)
         if g == 0.0:
             return x, lam
         if g < 0:
             a = x
         else:
             b = x
+        slope = dlam.real
         newton_ok = (np.isfinite(slope) and slope != 0.0
                      and a < x - g / slope < b and abs(2.0 * g) <= abs(dx_old * slope))
         dx_old = dx
         dx = g / slope if newton_ok else x - 0.5 * (a + b)
+        if newton_ok and newton_dx and abs(dx) * dx * dx <= 0.1 * xtol * x * newton_dx**2:
+            return x - dx, lam - dlam * dx
         if abs(dx) <= xtol * x or b - a <= xtol * b:
             return x, lam
+        newton_dx = dx if newton_ok else None
         x = x - dx
     return x, lam
 

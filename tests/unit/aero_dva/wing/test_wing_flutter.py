@@ -176,7 +176,7 @@ def test_safeguarded_newton_survives_a_kink_and_a_wrong_slope():
     class Growth:
         def at(self, u):
             g = max(-1.0 + 0.5 * u, -5.0 + 2.0 * u)  # root 2 on the first, kink at 8/3
-            return g, complex(g, 10.0), 5.0  # slope 10x too large
+            return g, complex(g, 10.0), complex(5.0)  # slope 10x too large
     u, lam = _safeguarded_newton(Growth(), 0.0, 3.0, -1.0, 1.0, 1e-12)
     assert u == pytest.approx(2.0, rel=1e-11)
     assert lam.imag == 10.0
