@@ -71,8 +71,10 @@ def continuous_map(model, speeds, grid, rho, repeats):
           f"({'within' if t_n <= 0.1 else 'OVER'} the 0.1 s target)")
     print(f"  previous route   {t_o:7.3f} s / {min(t_old):.3f} s   -> {t_o / t_n:.1f}x "
           f"(min / min {min(t_old) / min(t_new):.1f}x)")
-    print(f"  CPU time         {np.median(c_new):7.3f} s this revision, {np.median(c_old):.3f} s "
-          f"previous route -> {np.median(c_old) / np.median(c_new):.1f}x")
+    cn, co = float(np.median(c_new)), float(np.median(c_old))
+    print(f"  CPU time         {cn:7.3f} s this revision "
+          f"({'within' if cn <= 0.1 else 'OVER'} the 0.1 s target), {co:.3f} s previous route "
+          f"-> {co / cn:.1f}x")
     print(f"  largest relative difference {rel:.1e} (tolerance 1e-9); stability flags "
           f"{'identical' if np.array_equal(st_new, st_old) else 'DIFFER'} "
           f"({int(st_new.sum())} of {st_new.size} pairs stable)")
