@@ -6,6 +6,11 @@ In the same run:
   (0.8 .. 1.2 U_cr) x 100 values of c2 (0 .. 2500 N s/m), leading-edge objective, sampled
   system at 1 kHz with 1 kN per sample; wall time (median of repeats) with and without the
   ``minimize_scalar`` refinement (target: under 2 s);
+- the exact continuous-limit c2 map (Lyapunov) on the same grid by
+  :func:`aero_dva.control.damping_map.continuous_rms_map` (one solve per airspeed, c2 entering
+  through one entry; target: at most 0.1 s) against the previous route, the batched modal
+  solution of :func:`~aero_dva.control.stationary_rms.stationary_rms` for every pair, timed in
+  the same run; their largest relative difference and whether they agree on stability;
 - simulated route (the study's): :func:`aero_dva.control.optimal_damping.simulated_rms` on a small
   subset of (airspeed, c2) pairs, each flown at constant condition, settled, then ``--duration``
   seconds kept; wall time per pair, the speed-up of the exact route per pair, the agreement
@@ -21,6 +26,7 @@ import time
 
 import numpy as np
 
+from aero_dva.control.damping_map import continuous_rms_map
 from aero_dva.control.dva_design import bare_critical_airspeed
 from aero_dva.control.optimal_damping import optimal_damping, simulated_rms
 from aero_dva.control.stationary_rms import stationary_rms
@@ -37,13 +43,51 @@ def timed(fn, repeats, *args, **kwargs):
     return float(np.median(times)), float(np.min(times)), result
 
 
+def reference_continuous_map(model, speeds, grid, rho):
+    """The previous route: the batched modal solution for every (airspeed, c2) pair."""
+    res = stationary_rms(model, speeds[:, None], rho, grid[None, :], method="continuous")
+    return res.displacement, res.stable
+
+
+def continuous_map(model, speeds, grid, rho, repeats):
+    """Time this revision's c2 map against the previous route (alternating); print both."""
+    continuous_rms_map(model, speeds[:4], grid, rho)  # warm-up
+    t_new, t_old, c_new, c_old = [], [], [], []
+    for _ in range(repeats):
+        t0, c0 = time.perf_counter(), time.process_time()
+        new, st_new = continuous_rms_map(model, speeds, grid, rho)
+        t_new.append(time.perf_counter() - t0)
+        c_new.append(time.process_time() - c0)
+        t0, c0 = time.perf_counter(), time.process_time()
+        old, st_old = reference_continuous_map(model, speeds, grid, rho)
+        t_old.append(time.perf_counter() - t0)
+        c_old.append(time.process_time() - c0)
+    fin = np.isfinite(old)
+    rel = float(np.max(np.abs(new[fin] - old[fin]) / old[fin])) if fin.any() else 0.0
+    t_n, t_o = float(np.median(t_new)), float(np.median(t_old))
+    print(f"exact continuous-limit c2 map (Lyapunov), {speeds.size} x {grid.size} "
+          f"(wall clock median / min of {repeats}, the two routes alternating):")
+    print(f"  this revision    {t_n:7.3f} s / {min(t_new):.3f} s   "
+          f"({'within' if t_n <= 0.1 else 'OVER'} the 0.1 s target)")
+    print(f"  previous route   {t_o:7.3f} s / {min(t_old):.3f} s   -> {t_o / t_n:.1f}x "
+          f"(min / min {min(t_old) / min(t_new):.1f}x)")
+    cn, co = float(np.median(c_new)), float(np.median(c_old))
+    print(f"  CPU time         {cn:7.3f} s this revision "
+          f"({'within' if cn <= 0.1 else 'OVER'} the 0.1 s target), {co:.3f} s previous route "
+          f"-> {co / cn:.1f}x")
+    print(f"  largest relative difference {rel:.1e} (tolerance 1e-9); stability flags "
+          f"{'identical' if np.array_equal(st_new, st_old) else 'DIFFER'} "
+          f"({int(st_new.sum())} of {st_new.size} pairs stable)")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--airspeeds", type=int, default=200)
     parser.add_argument("--c2", type=int, default=100)
     parser.add_argument("--duration", type=float, default=10.0,
-                        help="[s] kept per simulated pair after settling")
+                        help="[s] kept per simulated pair after settling (0: skip the "
+                        "simulated route)")
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
 
@@ -71,6 +115,10 @@ def main() -> None:
     print(f"  stable with the best c2 up to {res.stable_airspeed_limit() / u_cr:.4f} U_cr; "
           f"optimal c2 {np.nanmin(res.optimal_damping):.1f} .. "
           f"{np.nanmax(res.optimal_damping):.1f} N s/m over {ok.sum()} stable airspeeds")
+
+    continuous_map(model, speeds, grid, rho, max(args.repeats, 3))
+    if args.duration <= 0:
+        return
 
     sub_u = np.array([0.85, 0.95, 1.05]) * u_cr
     sub_c = np.linspace(150.0, 1050.0, 10)

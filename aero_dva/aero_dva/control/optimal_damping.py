@@ -17,7 +17,9 @@ search with parabolic interpolation), run for all airspeeds at once by
 separate calls but evaluates the RMS of all airspeeds of one step in one batch (the per-call
 overhead of separate ``minimize_scalar`` calls would outweigh the whole grid; see
 ``bench/bench_optimal_damping.py`` and docs/performance.md). The refined value is kept only if it
-improves on the grid value. An airspeed at which no grid value of ``c2`` is stable has no
+improves on the grid value. In the continuous limit with a Maxwell absorber the grid comes from
+:func:`aero_dva.control.damping_map.continuous_rms_map` (one Lyapunov solve per airspeed, ``c2``
+entering through one entry). An airspeed at which no grid value of ``c2`` is stable has no
 optimum (NaN, minimum RMS ``inf``).
 
 Simulated route (:func:`simulated_rms`), as the study did
@@ -37,6 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from aero_dva.control.damping_map import continuous_rms_map
 from aero_dva.control.stationary_rms import METHODS, stationary_rms
 from aero_dva.flight.batch_simulator import simulate_flights
 from aero_dva.wing.checks import non_negative, positive, real_array
@@ -174,11 +177,16 @@ def _surface(model, airspeeds, grid, density, force_std, sample_rate, method, pr
     n_u, n_c = airspeeds.size, grid.size
     out = np.empty((3, n_u, n_c))
     step = max(1, _BATCH // n_c)
+    fast = method == "continuous" and model.has_maxwell  # one Lyapunov solve per airspeed
     for s in range(0, n_u, step):
         u = airspeeds[s:s + step, None]
-        res = stationary_rms(model, u, density, grid[None, :], force_std=force_std,
-                             sample_rate=sample_rate, method=method)
-        out[:, s:s + step] = np.moveaxis(res.displacement[..., _COLUMNS], -1, 0)
+        if fast:
+            rms, _ = continuous_rms_map(model, u[:, 0], grid, density, force_std=force_std,
+                                        sample_rate=sample_rate)
+        else:
+            rms = stationary_rms(model, u, density, grid[None, :], force_std=force_std,
+                                 sample_rate=sample_rate, method=method).displacement
+        out[:, s:s + step] = np.moveaxis(rms[..., _COLUMNS], -1, 0)
         if progress is not None:
             progress(min(s + step, n_u))
     return out

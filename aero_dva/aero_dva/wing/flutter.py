@@ -4,11 +4,13 @@ Method: the *growth rate* ``g(U)`` = largest real part [1/s] of the system's eig
 (ignoring exactly neutral ones, ``|lambda| < NEUTRAL``: the free integrator of a locked Maxwell
 damper and the aerodynamic lag states at ``U = 0``) is sampled on a grid of airspeeds; local
 maxima between grid points are refined so that a mode that goes unstable only briefly is not
-missed; the first sign change is then bracketed and solved with Brent's method to a relative
-tolerance far below 1e-6. With quasi-steady or finite-state aerodynamics ``g`` comes from the
-eigenvalues of ``A(U) = A0 + U A1 + U^2 A2``; with Theodorsen aerodynamics each structural
-mode is converged by the p-k method (C(k) frozen at the mode's own reduced frequency), which
-is exact where the damping crosses zero, i.e. at the flutter point.
+missed; the first sign change is then bracketed and solved to a relative tolerance far below
+1e-6: by Newton's method on ``g`` with the eigenvalue derivative (safeguarded by bisection),
+where ``A(U)`` is a polynomial, and by Brent's method for the p-k route. With quasi-steady or
+finite-state aerodynamics ``g`` comes from the eigenvalues of ``A(U) = A0 + U A1 + U^2 A2``;
+with Theodorsen aerodynamics each structural mode is converged by the p-k method (C(k) frozen
+at the mode's own reduced frequency), which is exact where the damping crosses zero, i.e. at
+the flutter point.
 
 :class:`NoFlutterError` (a ValueError) is raised when the range holds no instability.
 """
@@ -18,13 +20,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.linalg.lapack import dgeev
 from scipy.optimize import brentq, minimize_scalar
 
 from aero_dva.wing.aerodynamics import TheodorsenAero
 from aero_dva.wing.checks import non_negative, real_scalar
 
 __all__ = ["FlutterResult", "NoFlutterError", "bare_critical_airspeed", "flutter_speed",
-           "flutter_vs_density", "growth_rate"]
+           "flutter_vs_density", "growth_rate", "reference_flutter_speed"]
 
 NEUTRAL = 1e-7
 """[rad/s] Eigenvalues smaller than this are neutral integrators, not instabilities."""
@@ -70,8 +73,9 @@ def _pick(eigs: np.ndarray):
 class _EigenGrowth:
     """Growth rate from the polynomial ``A(U)`` (quasi-steady and finite-state models)."""
 
-    def __init__(self, model, density, damping):
-        self.a0, self.a1, self.a2 = model.polynomial(density, damping)
+    def __init__(self, model, density, damping, checked: bool = False):
+        poly = model.polynomial_unchecked if checked else model.polynomial
+        self.a0, self.a1, self.a2 = poly(density, damping)
 
     def matrices(self, u):
         u = np.asarray(u, dtype=float)[..., None, None]
@@ -83,6 +87,42 @@ class _EigenGrowth:
     def __call__(self, u):
         g, lam = _pick(np.linalg.eigvals(self.matrices(u)))
         return float(g), complex(lam)
+
+    def samples(self, u):
+        """Growth rate (k,) and the largest ``|critical eigenvalue|`` at airspeeds ``u`` (k,),
+        by one batched eigenvalue call (no index gathering: it costs more than the 7 x 7
+        eigenvalue problems of a short grid)."""
+        lam = np.linalg.eigvals(self.matrices(u))
+        masked = np.where(np.abs(lam) < NEUTRAL, -np.inf, lam.real)
+        j = masked.argmax(axis=-1)
+        k = np.arange(lam.shape[0])
+        return masked[k, j], float(np.max(np.abs(lam[k, j])))
+
+    def at(self, u: float):
+        """Growth rate, critical eigenvalue and its derivative ``dlambda/dU`` at one airspeed.
+
+        One LAPACK ``dgeev`` call gives the right and left eigenvectors ``v``, ``w`` of the
+        critical eigenvalue, and ``dlambda/dU = w^H A'(U) v / (w^H v)`` (NaN for a defective,
+        coalescing pair); the slope of the growth rate is its real part.
+        """
+        a = self.a0 + u * self.a1 + (u * u) * self.a2
+        wr, wi, vl, vr, info = dgeev(a)
+        masked = np.where(wr * wr + wi * wi < NEUTRAL * NEUTRAL, -np.inf, wr)
+        j = int(masked.argmax())
+        g, lam = float(masked[j]), complex(wr[j], wi[j])
+        if info != 0:
+            return g, lam, complex(np.nan)
+        # dgeev packs a complex pair's vectors as (real part, imaginary part) columns.
+        if wi[j] > 0:
+            v, w = vr[:, j] + 1j * vr[:, j + 1], vl[:, j] + 1j * vl[:, j + 1]
+        elif wi[j] < 0:
+            v, w = vr[:, j - 1] - 1j * vr[:, j], vl[:, j - 1] - 1j * vl[:, j]
+        else:
+            v, w = vr[:, j], vl[:, j]
+        den = np.vdot(w, v)
+        if den == 0:
+            return g, lam, complex(np.nan)
+        return g, lam, complex(np.vdot(w, (self.a1 + (2.0 * u) * self.a2) @ v) / den)
 
 
 class _PkGrowth:
@@ -155,8 +195,153 @@ def bare_critical_airspeed(wing, density: float, aero=None) -> float:
 
 
 def flutter_speed(model, density: float = 1.2, airspeed_range=None, damping=None,
-                  n_grid: int = 64, xtol: float = 1e-10) -> FlutterResult:
+                  n_grid: int | None = None, xtol: float = 1e-10) -> FlutterResult:
     """Lowest airspeed at which the model becomes unstable, and the flutter frequency.
+
+    Parameters
+    ----------
+    model : AeroelasticModel
+    density : float
+        Air density [kg/m^3], > 0.
+    airspeed_range : (float, float), optional
+        Searched airspeeds [m/s], ``0 <= low < high``; the model must be stable at ``low``.
+        Default: ``(0, 100)``, then on to 400, 1600, ... up to 1e5 m/s, each range starting
+        at the previous range's last stable sample.
+    damping : float, optional
+        Tunable damper [N s/m] (``c2`` or ``c1``), held fixed; default the absorber's.
+    n_grid : int, optional
+        Grid points per range for bracketing (default 16; 32 for Theodorsen p-k models).
+    xtol : float
+        Relative tolerance on the critical airspeed.
+
+    Returns
+    -------
+    FlutterResult
+
+    Raises
+    ------
+    NoFlutterError
+        No instability in ``airspeed_range``.
+    ValueError
+        Bad arguments, or the model is already unstable at the low end of the range.
+
+    Notes
+    -----
+    With quasi-steady or finite-state aerodynamics the growth rate is sampled on the grid (one
+    batched eigenvalue call per range), local maxima of the samples are refined so that a short
+    excursion above zero is not missed, and the first sign change is solved by Newton's method
+    on the growth rate with the eigenvalue derivative (from the left and right eigenvectors),
+    safeguarded by bisection inside the bracket. Theodorsen models use
+    :func:`reference_flutter_speed` (p-k method).
+    """
+    if isinstance(getattr(model, "aero", None), TheodorsenAero):
+        return reference_flutter_speed(model, density, airspeed_range, damping,
+                                       64 if n_grid is None else 2 * int(n_grid), xtol)
+    rho = non_negative(density, "density")
+    if rho <= 0:
+        raise ValueError("density must be > 0")
+    n = 16 if n_grid is None else int(n_grid)
+    if n < 4:
+        raise ValueError("n_grid must be >= 4")
+    if damping is not None:
+        damping = non_negative(damping, "damping", allow_inf=getattr(model, "has_maxwell", False))
+    growth = _EigenGrowth(model, rho, damping, checked=True)
+    if airspeed_range is None:
+        low, high = 0.0, 100.0
+        while True:
+            try:
+                return _newton_flutter(growth, rho, low, high, n, xtol, first=low == 0.0)
+            except NoFlutterError as exc:
+                if high >= 1e5:
+                    raise NoFlutterError(
+                        f"no flutter or divergence below {high:g} m/s at density {rho:g} kg/m^3"
+                    ) from None
+                # Continue from the last strictly stable sample: the range's end may already
+                # be neutral to round-off (a wing tuned to flutter exactly there).
+                low, high = exc.resume, 4.0 * high
+    try:
+        low, high = (real_scalar(v, "airspeed_range") for v in airspeed_range)
+    except (TypeError, ValueError) as exc:
+        raise ValueError("airspeed_range must be two airspeeds (low, high) in m/s") from exc
+    if not (0.0 <= low < high and np.isfinite(high)):
+        raise ValueError(f"airspeed_range must satisfy 0 <= low < high, got {(low, high)}")
+    return _newton_flutter(growth, rho, low, high, n, xtol, first=True)
+
+
+def _newton_flutter(growth, rho, low, high, n_grid, xtol, first):
+    u = low + (high - low) * np.arange(n_grid) / (n_grid - 1)
+    g, lam_max = growth.samples(u)
+    # Zero structural damping leaves the wind-off modes exactly neutral: allow round-off.
+    tol = 1e-9 * max(lam_max, 1.0)
+    if first and g[0] > tol:
+        raise ValueError(
+            f"the model is already unstable at the low end of airspeed_range ({low:g} m/s)"
+        )
+    bracket = _first_bracket(growth, u, g, high, tol)
+    if bracket is None:
+        exc = NoFlutterError(
+            f"no flutter or divergence between {low:g} and {high:g} m/s at density {rho:g} "
+            "kg/m^3"
+        )
+        negative = np.flatnonzero(g < 0)
+        exc.resume = float(u[negative[-1]]) if negative.size else high
+        raise exc
+    a, b = bracket
+    i = int(np.searchsorted(u, a))
+    gb = g[i + 1] if b == u[i + 1] else growth.at(b)[0]
+    u_cr, lam_cr = _safeguarded_newton(growth, a, b, g[i], gb, xtol)
+    kind = "flutter" if abs(lam_cr.imag) > NEUTRAL else "divergence"
+    return FlutterResult(
+        critical_airspeed=float(u_cr),
+        flutter_frequency=abs(lam_cr.imag) / (2 * np.pi) if kind == "flutter" else 0.0,
+        kind=kind,
+        density=rho,
+        eigenvalue=lam_cr,
+    )
+
+
+def _safeguarded_newton(growth, a, b, ga, gb, xtol, maxiter: int = 100):
+    """Root of the growth rate in ``(a, b)`` (``g(a) < 0 < g(b)``) and its critical eigenvalue.
+
+    Newton steps with the eigenvalue derivative from the secant point on, bisection whenever a
+    step would leave the bracket or not halve the step before it (Press et al., Numerical
+    Recipes, ``rtsafe``). Two Newton steps in a row measure the convergence: with
+    ``K = |dx| / dx_prev^2`` the point after ``dx`` is within about ``K dx^2`` of the root; once
+    that is below ``xtol / 10`` relative it is returned without another eigenvalue problem, its
+    eigenvalue carried along by the derivative. Otherwise the search ends when a step is below
+    ``xtol`` relative.
+    """
+    x = a - ga * (b - a) / (gb - ga) if gb > ga else 0.5 * (a + b)
+    dx_old = dx = b - a
+    newton_dx = None  # the previous step, if it was a Newton step
+    for _ in range(maxiter):
+        g, lam, dlam = growth.at(x)
+        if g == 0.0:
+            return x, lam
+        if g < 0:
+            a = x
+        else:
+            b = x
+        slope = dlam.real
+        newton_ok = (np.isfinite(slope) and slope != 0.0
+                     and a < x - g / slope < b and abs(2.0 * g) <= abs(dx_old * slope))
+        dx_old = dx
+        dx = g / slope if newton_ok else x - 0.5 * (a + b)
+        if newton_ok and newton_dx and abs(dx) * dx * dx <= 0.1 * xtol * x * newton_dx**2:
+            return x - dx, lam - dlam * dx
+        if abs(dx) <= xtol * x or b - a <= xtol * b:
+            return x, lam
+        newton_dx = dx if newton_ok else None
+        x = x - dx
+    return x, lam
+
+
+def reference_flutter_speed(model, density: float = 1.2, airspeed_range=None, damping=None,
+                            n_grid: int = 64, xtol: float = 1e-10) -> FlutterResult:
+    """:func:`flutter_speed` by the previous route: a 64-point grid per range, Brent's method.
+
+    Kept as the reference the faster route is compared with (tests, ``bench_wing_flutter``),
+    and as the route of Theodorsen (p-k) models. Same parameters and result.
 
     Parameters
     ----------
@@ -192,7 +377,8 @@ def flutter_speed(model, density: float = 1.2, airspeed_range=None, damping=None
         high = 100.0
         while True:
             try:
-                return flutter_speed(model, rho, (0.0, high), damping, n_grid, xtol)
+                return reference_flutter_speed(model, rho, (0.0, high), damping, n_grid,
+                                               xtol)
             except NoFlutterError:
                 if high >= 1e5:
                     raise NoFlutterError(

@@ -395,7 +395,19 @@ class AeroelasticModel:
         a0, a1, a2 : ndarray, shape (n, n)
         """
         phi = self.features(0.0, density, damping, stiffness)
-        rho = float(density)
+        return self._polynomial_of(phi, float(density))
+
+    def polynomial_unchecked(self, density: float, damping=None):
+        """:meth:`polynomial` of a density and damper setting (floats, ``damping`` may be inf
+        for a Maxwell absorber, ``None`` for the absorber's own) the caller has already
+        checked: the flutter search's hot path, where :meth:`features`' checks cost more than
+        the assembly."""
+        ab = self.absorber
+        k1 = 0.0 if ab is None else ab.stiffness
+        c = 0.0 if ab is None else (ab.damping if damping is None else damping)
+        return self._polynomial_of(self._features_of(0.0, density, k1, c), float(density))
+
+    def _polynomial_of(self, phi, rho: float):
         base = phi.copy()
         d1 = np.zeros(N_FEATURES)
         d1[1], d1[2] = 1.0, rho

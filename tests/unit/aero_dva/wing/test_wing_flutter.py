@@ -9,9 +9,11 @@ from aero_dva.wing.aerodynamics import QuasiSteadyAero, TheodorsenAero, WagnerAe
 from aero_dva.wing.flutter import (
     NoFlutterError,
     _first_bracket,
+    _safeguarded_newton,
     flutter_speed,
     flutter_vs_density,
     growth_rate,
+    reference_flutter_speed,
 )
 from aero_dva.wing.modal import modal_analysis
 from aero_dva.wing.model import AeroelasticModel
@@ -141,6 +143,43 @@ def test_theodorsen_pk_handles_an_absorber(reference):
     dva = PassiveAbsorber(40.0, 9.156e4, 860.0, wing.leading_edge)
     with_dva = flutter_speed(AeroelasticModel(wing, dva, TheodorsenAero()), 1.2)
     assert with_dva.critical_airspeed != pytest.approx(bare.critical_airspeed, rel=1e-3)
+
+
+def _absorbers(cfg):
+    yield "bare", None
+    yield "passive", PassiveAbsorber(40.0, 9.156e4, 860.0, cfg.wing.leading_edge)
+    for c2 in (0.0, 1e-6, 500.0, 2500.0, np.inf):
+        yield f"maxwell c2={c2:g}", cfg.maxwell_design.replace(damping=c2)
+
+
+@pytest.mark.parametrize("aero", [QuasiSteadyAero(), WagnerAero()], ids=["qs", "wagner"])
+def test_newton_route_equals_the_previous_brent_route(reference, aero):
+    """The eigenvalue-derivative Newton route gives the previous route's answer to 1e-9."""
+    for name, absorber in _absorbers(reference):
+        model = AeroelasticModel(reference.wing, absorber, aero)
+        for rho in (0.6, 1.2):
+            new = flutter_speed(model, rho)
+            old = reference_flutter_speed(model, rho)
+            assert new.critical_airspeed == pytest.approx(old.critical_airspeed, rel=1e-9), name
+            assert new.flutter_frequency == pytest.approx(old.flutter_frequency, rel=1e-8), name
+            assert new.kind == old.kind, name
+    model = AeroelasticModel(reference.wing, reference.maxwell_design)
+    new = flutter_speed(model, 1.2, (20.0, 300.0))
+    old = reference_flutter_speed(model, 1.2, (20.0, 300.0))
+    assert new.critical_airspeed == pytest.approx(old.critical_airspeed, rel=1e-9)
+
+
+def test_safeguarded_newton_survives_a_kink_and_a_wrong_slope():
+    """Growth = max of two modes (a kink) with a slope that is wrong by a factor 10: the
+    bisection safeguard still converges to the root inside the bracket."""
+
+    class Growth:
+        def at(self, u):
+            g = max(-1.0 + 0.5 * u, -5.0 + 2.0 * u)  # root 2 on the first, kink at 8/3
+            return g, complex(g, 10.0), complex(5.0)  # slope 10x too large
+    u, lam = _safeguarded_newton(Growth(), 0.0, 3.0, -1.0, 1.0, 1e-12)
+    assert u == pytest.approx(2.0, rel=1e-11)
+    assert lam.imag == 10.0
 
 
 @pytest.mark.parametrize("field,value", [
