@@ -105,7 +105,7 @@ class NodeProcess:
         self.proc = subprocess.Popen(argv, env=env, stdout=self._log, stderr=subprocess.STDOUT,
                                      preexec_fn=die_with_parent)
 
-    def stop(self, timeout: float = 10.0, signal_number: int = signal.SIGINT) -> int:
+    def stop(self, timeout: float = 60.0, signal_number: int = signal.SIGINT) -> int:
         """SIGINT (or ``signal_number``), wait up to ``timeout`` s (then kill); the exit code."""
         if self.proc.poll() is None:
             self.proc.send_signal(signal_number)

@@ -227,13 +227,13 @@ def test_remapping_and_bad_parameters_of_the_executable(flight, executor, spin, 
                           "-p", "topics:=[/flight/condition]", "-p", "wait_for_subscribers:=1",
                           "-r", "/flight/condition:=/replayed/condition"])
     assert spin(executor, lambda: len(got) == 80, 30.0), proc.output()
-    assert proc.proc.wait(timeout=30) == 0, proc.output()
+    assert proc.proc.wait(timeout=120) == 0, proc.output()
 
     for bad, words in ((["-p", f"bag:={tmp_path}/none"], "does not exist"),
                        (["-p", f"bag:={flight['bag']}", "-p", "topics:=[/nope]"], "/nope"),
                        (["-p", f"bag:={flight['bag']}", "-p", "rate:=-1.0"], "rate")):
         proc = start_process([ros2_run_path("aero_dva_sim", "bag_player"), "--ros-args", *bad])
-        assert proc.proc.wait(timeout=30) == 2, proc.output()
+        assert proc.proc.wait(timeout=120) == 2, proc.output()
         assert words in proc.output() and "Traceback" not in proc.output()
 
 

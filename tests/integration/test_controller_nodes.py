@@ -391,7 +391,7 @@ def test_rbf_controller_corrupt_file_exits_2(start_process, tmp_path):
     bad.write_bytes(b"PK\x03\x04 this is not a zip archive")
     proc = start_process([ros2_run_path("dva_controller", "rbf_controller"),
                           "--ros-args", "-p", f"network_file:={bad}"])
-    assert proc.proc.wait(timeout=30) == 2
+    assert proc.proc.wait(timeout=120) == 2
     out = proc.output()
     assert str(bad) in out and "Traceback" not in out, out
     assert len([line for line in out.splitlines() if "error" in line]) == 1, out

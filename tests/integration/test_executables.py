@@ -64,7 +64,7 @@ def test_unknown_executor_is_a_clear_error(executable, start_process, monkeypatc
     proc = start_process([ros2_run_path(package, executable), "--ros-args",
                           "-p", f"output:={tmp_path}/bag"] if executable == "mcap_recorder"
                          else [ros2_run_path(package, executable)])
-    assert proc.proc.wait(timeout=30) == 2
+    assert proc.proc.wait(timeout=120) == 2
     assert "DVA_EXECUTOR='turbo' is not one of" in proc.output()
     assert not (tmp_path / "bag").exists()  # nothing written before the error
 

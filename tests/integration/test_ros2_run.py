@@ -52,6 +52,6 @@ def test_ros2_run_command_starts_node(executor, spin, ros_context, start_process
 def test_bad_parameter_fails_with_clear_message(start_process):
     path = ros2_run_path("dva_controller", "fixed_controller")
     proc = start_process([path, "--ros-args", "-p", "damping:=-5.0"])
-    assert proc.proc.wait(timeout=30) == 2
+    assert proc.proc.wait(timeout=120) == 2
     out = proc.output()
     assert "damping" in out and "Traceback" not in out, out

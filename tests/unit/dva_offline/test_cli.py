@@ -17,7 +17,7 @@ def test_help_lists_subcommands(capsys):
 
 def test_info_json_is_one_object():
     result = subprocess.run([sys.executable, "-m", "dva_offline.cli", "info", "--json"],
-                            capture_output=True, text=True, timeout=60)
+                            capture_output=True, text=True, timeout=300)
     assert result.returncode == 0, result.stderr
     facts = json.loads(result.stdout)
     assert facts["packages"]["numpy"]
@@ -26,6 +26,6 @@ def test_info_json_is_one_object():
 
 def test_unknown_subcommand_is_an_error():
     result = subprocess.run([sys.executable, "-m", "dva_offline.cli", "no-such-command"],
-                            capture_output=True, text=True, timeout=60)
+                            capture_output=True, text=True, timeout=300)
     assert result.returncode == 2
     assert "invalid choice" in result.stderr

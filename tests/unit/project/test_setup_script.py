@@ -12,7 +12,7 @@ def _setup(tmp_path: Path, **env_overrides: str) -> subprocess.CompletedProcess:
     env = {k: v for k, v in os.environ.items() if not k.startswith(("ROS_", "AMENT_"))}
     env.update(DVA_VENV=str(tmp_path / "venv"), **env_overrides)
     return subprocess.run(["bash", str(REPO / "scripts/setup.sh")], env=env,
-                          capture_output=True, text=True, timeout=60)
+                          capture_output=True, text=True, timeout=300)
 
 
 def test_missing_python_311_names_the_fix(tmp_path):

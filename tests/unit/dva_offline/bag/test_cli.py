@@ -62,7 +62,7 @@ def test_bad_input_is_one_line_exit_2_and_no_output(content, tmp_path):
     out = tmp_path / "out"
     result = subprocess.run([sys.executable, "-m", "dva_offline.cli", "bag", "recover",
                              str(bad), "--out", str(out)], capture_output=True, text=True,
-                            timeout=60)
+                            timeout=300)
     assert result.returncode == 2, result.stderr
     assert result.stderr.startswith("dva bag: error:") and result.stderr.count("\n") == 1
     assert "Traceback" not in result.stderr and not out.exists()

@@ -27,7 +27,7 @@ def test_serial_runs_in_order():
 def test_local_workers_give_the_serial_results_and_overlap():
     active, most = 0, 0
     lock = threading.Lock()
-    both_running = threading.Barrier(2, timeout=10)
+    both_running = threading.Barrier(2, timeout=120)
 
     def work(item):
         nonlocal active, most
