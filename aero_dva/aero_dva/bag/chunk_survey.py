@@ -362,8 +362,9 @@ def _walk(w: _Walker) -> None:
         length = _HEAD.unpack_from(data, pos)[1]
         try:
             header = Header.read(ReadDataStream(_bytes_io(data, pos + _HEAD.size, length)))
+            strings = len(header.profile.encode()) + len(header.library.encode())
             header_ok = (pos + _HEAD.size + length <= limit and header.profile.isprintable()
-                         and 8 + len(header.profile.encode()) + len(header.library.encode()) == length)
+                         and 8 + strings == length)
         except Exception:  # noqa: BLE001 - a damaged header record
             header_ok = False
         if header_ok:
