@@ -36,7 +36,7 @@ __all__ = [
 
 #: What a reader's error tells a user to do with a cut or unclosed bag.
 RECOVER_HINT = ("run `dva bag recover {bag} --out NEW_BAG` to write a complete bag of the "
-                "messages before the damage")
+                "messages that still read")
 
 
 class BagReadError(ValueError):

@@ -91,7 +91,7 @@ class BagSource:
     start_ns : int or None
         [ns] the bag's first log time (metadata.yaml), None if not recorded there.
     damage : str or None
-        Why the bag could not be read whole (it then plays up to its damage).
+        Why the bag could not be read whole (it then plays every chunk whose CRC holds).
 
     Raises
     ------
