@@ -153,8 +153,8 @@ def _checked_info(path: Path, files: list[Path], problems: list[str]) -> BagInfo
             problems.append(f"{survey.path.name} has no footer and summary")
         per_channel = {}
         for chunk in survey.chunks:
-            for channel_id, entries in chunk.index.items():
-                per_channel[channel_id] = per_channel.get(channel_id, 0) + len(entries)
+            for channel_id, n in chunk.counts.items():
+                per_channel[channel_id] = per_channel.get(channel_id, 0) + n
             if chunk.messages:
                 start = chunk.start_ns if start is None else min(start, chunk.start_ns)
                 end = chunk.end_ns if end is None else max(end, chunk.end_ns)

@@ -49,14 +49,14 @@ _MIN_CHUNK_BODY = _CHUNK_FIXED.size + 8
 @dataclass(frozen=True)
 class GoodChunk:
     """A chunk record whose CRC holds: bytes [offset, end) of the file, its log-time span [ns]
-    and message count taken from its records, and its message offsets per channel."""
+    and message count taken from its records, and its message count per channel id."""
 
     offset: int
     end: int
     start_ns: int
     end_ns: int
     messages: int
-    index: dict = field(repr=False, compare=False)  # channel id -> [(log time, offset)]
+    counts: dict = field(repr=False, compare=False)  # channel id -> messages
 
 
 @dataclass(frozen=True)
@@ -253,6 +253,7 @@ class _Walker:
         self.out = FileSurvey(path, size)
         self.data, self.size = data, size
         self.index_offsets: list[int] = []  # chunk offsets the summary names (trusted or not)
+        self.previous: dict | None = None  # channel id -> [(log time, offset)] of the last chunk
         self.unchecked: list = []  # schema and channel records of a summary failing its CRC
         self.loose: list = []  # ... and of chunks failing theirs, as far as they read
 
@@ -280,7 +281,8 @@ class _Walker:
         if self.out.compression is None:
             self.out.compression = _compression_of(self.data, pos)
         self.out.chunks.append(GoodChunk(pos, end, min(times, default=0), max(times, default=0),
-                                         len(times), index))
+                                         len(times), {c: len(e) for c, e in index.items()}))
+        self.previous = index  # to check the message indexes that follow it
         return end
 
     def next_chunk(self, after: int, limit: int):
@@ -299,13 +301,13 @@ class _Walker:
                 return p, checked
         return None
 
-    def lost_in(self, start: int, end: int, previous: GoodChunk | None):
+    def lost_in(self, start: int, end: int, previous: dict | None):
         """(messages, topics, span) the message indexes in bytes [start, end) list, leaving
         out those that match the good chunk before the range; (None, (), span) if none read."""
         counts: dict[int, int] = {}
         times: list[int] = []
         found = False
-        before = set() if previous is None else {e for v in previous.index.values() for e in v}
+        before = set() if previous is None else {e for v in previous.values() for e in v}
         for match in re.finditer(rb"\x07", memoryview(self.data)[start:end]):
             read = _read_message_index(self.data, start + match.start(), end)
             if read is None:
@@ -374,7 +376,6 @@ def _walk(w: _Walker) -> None:
         end = found[0] if found else limit
         w.damage(pos, end, "the header record does not read")
         pos = end
-    previous: GoodChunk | None = None
     data_end = None
     stopped = False  # at damage with nothing readable after it
     while pos < limit:
@@ -387,7 +388,7 @@ def _walk(w: _Walker) -> None:
                 read = _read_message_index(data, pos, limit)
                 if read is not None:
                     end, channel, entries = read
-                    if previous is not None and previous.index.get(channel) == entries:
+                    if w.previous is not None and w.previous.get(channel) == entries:
                         pos = end
                         continue
                     reason = "a message index that does not match the chunk before it"
@@ -403,7 +404,6 @@ def _walk(w: _Walker) -> None:
                 checked = _check_chunk(data, pos, limit)  # also a chunk whose opcode flipped
                 if not isinstance(checked, str):
                     pos = w.accept(pos, checked)
-                    previous = out.chunks[-1]
                     continue
                 reason = (checked if opcode == Opcode.CHUNK else
                           f"invalid record opcode 0x{opcode:02x}" if opcode not in _NAMES
@@ -411,7 +411,7 @@ def _walk(w: _Walker) -> None:
         w.loose.extend(_loose_records(data, pos, limit))
         found = w.next_chunk(pos, limit)
         end = found[0] if found else _data_end_after(data, pos, limit)
-        lost, topics, span = w.lost_in(pos, end, previous)
+        lost, topics, span = w.lost_in(pos, end, w.previous)
         if found is None and out.cut and data[pos] == Opcode.CHUNK:
             _salvage(w, pos)
             reason = (f"the file ends inside a chunk record ({size - pos - _HEAD.size} of "
@@ -422,7 +422,6 @@ def _walk(w: _Walker) -> None:
             data_end, stopped = (end if end < limit else None), True
             break
         pos = w.accept(*found)
-        previous = out.chunks[-1]
     if data_end is None and not stopped:
         w.damage(size, size, "the file ends without a footer (not closed)", None)
     elif data_end is not None:
@@ -430,7 +429,7 @@ def _walk(w: _Walker) -> None:
         if crc and zlib.crc32(memoryview(data)[:data_end]) != crc:
             w.damage(0, data_end, "the data section CRC does not match")
     _agreeing_copies(w)
-    out.orphans = sum(len(e) for c in out.chunks for ch, e in c.index.items()
+    out.orphans = sum(n for c in out.chunks for ch, n in c.counts.items()
                       if ch not in out.channels)
     if out.orphans:
         w.damage(0, 0, f"{out.orphans} messages of CRC-valid chunks are on channels whose "
