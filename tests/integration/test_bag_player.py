@@ -18,6 +18,7 @@ from aero_dva.bag.reader import bag_topics, read_messages
 from aero_dva.bag.writer import BagWriter, qos_profile_yaml
 from aero_dva_sim.bag_player_node import BagPlayer
 from aero_dva_sim.mcap_recorder_node import McapRecorder
+from bench.faults.bit_flips import expected_messages, flip_copy, layout
 from dva_controller.spectrum_node import SpectrumNode
 from dva_offline.replay.bag_io import read_outputs, read_recording
 from dva_offline.replay.rerun import compare
@@ -212,6 +213,34 @@ def test_a_damaged_bag_plays_up_to_its_damage_with_a_warning(flight, executor, s
     assert 0 < played < total
     assert player.summary["outcome"] == "completed" and "damage" in player.summary
     assert player.source.damage
+
+
+def test_a_chunk_failing_its_crc_is_skipped_and_the_player_exits_3(
+        flight, executor, spin, ros_context, start_process, tmp_path):
+    """One flipped bit in the first chunk of a closed bag: the player plays every other chunk
+    (the messages mcap's own reader finds in the chunks that pass their CRC), says how many it
+    skipped, and the executable exits 3 (PLAYED_LESS)."""
+    flipped = tmp_path / "flipped"
+    shutil.copytree(flight["bag"], flipped)
+    (mcap,) = flipped.glob("*.mcap")
+    lay = layout(mcap)
+    start, end = lay.chunks[0]
+    flip_copy(flight["bag"], [((start + end) // 2, 3)], tmp_path / "f2")
+    shutil.copy(next((tmp_path / "f2").glob("*.mcap")), mcap)
+    expected, valid = expected_messages(next(flight["bag"].glob("*.mcap")), mcap, lay)
+    assert valid == len(lay.chunks) - 1
+    player = _play(executor, spin, ros_context, {"bag": str(flipped), "rate": 0.0})
+    played_topics = set(player.played)
+    want = sum(n for m, n in expected.items() if m[0] in played_topics)
+    promised = sum(t.message_count for n, t in bag_topics(flight["bag"]).items()
+                   if n in played_topics)
+    assert sum(player.counts.values()) == want < promised
+    assert player.summary["skipped"] == promised - want and player.exit_code == 3
+    assert "CRC" in player.summary["damage"]
+    proc = start_process([ros2_run_path("aero_dva_sim", "bag_player"), "--ros-args",
+                          "-p", f"bag:={flipped}", "-p", "rate:=0.0"])
+    assert proc.proc.wait(timeout=60) == 3, proc.output()
+    assert f"({promised - want} skipped)" in proc.output()
 
 
 def test_remapping_and_bad_parameters_of_the_executable(flight, executor, spin, ros_context,

@@ -72,7 +72,7 @@ def load_flight_log(bag: str | Path, namespace: str = "", *,
                     allow_truncated: bool = False) -> FlightLog:
     """Read the flight topics of ``bag`` (optionally under ``namespace``).
 
-    ``allow_truncated`` reads what a cut or unclosed bag holds before the damage (with a
+    ``allow_truncated`` reads what a cut, unclosed or damaged bag still holds (with a
     RuntimeWarning); otherwise such a bag is refused with a message naming ``dva bag recover``.
 
     Raises

@@ -4,7 +4,8 @@
 bytes or, decoded, a ``rosbags`` message (attribute access to fields; float sequences as numpy
 arrays). :func:`deserialize` decodes CDR bytes of any type whose schema the bag carries. A
 bag that was not closed (no ``metadata.yaml``) or whose file is cut is refused with a message
-naming ``dva bag recover``; ``allow_truncated=True`` reads the messages before the damage.
+naming ``dva bag recover``; ``allow_truncated=True`` reads every chunk whose CRC holds and
+warns how many messages it skipped.
 """
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ from pathlib import Path
 import yaml
 from mcap.reader import SeekingReader
 
-from aero_dva.bag.mcap_scan import FileScan
+from aero_dva.bag.chunk_survey import survey_file
 from aero_dva.bag.schemas import normalize_type_name, schema_typestore, typestore
 from aero_dva.bag.writer import TopicInfo
 
@@ -35,7 +36,7 @@ __all__ = [
 
 #: What a reader's error tells a user to do with a cut or unclosed bag.
 RECOVER_HINT = ("run `dva bag recover {bag} --out NEW_BAG` to write a complete bag of the "
-                "messages before the damage")
+                "messages that still read")
 
 
 class BagReadError(ValueError):
@@ -189,12 +190,19 @@ def _file_topics(path: Path, bag: Path, allow_truncated: bool) -> dict[str, Topi
 
 
 def _scan(path: Path):
-    """Messages of a damaged file in file order up to the damage, with a RuntimeWarning."""
-    scan = FileScan(path)
-    yield from scan.messages()
-    if scan.damage is not None:
-        warnings.warn(f"MCAP file {str(path)!r} ends early or is damaged ({scan.damage}); "
-                      "reading stopped there", RuntimeWarning, stacklevel=3)
+    """Messages of every chunk of a file whose CRC holds, in log-time order, with a
+    RuntimeWarning saying what was skipped if the file is damaged or cut."""
+    survey = survey_file(path)
+    yield from survey.messages()
+    if survey.damaged:
+        lost = survey.lost
+        skipped = ("an unknown number of messages (no index that passes its CRC)"
+                   if lost is None else f"{lost} messages" + (
+                       f" of the {survey.promised} its index promises"
+                       if survey.promised is not None else ""))
+        warnings.warn(f"MCAP file {str(path)!r} ends early or is damaged "
+                      f"({'; '.join(str(d) for d in survey.damaged)}); skipped {skipped}",
+                      RuntimeWarning, stacklevel=3)
 
 
 def bag_topics(path, *, allow_truncated: bool = False) -> dict[str, TopicInfo]:
@@ -249,8 +257,9 @@ def read_messages(
         Topic -> required type (``pkg/msg/Type`` or ``pkg/Type``); a topic named here is
         also read.
     allow_truncated : bool
-        Read what precedes the damage in a cut or unclosed file (in file order, with a
-        RuntimeWarning) instead of raising.
+        Read a cut, unclosed or damaged file instead of raising: every message of every
+        chunk whose CRC holds, in log-time order, with a RuntimeWarning that lists the
+        damaged byte ranges and how many messages were skipped.
     decode : bool
         False: ``message`` is the serialized CDR bytes (see :func:`deserialize`).
     log_time_order : bool
@@ -280,12 +289,14 @@ def read_messages(
             raise MessageTypeError(
                 f"topic {topic!r} in bag {str(path)!r} carries {actual!r}, "
                 f"expected {normalize_type_name(type_name)!r}")
-    return _iterate(bag_files(path, allow_truncated), selected, decode, log_time_order, path)
+    return _iterate(bag_files(path, allow_truncated), selected, decode, log_time_order, path,
+                    allow_truncated)
 
 
-def _records(file: Path, selected: set[str], log_time_order: bool):
-    """(schema, channel, message) of the selected topics: indexed, or scanned if damaged."""
-    if file_summary(file) is None:
+def _records(file: Path, selected: set[str], log_time_order: bool, allow_truncated: bool):
+    """(schema, channel, message) of the selected topics: indexed, or, allowing damage, of
+    every chunk whose CRC holds (the chunks are checked before the first message)."""
+    if allow_truncated:
         for item in _scan(file):
             if item.channel.topic in selected:
                 yield item.schema, item.channel, item.message
@@ -297,11 +308,11 @@ def _records(file: Path, selected: set[str], log_time_order: bool):
 
 
 def _iterate(files: list[Path], selected: set[str], decode: bool, log_time_order: bool,
-             bag: Path):
+             bag: Path, allow_truncated: bool):
     for file in files:
         count = 0
         schemas: dict[int, tuple] = {}  # schema id -> (type, text, typestore or None), per file
-        records = _records(file, selected, log_time_order)
+        records = _records(file, selected, log_time_order, allow_truncated)
         while True:
             try:
                 schema, channel, message = next(records)

@@ -25,7 +25,8 @@ def register(subparsers) -> None:
     p.add_argument("--no-rrd", action="store_true", help="skip the rerun recording")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.add_argument("--allow-truncated", action="store_true",
-                   help="read a bag that was not closed or is cut up to the damage (warns); "
+                   help="read a bag that was not closed, is cut or damaged: every chunk whose CRC "
+                        "holds (warns); "
                         "`dva bag recover` makes a complete copy instead")
     p.set_defaults(func=_report)
 

@@ -38,7 +38,7 @@ SERIES = {  # entity path -> (FlightLog attribute, row or None, scale, legend)
 def load_run(bag, metadata: dict | None = None, *, allow_truncated: bool = False) -> RunData:
     """Read a bag directory or .mcap file (``load_flight_log`` plus the spectra and the damper
     sources); ``metadata`` (e.g. controller, scenario file) is what the bag cannot say.
-    ``allow_truncated`` reads what a cut or unclosed bag holds before the damage.
+    ``allow_truncated`` reads what a cut, unclosed or damaged bag still holds.
 
     A sidecar ``<bag>.json`` (written by ``dva evaluate`` and ``run_flight --json`` users) is read
     when no metadata is given.

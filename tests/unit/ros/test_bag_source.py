@@ -63,3 +63,33 @@ def test_qos_text_that_is_not_a_profile_list_gives_the_defaults():
     assert RecordedQos.from_yaml("") == RecordedQos.from_yaml("[: bad") == RecordedQos()
     assert RecordedQos.from_yaml("- history: 0\n  depth: 0\n  reliability: 2\n").reliability \
         == "best_effort"
+
+
+def _flip_in_chunk(bag, k: int) -> int:
+    """Flip one bit in the middle of the k-th chunk (file order) of a closed bag; its
+    message count."""
+    from mcap.reader import make_reader
+
+    mcap = next(bag.glob("*.mcap"))
+    with open(mcap, "rb") as stream:
+        summary = make_reader(stream).get_summary()
+    index = sorted(summary.chunk_indexes, key=lambda i: i.chunk_start_offset)[k]
+    data = bytearray(mcap.read_bytes())
+    data[index.chunk_start_offset + index.chunk_length // 2] ^= 0x04
+    mcap.write_bytes(bytes(data))
+    return sum(int.from_bytes(data[at + 11:at + 15], "little") // 16
+               for at in index.message_index_offsets.values())
+
+
+def test_a_closed_bag_with_a_failing_chunk_plays_every_other_chunk(tmp_path):
+    _part(tmp_path / "whole", 0, 400)  # 8 chunks of 50
+    flipped = tmp_path / "flipped"
+    shutil.copytree(tmp_path / "whole", flipped)
+    lost = _flip_in_chunk(flipped, 2)
+    source = BagSource(flipped)
+    assert source.damage is None and source.indexed  # the summary is intact
+    got = [t for t, _, _ in source.messages(["/a", "/b"])]
+    assert lost == 50 and len(got) == 400 - lost and source.complete
+    assert got == [t for t in range(1000, 1400) if not 1100 <= t < 1150]
+    assert source.damage and "CRC" in source.read_problems[0]
+    assert source.promised(["/a", "/b"]) == 400

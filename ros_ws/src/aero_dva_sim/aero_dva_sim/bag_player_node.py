@@ -14,8 +14,9 @@ heartbeats, about every 3 s here, far too late to pace by). Topics are remapped 
 The playing runs on its own thread (precise pacing, no executor in between); the node's
 executor only serves the graph. When the bag ends the player publishes one status on
 ``/diagnostics`` (counts per topic, wall time, lateness, damage) and exits, unless ``loop``.
-A bag cut short (crashed recorder) plays up to its damage, with a warning there and in the
-status.
+A damaged bag (crashed recorder, cut file, a chunk failing its CRC) plays every chunk whose
+CRC holds, with a warning there and in the status saying how much was skipped; the process
+then exits with ``PLAYED_LESS`` (3) unless it played all that the bag's index promises.
 
 Its parameters (units, defaults, ranges) are the table ``SPEC`` below, which the node declares
 them from and ``bag_player --help`` prints.
@@ -49,6 +50,9 @@ from dva_ros_common.node_tools import run_node
 POLL = 0.01  # [s] wall time between looks at the graph while waiting for subscribers
 SLICE = 0.1  # [s] longest sleep, so a stop request is noticed quickly
 ACK_TIMEOUT = 4.0  # [s] at the end: longest wait for the subscribers' acknowledgements
+#: Exit code when the bag is damaged and less was played than its index promises (or an
+#: unclosed bag, which has no index to tell).
+PLAYED_LESS = 3
 
 SPEC = NodeSpec(
     name="bag_player",
@@ -56,8 +60,9 @@ SPEC = NodeSpec(
     summary="Publish a recorded bag (rosbag2-layout MCAP, one file or split) into the graph: "
             "the recorded CDR bytes in log-time order, with the recorded timing scaled by "
             "rate, each topic with the QoS recorded in metadata.yaml, /clock from the log "
-            "times. Remap topics with --ros-args -r /bag/topic:=/new/topic. A bag cut short "
-            "plays up to its damage, with a warning. Reports on /diagnostics when it ends.",
+            "times. Remap topics with --ros-args -r /bag/topic:=/new/topic. A damaged bag "
+            "plays every chunk whose CRC holds, with a warning, and exits 3. Reports on "
+            "/diagnostics when it ends.",
     params=(
         Param("bag", "", "bag directory (or one .mcap file) to play; required",
               default_text="none (required)"),
@@ -118,8 +123,8 @@ class BagPlayer(Node):
             raise ValueError("parameter 'bag' is required (a bag directory or .mcap file)")
         self.source = BagSource(values["bag"])  # BagReadError (a ValueError) names the bag
         if self.source.damage:
-            self.get_logger().warning(f"bag {values['bag']} is damaged: it plays up to the "
-                                      f"damage ({self.source.damage})")
+            self.get_logger().warning(f"bag {values['bag']} is damaged: it plays every chunk "
+                                      f"whose CRC holds ({self.source.damage})")
         self.rate = float(values["rate"])
         self.loop = bool(values["loop"])
         self.offset_ns = round(float(values["start_offset"]) * 1e9)
@@ -153,6 +158,7 @@ class BagPlayer(Node):
         self.finished = Future()
         self.done = self.finished if bool(values["exit_on_end"]) else None
         self.summary: dict = {}
+        self.exit_code = 0  # PLAYED_LESS when a damaged bag played less than it promises
         self._played_span_ns = 0  # [ns] log time from the first to the last message played
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="bag_player", daemon=True)
@@ -274,7 +280,7 @@ class BagPlayer(Node):
         self._played_span_ns = 0 if first_ns is None else last_ns - first_ns
         if self.source.read_problems:
             self.get_logger().warning(
-                f"bag ends early: played up to the damage ({self.source.read_problems[-1]})")
+                f"bag is damaged: skipped what does not read ({self.source.read_problems[-1]})")
 
     def _linger(self) -> None:
         """Before exiting, let the subscribers acknowledge the last messages and the status
@@ -309,12 +315,23 @@ class BagPlayer(Node):
         if self._clock_pub is not None:
             values["published:/clock"] = self.clock_published
         damaged = self.source.damage
+        promised = self.source.promised(self.played)
+        # Whether everything the bag's index promises was read: only a whole reading
+        # (no start offset or duration) of an indexed bag can tell.
+        whole = self.source.complete and self.offset_ns == 0 and self.duration_ns is None
+        read = total // max(rounds, 1)
+        short = promised - read if whole and self.source.indexed else None
         if damaged:
-            values["damage"] = damaged
+            values.update(damage=damaged, promised=promised,
+                          skipped=-1 if short is None else short)
+            self.exit_code = 0 if short == 0 else PLAYED_LESS
         level = conversions.WARN if damaged else conversions.OK
-        text = (f"played {total} messages of {self.source.path} in {wall:.3g} s"
-                + (f"; the bag is damaged: played up to the damage ({damaged})"
-                   if damaged else ""))
+        text = f"played {total} messages of {self.source.path} in {wall:.3g} s"
+        if damaged:
+            text += (f"; the bag is damaged: played {read} of the {promised} messages its "
+                     + ("index promises" if self.source.indexed else "readable part holds")
+                     + ("" if short is None else f" ({short} skipped)")
+                     + f", every chunk whose CRC holds ({damaged})")
         self.summary = values
         self.get_logger().info(text)
         self._diag_pub.publish(conversions.diagnostic_array(

@@ -6,8 +6,9 @@ messages in log-time order as raw CDR bytes. The reading itself is
 :func:`aero_dva.bag.reader.read_messages` (``decode=False``) and
 :func:`~aero_dva.bag.reader.bag_topics`; switching to another reader changes only this module.
 
-A bag that cannot be read whole (no metadata.yaml, a file cut short) is opened again allowing
-truncation: it plays up to its damage, and :attr:`BagSource.damage` says why.
+A bag that cannot be read whole (no metadata.yaml, a file cut short, a chunk that fails its
+CRC) is read allowing damage: every chunk whose CRC holds is played, and
+:attr:`BagSource.damage` says what was skipped.
 """
 from __future__ import annotations
 
@@ -90,7 +91,7 @@ class BagSource:
     start_ns : int or None
         [ns] the bag's first log time (metadata.yaml), None if not recorded there.
     damage : str or None
-        Why the bag could not be read whole (it then plays up to its damage).
+        Why the bag could not be read whole (it then plays every chunk whose CRC holds).
 
     Raises
     ------
@@ -124,6 +125,8 @@ class BagSource:
         start = (metadata.get("starting_time") or {}).get("nanoseconds_since_epoch")
         self.start_ns = int(start) if isinstance(start, int) and not self.damage else None
         self.read_problems: list[str] = []  # damage met while reading (also in damage)
+        self.indexed = self.damage is None  # topic counts from an index, not from a scan
+        self.complete = False
 
     def _metadata(self) -> dict:
         meta = self.path / "metadata.yaml"
@@ -135,16 +138,24 @@ class BagSource:
         except (OSError, yaml.YAMLError, AttributeError):
             return {}
 
+    def promised(self, topics: Iterable[str]) -> int:
+        """Messages of ``topics`` the bag's index promises (what reads, if it has none)."""
+        return sum(self.topics[t].message_count for t in topics)
+
     def messages(self, topics: Iterable[str]) -> Iterator[tuple[int, str, bytes]]:
         """(log time [ns], topic, serialized CDR) of ``topics`` in log-time order (per file).
 
-        Damage found while reading ends the iteration; its text is appended to
-        :attr:`read_problems` (and :attr:`damage` set) instead of raising.
+        A chunk that fails its CRC is skipped: the reading goes on with every chunk whose CRC
+        holds (after the messages already given). What was skipped is appended to
+        :attr:`read_problems` (and :attr:`damage` set) instead of raising;
+        :attr:`complete` says whether the bag was read to its end.
         """
-        with warnings.catch_warnings():  # the damage was noted when the bag was opened
-            warnings.simplefilter("ignore", RuntimeWarning)
-            records = read_messages(self.path, list(topics), decode=False,
-                                    allow_truncated=self.damage is not None)
+        topics = list(topics)
+        allow = self.damage is not None
+        self.complete = False
+        records = self._open(topics, allow)
+        given_t, given_at_t = None, 0  # the last log time given, and how many at it
+        skip = None  # after switching readers: (log time, count at it) already given
         while True:
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always", RuntimeWarning)
@@ -154,12 +165,31 @@ class BagSource:
                     record = None
                 except BagReadError as exc:
                     self._note(str(exc))
-                    return
+                    if allow:
+                        return
+                    allow, skip = True, (given_t, given_at_t)
+                    records = self._open(topics, allow)
+                    continue
             for warning in caught:
                 self._note(str(warning.message))
             if record is None:
+                self.complete = True
                 return
-            yield record.log_time_ns, record.topic, bytes(record.message)
+            t = record.log_time_ns
+            if skip is not None and skip[0] is not None:
+                if t < skip[0] or (t == skip[0] and skip[1] > 0):
+                    skip = (skip[0], skip[1] - (t == skip[0]))
+                    continue
+                skip = None
+            given_at_t = given_at_t + 1 if t == given_t else 1
+            given_t = t
+            yield t, record.topic, bytes(record.message)
+
+    def _open(self, topics: list[str], allow_truncated: bool):
+        with warnings.catch_warnings():  # the damage was noted when the bag was opened
+            warnings.simplefilter("ignore", RuntimeWarning)
+            return read_messages(self.path, topics, decode=False,
+                                 allow_truncated=allow_truncated)
 
     def _note(self, text: str) -> None:
         self.read_problems.append(text)

@@ -236,4 +236,4 @@ def run_node(node_class: Callable[[], Node], spec: NodeSpec, args=None, *,
                 node.close()
             node.destroy_node()
         rclpy.try_shutdown()
-    return 0
+    return int(getattr(node, "exit_code", 0) or 0)  # a node may end in a failure it reports

@@ -1,12 +1,16 @@
 """dva bag info / recover: a bag cut at any byte keeps every message of every complete chunk."""
 from __future__ import annotations
 
+import io
 import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
+from mcap.data_stream import ReadDataStream
 from mcap.reader import make_reader
+from mcap.records import Chunk, Message
+from mcap.stream_reader import breakup_chunk
 
 from aero_dva.bag.reader import BagReadError, bag_topics, read_messages
 from aero_dva.bag.recovery import bag_info, recover_bag
@@ -127,18 +131,34 @@ def test_an_uncompressed_cut_chunk_keeps_its_whole_messages(batch_bag, tmp_path)
     assert _file_records(tmp_path / "new" / "new_0.mcap") == _file_records(mcap)[:before + j]
 
 
-def test_a_corrupt_chunk_ends_what_is_kept(batch_bag, tmp_path):
+def test_a_corrupt_chunk_costs_only_its_own_messages(batch_bag, tmp_path):
     (mcap,) = batch_bag.glob("*.mcap")
     chunks = _chunks(mcap)
-    start, end, _ = chunks[3]
+    start, end, lost = chunks[3]
     data = bytearray(mcap.read_bytes())
     data[(start + end) // 2] ^= 0xFF  # one flipped bit pattern inside chunk 3 (CRC fails)
     copy = tmp_path / "bad"
     shutil.copytree(batch_bag, copy)
     (copy / mcap.name).write_bytes(bytes(data))
     result = recover_bag(copy, tmp_path / "new")
-    assert result.kept == sum(n for *_, n in chunks[:3]) and result.salvaged == 0
+    assert result.kept == sum(n for *_, n in chunks) - lost and result.salvaged == 0
+    assert result.lost == lost and result.promised == sum(n for *_, n in chunks)
+    (damaged,) = result.damaged
+    assert (damaged.start, damaged.end) == (start, chunks[4][0]) and damaged.lost == lost
     assert result.damage.offset == start and "crc" in result.damage.reason.lower()
+    kept = _file_records(tmp_path / "new" / "new_0.mcap")
+    assert kept == [r for r in _file_records(mcap) if r not in _chunk_records(mcap, 3)]
+
+
+def _chunk_records(mcap: Path, k: int) -> list[tuple]:
+    """The message records of the k-th chunk (file order) of an intact file, read by mcap."""
+    with open(mcap, "rb") as stream:
+        summary = make_reader(stream).get_summary()
+    start, end, _ = _chunks(mcap)[k]
+    body = io.BytesIO(mcap.read_bytes()[start + 9:end])  # after opcode and record length
+    records = breakup_chunk(Chunk.read(ReadDataStream(body)), validate_crc=True)
+    return [(summary.channels[m.channel_id].topic, m.log_time, m.publish_time, m.sequence,
+             m.data) for m in records if isinstance(m, Message)]
 
 
 def test_info_of_closed_and_unclosed_bags(zstd_bag, tmp_path):

@@ -9,6 +9,7 @@ import pytest
 
 from aero_dva.bag.reader import bag_topics
 from dva_offline import cli
+from dva_offline.bag.cli import RECOVERED_WITH_LOSSES
 from tests.unit.aero_dva.bag.reference_bag import write_batch_bag
 
 
@@ -42,15 +43,19 @@ def test_info_of_a_closed_bag(bag, capsys):
 def test_info_and_recover_of_a_cut_bag(cut, tmp_path, capsys):
     assert cli.main(["bag", "info", str(cut)]) == 0
     out = capsys.readouterr().out
-    assert "closed     no: no metadata.yaml" in out and "damage     cut_0.mcap at byte" in out
+    assert "closed     no: no metadata.yaml" in out and "damage     cut_0.mcap bytes" in out
+    assert "the file ends inside a chunk record" in out
     assert f"run `dva bag recover {cut} --out NEW_BAG`" in out
-    assert cli.main(["bag", "recover", str(cut), "--out", str(tmp_path / "new"), "--json"]) == 0
+    # A cut file has no index to say what was lost: recovered, possibly with losses (3).
+    assert cli.main(["bag", "recover", str(cut), "--out", str(tmp_path / "new"),
+                     "--json"]) == RECOVERED_WITH_LOSSES
     result = json.loads(capsys.readouterr().out)
-    assert result["damage"]["offset"] > 0 and result["kept"] == sum(
+    assert result["damage"]["offset"] > 0 and result["lost"] is None and result["kept"] == sum(
         t.message_count for t in bag_topics(tmp_path / "new").values())
-    assert cli.main(["bag", "recover", str(cut), "--out", str(tmp_path / "new2")]) == 0
+    assert cli.main(["bag", "recover", str(cut), "--out", str(tmp_path / "new2")]) == 3
     out = capsys.readouterr().out
     assert f"kept       {result['kept']} messages" in out and "new bag" in out
+    assert "lost       unknown" in out
     assert cli.main(["bag", "info", str(tmp_path / "new")]) == 0
     assert "closed     yes" in capsys.readouterr().out
 
@@ -74,3 +79,35 @@ def test_recover_into_an_existing_bag_is_refused(bag, cut, capsys):
     assert "exists and is not empty" in capsys.readouterr().err
     assert cli.main(["bag", "info", str(cut.parent / "nowhere")]) == 2
     assert "does not exist" in capsys.readouterr().err
+
+
+def test_a_flipped_bit_is_reported_damaged_and_recovered_with_losses(bag, tmp_path, capsys):
+    """One flipped bit in the third chunk: info says damaged (and, unchecked, says it did not
+    check), recover keeps the other chunks and exits 3; the intact bag's copy exits 0."""
+    flipped = tmp_path / "flipped"
+    flipped.mkdir()
+    (mcap,) = bag.glob("*.mcap")
+    data = bytearray(mcap.read_bytes())
+    data[len(data) // 4] ^= 0x10
+    (flipped / mcap.name).write_bytes(bytes(data))
+    (flipped / "metadata.yaml").write_text((bag / "metadata.yaml").read_text())
+    assert cli.main(["bag", "info", str(flipped)]) == 0
+    out = capsys.readouterr().out
+    assert "damaged    1 byte range(s) do not read; messages lost: " in out
+    assert "chunk fails its CRC" in out and "of 720 the bag's index promises" in out
+    assert cli.main(["bag", "info", str(flipped), "--no-verify"]) == 0
+    assert "CRCs not checked (--no-verify)" in capsys.readouterr().out
+    assert cli.main(["bag", "info", str(flipped), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    (damaged,) = info["damaged"]
+    assert info["verified"] and 0 < info["lost"] == damaged["lost"] < 720
+    assert info["message_count"] == 720 - info["lost"]
+    assert damaged["start"] < len(data) // 4 < damaged["end"]
+    assert damaged["start_ns"] <= damaged["end_ns"] and sum(damaged["topics"].values()) == \
+        damaged["lost"]
+    new = tmp_path / "new"
+    assert cli.main(["bag", "recover", str(flipped), "--out", str(new)]) == 3
+    assert f"lost       {info['lost']} of 720" in capsys.readouterr().out
+    assert sum(t.message_count for t in bag_topics(new).values()) == 720 - info["lost"]
+    assert cli.main(["bag", "recover", str(bag), "--out", str(tmp_path / "whole")]) == 0
+    assert "lost       0 of 720" in capsys.readouterr().out
