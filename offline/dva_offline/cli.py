@@ -25,6 +25,7 @@ SUBCOMMAND_MODULES = {
     "report": "dva_offline.run_report_cli",
     "replay": "dva_offline.replay_cli",
     "bag": "dva_offline.bag_cli",
+    "switching": "dva_offline.switching_cli",
 }
 
 
