@@ -52,7 +52,7 @@ def register(subparsers) -> None:
                         "Dyke's clipped-optimal force (clipped); default lyapunov")
     d.add_argument("--design-airspeed", type=float, default=1.15, metavar="RATIO",
                    help="design airspeed over U_cr (default 1.15)")
-    d.add_argument("--c-lo", type=float, default=150.0, help="low c2 [N s/m] (default 150)")
+    d.add_argument("--c-lo", type=float, default=100.0, help="low c2 [N s/m] (default 100)")
     d.add_argument("--c-hi", type=float, default=2500.0, help="high c2 [N s/m] (default 2500)")
     d.add_argument("--lag", type=float, default=0.01,
                    help="damper time constant [s] the design is flown with (default 0.01)")

@@ -126,7 +126,8 @@ def evaluate_setting(model: AeroelasticModel, gains: SwitchingGains, setting: Se
     u = ramp_airspeed(u_cr, start, stop, duration, SAMPLE_RATE)
     force = _forces(seeds, u.size)
     noise = _noise(seeds, u.size, setting.noise * sensor_rms)
-    fixed = fly_switched(plant, fixed_law(plant, fixed_c2), u, rho, force, time_constant=0.0)
+    fixed = fly_switched(plant, fixed_law(plant, fixed_c2), u, rho, force, time_constant=0.0,
+                         initial_damping=fixed_c2)
     switched = fly_switched(plant, law, u, rho, force, observer_model=observer_model,
                             time_constant=setting.time_constant, noise=noise)
     n_base = int(0.1 * u.size)
@@ -142,7 +143,7 @@ def evaluate_setting(model: AeroelasticModel, gains: SwitchingGains, setting: Se
     force = _forces(seeds, n)
     noise = _noise(seeds, n, setting.noise * sensor_rms)
     fixed_c = fly_switched(plant, fixed_law(plant, fixed_c2), ratio * u_cr, rho, force,
-                           time_constant=0.0)
+                           time_constant=0.0, initial_damping=fixed_c2)
     sw_c = fly_switched(plant, law, ratio * u_cr, rho, force, observer_model=observer_model,
                         time_constant=setting.time_constant, noise=noise)
     rms_f = np.sqrt(np.mean(fixed_c.leading_edge[:, skip:] ** 2, axis=1))

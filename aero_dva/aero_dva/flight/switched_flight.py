@@ -236,7 +236,8 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
     noise : array_like (N, 4) or (F, N, 4), optional
         [SI] sensor noise added to :data:`MEASURED_OUTPUTS`.
     initial_damping : float, optional
-        [N s/m] c2 at the start (default c_hi).
+        [N s/m] c2 at the start (default c_hi); the first sample's target is the nearer
+        of c_lo and c_hi (in log c2).
 
     Returns
     -------
@@ -356,7 +357,7 @@ def _loop_one(maps, period_map, periods, hold, inputs, fh_in, width, lag):
     tau, decay, mean_factor = lag.tau, lag.decay, lag.mean_factor
     c_hi, c_lo, c = lag.c_hi, lag.c_lo, lag.c_start
     log_lo, per_level = math.log(lag.c_lo), lag.per_level
-    target_hi = True
+    target_hi = c >= math.sqrt(c_lo * c_hi)
     prev_fh = 0.0
     for p, start in enumerate(periods):
         steps = list(t_all[period_map[p]])
@@ -392,7 +393,7 @@ def _loop_batch(maps, period_map, periods, hold, inputs, fh_in, width, lag):
     decay, mean_factor = lag.decay, lag.mean_factor
     log_lo, per_level = math.log(lag.c_lo), lag.per_level
     c = np.full(nf, lag.c_start)
-    target_hi = np.ones(nf, dtype=bool)
+    target_hi = np.full(nf, lag.c_start >= math.sqrt(lag.c_lo * lag.c_hi))
     prev_fh = np.zeros(nf)
     inputs_t = np.ascontiguousarray(inputs.transpose(1, 0, 2))
     fh_t = np.ascontiguousarray(fh_in.transpose(1, 0, 2))
