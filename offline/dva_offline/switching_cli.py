@@ -4,6 +4,7 @@ Subcommands::
 
     dva switching design    gains of the law and its Kalman observer from the wing model,
                             written to a checked JSON file
+    dva switching plot      figure: a ramp flight with both dampers, the law at work
     dva switching evaluate  the law against the best constant c2 on paired seeds: bounded and
                             practical boundaries, RMS at 1.1 U_cr, switching rate, damper
                             power; sensitivity to damper lag, sensor noise, model mismatch
@@ -13,7 +14,6 @@ docs/switching.md describes the law and the numbers.
 """
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import sys
@@ -56,8 +56,11 @@ def register(subparsers) -> None:
     d.add_argument("--c-hi", type=float, default=2500.0, help="high c2 [N s/m] (default 2500)")
     d.add_argument("--lag", type=float, default=0.01,
                    help="damper time constant [s] the design is flown with (default 0.01)")
-    d.add_argument("--efforts", default="1,100,10000",
-                   help="LQR control weights tried, relative (default 1,100,10000)")
+    d.add_argument("--efforts", default="100",
+                   help="LQR control weights tried, relative (default 100)")
+    d.add_argument("--leads", default="0,0.005,0.01,0.02",
+                   help="leads [s] tried: F and h on the state predicted that far ahead, "
+                        "against the damper lag (default 0,0.005,0.01,0.02)")
     d.add_argument("--seeds", type=int, default=4, help="ramp flights per effort (default 4)")
     d.add_argument("--noise", type=float, default=0.05,
                    help="sensor noise std / output RMS at U_cr (default 0.05)")
@@ -79,6 +82,13 @@ def register(subparsers) -> None:
                    help="sensor noise of the base setting (default 0.05)")
     e.add_argument("--json", action="store_true", help="print one JSON object")
     e.set_defaults(func=_evaluate)
+
+    g = sub.add_parser("plot", help="figure: ramp flight fixed vs switching, the law at work")
+    g.add_argument("--gains", required=True, metavar="FILE", help="gains file of 'design'")
+    g.add_argument("--out", required=True, metavar="PNG", help="figure to write")
+    g.add_argument("--wing", metavar="FILE", help="wing YAML (must match the gains file)")
+    g.add_argument("--seed", type=int, default=0, help="aileron force seed (default 0)")
+    g.set_defaults(func=_plot)
 
 
 def _wing(path):
@@ -117,6 +127,9 @@ def _design(args) -> int:
     efforts = _floats("--efforts", args.efforts)
     if any(v <= 0 for v in efforts):
         raise ValueError(f"--efforts must be > 0, got {args.efforts}")
+    leads = _floats("--leads", args.leads)
+    if any(v < 0 or v > 0.1 for v in leads):
+        raise ValueError(f"--leads must be in [0, 0.1] s, got {args.leads}")
     cfg, model, fingerprint = _wing(args.wing)
     u_cr, c2, u_fix = _reference(cfg, model)
     print(f"U_cr {u_cr:.3f} m/s; best constant c2 {c2:.1f} N s/m flutters at "
@@ -124,22 +137,22 @@ def _design(args) -> int:
     gains, _ = design(
         model, fingerprint, cfg.air_density, u_cr, c2, design_name=args.design,
         design_ratio=args.design_airspeed, c_lo=args.c_lo, c_hi=args.c_hi,
-        time_constant=args.lag, efforts=efforts, seeds=_seeds(args.seeds), noise=args.noise,
-        progress=lambda e: print(f"effort {e['effort']:g}: practical boundary "
+        time_constant=args.lag, efforts=efforts, leads=leads, seeds=_seeds(args.seeds),
+        noise=args.noise,
+        progress=lambda e: print(f"effort {e['effort']:g}, lead {e['lead']:g} s: practical "
+                                 f"boundary "
                                  f"{e['practical_switching']:.4f} U_cr (fixed "
                                  f"{e['practical_fixed']:.4f}), bounded "
                                  f"{e['bounded_switching']:.4f}", file=sys.stderr))
     path = save_gains(gains, args.out)
     if load_gains(path).law.gain.tolist() != gains.law.gain.tolist():
         raise ValueError(f"{path}: the gains did not read back unchanged")
-    print(f"wrote {path} (effort {gains.effort:g})")
+    print(f"wrote {path} (effort {gains.effort:g}, lead {gains.lead:g} s)")
     return 0
 
 
-def _evaluate(args) -> int:
-    from aero_dva.control.switching_design import measured_rms
+def _gains_for_wing(args):
     from aero_dva.control.switching_io import load_gains
-    from dva_offline.switching_study import FORCE_STD, SAMPLE_RATE, Setting, evaluate_setting
 
     gains = load_gains(args.gains)
     cfg, model, fingerprint = _wing(args.wing)
@@ -148,6 +161,24 @@ def _evaluate(args) -> int:
                          f"{gains.wing_fingerprint}, this wing {fingerprint})")
     if gains.state_names != model.state_names:
         raise ValueError(f"{args.gains}: states {gains.state_names} are not the wing's")
+    return gains, cfg, model
+
+
+def _plot(args) -> int:
+    from dva_offline.switching_plots import plot_switching
+
+    gains, cfg, model = _gains_for_wing(args)
+    u_cr, c2, _ = _reference(cfg, model)
+    plot_switching(model, gains, u_cr, c2, args.out, seed=args.seed)
+    print(f"wrote {args.out}")
+    return 0
+
+
+def _evaluate(args) -> int:
+    from aero_dva.control.switching_design import measured_rms
+    from dva_offline.switching_study import FORCE_STD, SAMPLE_RATE, Setting, evaluate_setting
+
+    gains, cfg, model = _gains_for_wing(args)
     seeds = _seeds(args.seeds)
     u_cr, c2, u_fix = _reference(cfg, model)
     sensor_rms = measured_rms(model, u_cr, cfg.air_density, c2, SAMPLE_RATE, FORCE_STD)

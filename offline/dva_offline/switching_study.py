@@ -25,6 +25,7 @@ from scipy import optimize, stats
 from aero_dva.control.switching_design import (
     kalman_filter_gain,
     law_gain,
+    lead_rows,
     measured_rms,
     middle_damping,
 )
@@ -178,10 +179,11 @@ def evaluate_setting(model: AeroelasticModel, gains: SwitchingGains, setting: Se
 
 def design(model: AeroelasticModel, fingerprint: str, density: float, u_cr: float,
            fixed_c2: float, *, design_name: str, design_ratio: float, c_lo: float,
-           c_hi: float, time_constant: float, efforts, seeds, noise: float,
+           c_hi: float, time_constant: float, efforts, leads, seeds, noise: float,
            progress=None) -> tuple[SwitchingGains, np.ndarray]:
-    """Gains for ``model``: observer from the model, law gain of each candidate ``effort``
-    flown on the ramp with the given lag and sensor noise, the best practical boundary kept.
+    """Gains for ``model``: observer from the model, law gain of each candidate ``effort`` and
+    ``lead`` [s] (F and h on the state predicted that far ahead) flown on the ramp with the
+    given lag and sensor noise, the best practical boundary kept.
 
     Returns the gains and the sensor RMS scale (4,) the noise fraction refers to.
     """
@@ -192,15 +194,18 @@ def design(model: AeroelasticModel, fingerprint: str, density: float, u_cr: floa
     setting = Setting("design", time_constant, noise)
     selection = []
     best = None
-    for effort in efforts:
-        law = SwitchingLaw(law_gain(model, airspeed, density, c_lo, c_hi, design=design_name,
-                                    effort=effort), c_lo, c_hi, observer)
+    for effort, lead in [(e, t) for e in efforts for t in leads]:
+        gain = law_gain(model, airspeed, density, c_lo, c_hi, design=design_name,
+                        effort=effort)
+        force_gain, gain = lead_rows(model, airspeed, density, c_lo, c_hi, gain, lead)
+        law = SwitchingLaw(gain, c_lo, c_hi, observer, force_gain if lead else None)
         gains = SwitchingGains(law=law, design=design_name, wing_fingerprint=fingerprint,
                                design_airspeed=airspeed, density=density,
                                time_constant=time_constant, sample_rate=SAMPLE_RATE,
-                               effort=float(effort), state_names=model.state_names)
+                               effort=float(effort), state_names=model.state_names,
+                               lead=float(lead))
         row = evaluate_setting(model, gains, setting, seeds, u_cr, fixed_c2, sensor_rms)
-        entry = {"effort": float(effort),
+        entry = {"effort": float(effort), "lead": float(lead),
                  "practical_switching": row["practical"]["switching"],
                  "practical_fixed": row["practical"]["fixed"],
                  "bounded_switching": row["bounded"]["switching"],
@@ -215,6 +220,6 @@ def design(model: AeroelasticModel, fingerprint: str, density: float, u_cr: floa
         best[1], selection=selection,
         description=(f"{design_name} switching law designed at {design_ratio:g} U_cr "
                      f"(U_cr {u_cr:.3f} m/s), c2 {c_lo:g}/{c_hi:g} N s/m, lag "
-                     f"{time_constant:g} s; effort chosen by the practical boundary of "
+                     f"{time_constant:g} s; effort and lead chosen by the practical boundary of "
                      f"{len(seeds)} ramp flights; best constant c2 {fixed_c2:.1f} N s/m"))
     return chosen, sensor_rms

@@ -114,3 +114,16 @@ def measured_rms(model: AeroelasticModel, airspeed: float, density: float, dampi
     cov = linalg.solve_discrete_lyapunov(ad, force_std**2 * np.outer(bd, bd))
     c, d = measurement_matrices(model, airspeed, density, damping)
     return np.sqrt(np.diag(c @ cov @ c.T) + force_std**2 * d**2)
+
+
+def lead_rows(model: AeroelasticModel, airspeed: float, density: float, c_lo: float,
+              c_hi: float, gain: np.ndarray, lead: float):
+    """``(force_gain, gain)`` evaluated on the state predicted ``lead`` seconds ahead by the
+    model at the middle c2 (a lead against the damper's lag; ``lead`` = 0: unchanged)."""
+    if not lead >= 0:
+        raise ValueError(f"lead must be >= 0 s, got {lead}")
+    a, _ = model.matrices(airspeed, density, middle_damping(c_lo, c_hi))
+    phi = linalg.expm(a * lead)
+    force = np.zeros(a.shape[0])
+    force[maxwell_index(model)] = model.absorber.series_stiffness
+    return force @ phi, np.asarray(gain, dtype=float) @ phi

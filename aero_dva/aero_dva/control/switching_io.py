@@ -8,7 +8,8 @@ file made for another wing. Example (abridged)::
     {"format": "dva_switching_gains", "version": 1, "design": "lyapunov",
      "wing_fingerprint": "3f0c...", "design_airspeed": 115.0, "density": 1.2,
      "c_lo": 150.0, "c_hi": 2500.0, "time_constant": 0.01, "sample_rate": 1000.0,
-     "effort": 100.0, "state_names": [...], "gain": [...], "observer": [[...], ...],
+     "effort": 100.0, "lead": 0.011, "state_names": [...], "gain": [...],
+     "observer": [[...], ...], "force_gain": [...],
      "units": {...}, "selection": [...], "description": "..."}
 """
 from __future__ import annotations
@@ -33,7 +34,7 @@ FILE_VERSION = 1
 UNITS = {"airspeed": "m/s", "density": "kg/m^3", "damping": "N s/m", "time_constant": "s",
          "sample_rate": "Hz", "measured": list(MEASURED_OUTPUTS)}
 _NUMBERS = ("design_airspeed", "density", "c_lo", "c_hi", "time_constant", "sample_rate",
-            "effort")
+            "effort", "lead")
 
 
 class SwitchingGainsError(ValueError):
@@ -53,6 +54,7 @@ class SwitchingGains:
     sample_rate: float
     effort: float
     state_names: tuple
+    lead: float = 0.0
     selection: list = field(default_factory=list)
     description: str = ""
 
@@ -64,8 +66,9 @@ def gains_to_dict(g: SwitchingGains) -> dict:
         "wing_fingerprint": g.wing_fingerprint, "design_airspeed": g.design_airspeed,
         "density": g.density, "c_lo": g.law.c_lo, "c_hi": g.law.c_hi,
         "time_constant": g.time_constant, "sample_rate": g.sample_rate, "effort": g.effort,
-        "state_names": list(g.state_names), "gain": g.law.gain.tolist(),
+        "lead": g.lead, "state_names": list(g.state_names), "gain": g.law.gain.tolist(),
         "observer": None if g.law.observer is None else g.law.observer.tolist(),
+        "force_gain": None if g.law.force_gain is None else g.law.force_gain.tolist(),
         "units": dict(UNITS), "selection": g.selection, "description": g.description,
     }
 
@@ -97,8 +100,9 @@ def gains_from_dict(data, source: str = "<dict>") -> SwitchingGains:
     for key in ("design_airspeed", "density", "sample_rate", "effort"):
         if not values[key] > 0:
             raise fail(f"field {key!r} must be > 0, got {values[key]}")
-    if values["time_constant"] < 0:
-        raise fail(f"field 'time_constant' must be >= 0, got {values['time_constant']}")
+    for key in ("time_constant", "lead"):
+        if values[key] < 0:
+            raise fail(f"field {key!r} must be >= 0, got {values[key]}")
     names = data.get("state_names")
     if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
         raise fail("field 'state_names' must be a list of strings")
@@ -110,13 +114,15 @@ def gains_from_dict(data, source: str = "<dict>") -> SwitchingGains:
         gain = np.array(data.get("gain"), dtype=float)
         observer = data.get("observer")
         observer = None if observer is None else np.array(observer, dtype=float)
+        force_gain = data.get("force_gain")
+        force_gain = None if force_gain is None else np.array(force_gain, dtype=float)
     except (TypeError, ValueError):
-        raise fail("fields 'gain' and 'observer' must be numbers") from None
+        raise fail("fields 'gain', 'observer' and 'force_gain' must be numbers") from None
     if gain.shape != (len(names),):
         raise fail(f"field 'gain' must have {len(names)} entries (one per state), "
                    f"got shape {gain.shape}")
     try:
-        law = SwitchingLaw(gain, values["c_lo"], values["c_hi"], observer)
+        law = SwitchingLaw(gain, values["c_lo"], values["c_hi"], observer, force_gain)
     except ValueError as exc:
         raise fail(str(exc)) from None
     selection = data.get("selection", [])
@@ -128,6 +134,7 @@ def gains_from_dict(data, source: str = "<dict>") -> SwitchingGains:
                           design_airspeed=values["design_airspeed"], density=values["density"],
                           time_constant=values["time_constant"],
                           sample_rate=values["sample_rate"], effort=values["effort"],
+                          lead=values["lead"],
                           state_names=tuple(names), selection=selection,
                           description=description)
 
