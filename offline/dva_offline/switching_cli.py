@@ -31,10 +31,13 @@ def _floats(option: str, text: str) -> list[float]:
     return values
 
 
-def _seeds(n: int) -> list[int]:
+EVALUATION_SEEDS = 100  # the evaluation's seeds start here, apart from the design's 0, 1, ...
+
+
+def _seeds(n: int, first: int = 0) -> list[int]:
     if n < 2:
         raise ValueError(f"--seeds must be >= 2 (paired intervals), got {n}")
-    return list(range(n))
+    return list(range(first, first + n))
 
 
 def register(subparsers) -> None:
@@ -179,7 +182,7 @@ def _evaluate(args) -> int:
     from dva_offline.switching_study import FORCE_STD, SAMPLE_RATE, Setting, evaluate_setting
 
     gains, cfg, model = _gains_for_wing(args)
-    seeds = _seeds(args.seeds)
+    seeds = _seeds(args.seeds, EVALUATION_SEEDS)
     u_cr, c2, u_fix = _reference(cfg, model)
     sensor_rms = measured_rms(model, u_cr, cfg.air_density, c2, SAMPLE_RATE, FORCE_STD)
     lag = gains.time_constant
