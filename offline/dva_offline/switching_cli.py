@@ -21,11 +21,13 @@ import sys
 __all__ = ["register"]
 
 
-def _floats(option: str, text: str) -> list[float]:
+def _floats(option: str, text: str, allow_empty: bool = False) -> list[float]:
     try:
         values = [float(v) for v in text.split(",") if v.strip()]
     except ValueError:
         raise ValueError(f"{option} expects comma-separated numbers, got {text!r}") from None
+    if allow_empty and not text.strip():
+        return []
     if not values or not all(math.isfinite(v) for v in values):
         raise ValueError(f"{option} expects finite numbers, got {text!r}")
     return values
@@ -67,6 +69,9 @@ def register(subparsers) -> None:
     d.add_argument("--seeds", type=int, default=4, help="ramp flights per effort (default 4)")
     d.add_argument("--noise", type=float, default=0.05,
                    help="sensor noise std / output RMS at U_cr (default 0.05)")
+    d.add_argument("--aero", choices=("quasi-steady", "wagner"), default=None,
+                   help="aerodynamics instead of the wing file's (wagner: Jones' finite-state "
+                        "unsteady model)")
     d.set_defaults(func=_design)
 
     e = sub.add_parser("evaluate", help="fixed vs switching on paired seeds, sensitivities")
@@ -84,6 +89,9 @@ def register(subparsers) -> None:
     e.add_argument("--noise", type=float, default=0.05,
                    help="sensor noise of the base setting (default 0.05)")
     e.add_argument("--json", action="store_true", help="print one JSON object")
+    e.add_argument("--aero", choices=("quasi-steady", "wagner"), default=None,
+                   help="aerodynamics instead of the wing file's (wagner: Jones' finite-state "
+                        "unsteady model)")
     e.set_defaults(func=_evaluate)
 
     g = sub.add_parser("plot", help="figure: ramp flight fixed vs switching, the law at work")
@@ -91,14 +99,22 @@ def register(subparsers) -> None:
     g.add_argument("--out", required=True, metavar="PNG", help="figure to write")
     g.add_argument("--wing", metavar="FILE", help="wing YAML (must match the gains file)")
     g.add_argument("--seed", type=int, default=0, help="aileron force seed (default 0)")
+    g.add_argument("--aero", choices=("quasi-steady", "wagner"), default=None,
+                   help="aerodynamics instead of the wing file's (wagner: Jones' finite-state "
+                        "unsteady model)")
     g.set_defaults(func=_plot)
 
 
-def _wing(path):
+def _wing(path, aero=None):
+    import dataclasses
+
+    from aero_dva.wing.aerodynamics import AERO_MODELS
     from aero_dva.wing.model import AeroelasticModel
     from aero_dva.wing.wing_io import load_wing, wing_fingerprint
 
     cfg = load_wing(path)
+    if aero is not None and aero != cfg.aero.name:
+        cfg = dataclasses.replace(cfg, aero=AERO_MODELS[aero]())
     model = AeroelasticModel(cfg.wing, cfg.maxwell_design, cfg.aero)
     return cfg, model, wing_fingerprint(cfg)
 
@@ -133,7 +149,7 @@ def _design(args) -> int:
     leads = _floats("--leads", args.leads)
     if any(v < 0 or v > 0.1 for v in leads):
         raise ValueError(f"--leads must be in [0, 0.1] s, got {args.leads}")
-    cfg, model, fingerprint = _wing(args.wing)
+    cfg, model, fingerprint = _wing(args.wing, args.aero)
     u_cr, c2, u_fix = _reference(cfg, model)
     print(f"U_cr {u_cr:.3f} m/s; best constant c2 {c2:.1f} N s/m flutters at "
           f"{u_fix / u_cr:.4f} U_cr", file=sys.stderr)
@@ -158,7 +174,7 @@ def _gains_for_wing(args):
     from aero_dva.control.switching_io import load_gains
 
     gains = load_gains(args.gains)
-    cfg, model, fingerprint = _wing(args.wing)
+    cfg, model, fingerprint = _wing(args.wing, args.aero)
     if fingerprint != gains.wing_fingerprint:
         raise ValueError(f"{args.gains} was designed for another wing (fingerprint "
                          f"{gains.wing_fingerprint}, this wing {fingerprint})")
@@ -188,10 +204,10 @@ def _evaluate(args) -> int:
     lag = gains.time_constant
     settings = [Setting("base", lag, args.noise)]
     settings += [Setting(f"lag {t * 1e3:g} ms", t, args.noise)
-                 for t in _floats("--lags", args.lags) if t != lag]
-    settings += [Setting(f"noise {v:g}", lag, v) for v in _floats("--noises", args.noises)]
+                 for t in _floats("--lags", args.lags, True) if t != lag]
+    settings += [Setting(f"noise {v:g}", lag, v) for v in _floats("--noises", args.noises, True)]
     settings += [Setting(f"stiffness {m:+g}", lag, args.noise, mismatch=m)
-                 for m in _floats("--mismatches", args.mismatches)]
+                 for m in _floats("--mismatches", args.mismatches, True)]
     if not args.no_wagner:
         settings.append(Setting("wagner plant", lag, args.noise, aero="wagner"))
     if any(s.time_constant < 0 or s.noise < 0 for s in settings):
