@@ -88,6 +88,9 @@ def register(subparsers) -> None:
                    help="skip the flight on unsteady (Wagner) aerodynamics")
     e.add_argument("--noise", type=float, default=0.05,
                    help="sensor noise of the base setting (default 0.05)")
+    e.add_argument("--cases", default="rho0",
+                   help="density cases, comma-separated among rho0, x0.9, x1.1 "
+                        "(docs/evaluation.md; default rho0); the sensitivities fly rho0")
     e.add_argument("--json", action="store_true", help="print one JSON object")
     e.add_argument("--aero", choices=("quasi-steady", "wagner"), default=None,
                    help="aerodynamics instead of the wing file's (wagner: Jones' finite-state "
@@ -195,14 +198,25 @@ def _plot(args) -> int:
 
 def _evaluate(args) -> int:
     from aero_dva.control.switching_design import measured_rms
-    from dva_offline.switching_study import FORCE_STD, SAMPLE_RATE, Setting, evaluate_setting
+    from dva_offline.switching_study import (
+        DENSITY_CASES,
+        FORCE_STD,
+        SAMPLE_RATE,
+        Setting,
+        evaluate_setting,
+    )
 
     gains, cfg, model = _gains_for_wing(args)
     seeds = _seeds(args.seeds, EVALUATION_SEEDS)
     u_cr, c2, u_fix = _reference(cfg, model)
     sensor_rms = measured_rms(model, u_cr, cfg.air_density, c2, SAMPLE_RATE, FORCE_STD)
     lag = gains.time_constant
-    settings = [Setting("base", lag, args.noise)]
+    cases = [c.strip() for c in args.cases.split(",") if c.strip()]
+    unknown = [c for c in cases if c not in DENSITY_CASES]
+    if not cases or unknown:
+        raise ValueError(f"--cases must be among {list(DENSITY_CASES)}, got {args.cases!r}")
+    settings = [Setting("base" if c == "rho0" else f"case {c}", lag, args.noise, case=c)
+                for c in cases]
     settings += [Setting(f"lag {t * 1e3:g} ms", t, args.noise)
                  for t in _floats("--lags", args.lags, True) if t != lag]
     settings += [Setting(f"noise {v:g}", lag, v) for v in _floats("--noises", args.noises, True)]

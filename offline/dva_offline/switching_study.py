@@ -45,6 +45,10 @@ RAMP = (0.8, 1.4, 45.0)  # [U_cr], [U_cr], [s]
 RMS_POINT = (1.1, 20.0, 2.0)  # [U_cr], flight [s], transient skipped [s]
 SAMPLE_RATE = 1000.0
 FORCE_STD = 1000.0
+#: Density cases of `dva evaluate` (docs/evaluation.md): factor f, mu, f_rho [Hz]. Only the
+#: constant ones: a varying density multiplies the held conditions, each with its c2 table
+#: (memory grows with their number; the flight keeps every table of the flight at once).
+DENSITY_CASES = {"rho0": (1.0, 0.0, 0.0), "x0.9": (0.9, 0.0, 0.0), "x1.1": (1.1, 0.0, 0.0)}
 
 
 def paired(values) -> dict:
@@ -92,6 +96,13 @@ class Setting:
     noise: float  # sensor noise std as a fraction of each measured output's RMS at U_cr
     mismatch: float = 0.0  # plant's wing stiffnesses scaled by (1 + mismatch)
     aero: str = "model"  # "model" or "wagner" (the plant's aerodynamics)
+    case: str = "rho0"  # density case, :data:`DENSITY_CASES`
+
+    def density(self, rho0: float, n: int) -> np.ndarray:
+        """[kg/m^3] per sample: f rho0 (1 + mu sin 2 pi f_rho t) (eq. 7.2)."""
+        factor, mu, hz = DENSITY_CASES[self.case]
+        t = np.arange(n) / SAMPLE_RATE
+        return factor * rho0 * (1.0 + mu * np.sin(2 * np.pi * hz * t))
 
 
 def plant_of(model: AeroelasticModel, setting: Setting) -> AeroelasticModel:
@@ -120,13 +131,13 @@ def evaluate_setting(model: AeroelasticModel, gains: SwitchingGains, setting: Se
                      seeds, u_cr: float, fixed_c2: float, sensor_rms: np.ndarray) -> dict:
     """Fixed vs switching on the paired ``seeds`` for one setting (module docstring)."""
     plant = plant_of(model, setting)
-    rho = gains.density
     law = gains.law
     observer_model = model if law.observer is not None else plant
     start, stop, duration = RAMP
     u = ramp_airspeed(u_cr, start, stop, duration, SAMPLE_RATE)
     force = _forces(seeds, u.size)
     noise = _noise(seeds, u.size, setting.noise * sensor_rms)
+    rho = setting.density(gains.density, u.size)
     fixed = fly_switched(plant, fixed_law(plant, fixed_c2), u, rho, force, time_constant=0.0,
                          initial_damping=fixed_c2)
     switched = fly_switched(plant, law, u, rho, force, observer_model=observer_model,
@@ -143,6 +154,7 @@ def evaluate_setting(model: AeroelasticModel, gains: SwitchingGains, setting: Se
     skip = int(skip_s * SAMPLE_RATE)
     force = _forces(seeds, n)
     noise = _noise(seeds, n, setting.noise * sensor_rms)
+    rho = setting.density(gains.density, n)
     fixed_c = fly_switched(plant, fixed_law(plant, fixed_c2), ratio * u_cr, rho, force,
                            time_constant=0.0, initial_damping=fixed_c2)
     sw_c = fly_switched(plant, law, ratio * u_cr, rho, force, observer_model=observer_model,
