@@ -84,6 +84,9 @@ def register(subparsers) -> None:
                    "design's (default 0.2)")
     e.add_argument("--mismatches", default="-0.05,0.05",
                    help="plant stiffness errors, fractions (default -0.05,0.05)")
+    e.add_argument("--force-limits", default="400,250",
+                   help="relief-valve force limits [N] of the switched damper: above it c2 "
+                        "drops to c_lo (default 400,250)")
     e.add_argument("--no-wagner", action="store_true",
                    help="skip the flight on unsteady (Wagner) aerodynamics")
     e.add_argument("--noise", type=float, default=0.05,
@@ -222,10 +225,12 @@ def _evaluate(args) -> int:
     settings += [Setting(f"noise {v:g}", lag, v) for v in _floats("--noises", args.noises, True)]
     settings += [Setting(f"stiffness {m:+g}", lag, args.noise, mismatch=m)
                  for m in _floats("--mismatches", args.mismatches, True)]
+    settings += [Setting(f"force limit {v:g} N", lag, args.noise, force_limit=v)
+                 for v in _floats("--force-limits", args.force_limits, True)]
     if not args.no_wagner:
         settings.append(Setting("wagner plant", lag, args.noise, aero="wagner"))
-    if any(s.time_constant < 0 or s.noise < 0 for s in settings):
-        raise ValueError("lags and noises must be >= 0")
+    if any(s.time_constant < 0 or s.noise < 0 or not s.force_limit > 0 for s in settings):
+        raise ValueError("lags and noises must be >= 0, force limits > 0")
     rows = []
     for s in settings:
         row = evaluate_setting(model, gains, s, seeds, u_cr, c2, sensor_rms)

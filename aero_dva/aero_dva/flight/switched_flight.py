@@ -232,7 +232,8 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
                  observer_model: AeroelasticModel | None = None, sample_rate: float = 1000.0,
                  time_constant: float = 0.01, noise=None, levels: int = DEFAULT_LEVELS,
                  hold: int = DEFAULT_HOLD, quantum: float = BATCH_QUANTUM,
-                 initial_damping: float | None = None) -> SwitchedFlight:
+                 initial_damping: float | None = None,
+                 force_limit: float = math.inf) -> SwitchedFlight:
     """Fly ``plant`` with the switching law armed (module docstring).
 
     Parameters
@@ -254,6 +255,10 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
     initial_damping : float, optional
         [N s/m] c2 at the start (default c_hi); the first sample's target is the nearer
         of c_lo and c_hi (in log c2).
+    force_limit : float
+        [N] a relief valve: on a sample whose true damper force |k2 delta| exceeds it, c2 is
+        the table's lowest level whatever the law asks (the force is then no longer c2 times
+        the velocity the law assumes). inf: no valve.
 
     Returns
     -------
@@ -313,7 +318,10 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
     fh_in = np.einsum("sij,fsj->fsi", maps[1][of_sample], inputs)
     c_start = law.c_hi if initial_damping is None else min(
         max(float(initial_damping), law.c_lo), law.c_hi)
-    lag = _Lag(tau, dt, law.c_lo, law.c_hi, table.size, c_start)
+    if not float(force_limit) > 0:
+        raise ValueError(f"force_limit must be > 0 N, got {force_limit}")
+    lag = _Damper(tau, dt, law.c_lo, law.c_hi, table.size, c_start, float(force_limit),
+                  plant.absorber.series_stiffness, maxwell_index(plant))
     run = _loop_one if nf == 1 else _loop_batch
     states, level, targets = run(maps, period_map, periods, hold, inputs, fh_in, width, lag)
     states = states[..., :n]
@@ -330,8 +338,9 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
 
 
 @dataclass(frozen=True)
-class _Lag:
-    """The damper's first-order lag over one sample with the target held, and the table."""
+class _Damper:
+    """The damper's first-order lag over one sample with the target held, the table, and its
+    relief valve (c2 at the table's lowest level while |k2 delta| > force_limit)."""
 
     tau: float
     dt: float
@@ -339,6 +348,9 @@ class _Lag:
     c_hi: float
     n_levels: int
     c_start: float
+    force_limit: float = math.inf
+    k2: float = 0.0
+    deflection: int = 0  # column of the plant's delta
 
     @property
     def decay(self) -> float:
@@ -373,6 +385,8 @@ def _loop_one(maps, period_map, periods, hold, inputs, fh_in, width, lag):
     tau, decay, mean_factor = lag.tau, lag.decay, lag.mean_factor
     c_hi, c_lo, c = lag.c_hi, lag.c_lo, lag.c_start
     log_lo, per_level = math.log(lag.c_lo), lag.per_level
+    relief, force_limit = math.isfinite(lag.force_limit), lag.force_limit
+    k2, d_col = lag.k2, lag.deflection
     target_hi = c >= math.sqrt(c_lo * c_hi)
     prev_fh = 0.0
     for p, start in enumerate(periods):
@@ -391,6 +405,8 @@ def _loop_one(maps, period_map, periods, hold, inputs, fh_in, width, lag):
                 k = int((log(mean) - log_lo) / per_level + 0.5)
             else:
                 k = 1 if target_hi else 0
+            if relief and abs(view[i, d_col]) * k2 > force_limit:
+                k = 0
             level[i] = k
             targets[i] = target_hi
             dot(steps[k], rows[i], heads[i + 1])
@@ -409,6 +425,7 @@ def _loop_batch(maps, period_map, periods, hold, inputs, fh_in, width, lag):
     decay, mean_factor = lag.decay, lag.mean_factor
     log_lo, per_level = math.log(lag.c_lo), lag.per_level
     c = np.full(nf, lag.c_start)
+    relief = math.isfinite(lag.force_limit)
     target_hi = np.full(nf, lag.c_start >= math.sqrt(lag.c_lo * lag.c_hi))
     prev_fh = np.zeros(nf)
     inputs_t = np.ascontiguousarray(inputs.transpose(1, 0, 2))
@@ -430,6 +447,8 @@ def _loop_batch(maps, period_map, periods, hold, inputs, fh_in, width, lag):
                 k = ((np.log(mean) - log_lo) / per_level + 0.5).astype(np.int64)
             else:
                 k = target_hi.astype(np.int64)
+            if relief:
+                k = np.where(np.abs(state[:, lag.deflection]) * lag.k2 > lag.force_limit, 0, k)
             level[i] = k
             targets[i] = target_hi
             record[i] = state[:, :width]

@@ -173,3 +173,20 @@ def test_peak_limit_airspeed():
     out = peak_limit_airspeed(speed, response, 1.0)
     assert out[0] == 100.0 and np.isnan(out[1])
     assert peak_limit_airspeed(speed, [0, 0, np.inf, 0, 0], 1.0) == 100.0
+
+
+def test_relief_valve_drops_c2_while_the_force_is_above_its_limit(wing):
+    cfg, model = wing
+    law = SwitchingLaw(law_gain(model, 115.0, 1.2, C_LO, C_HI), C_LO, C_HI)
+    force = np.random.default_rng(6).normal(0, 1000.0, 4000)
+    free = fly_switched(model, law, 110.0, 1.2, force, time_constant=0.01)
+    free_force = np.sqrt(free.damper_power * free.damping)
+    limit = np.quantile(free_force, 0.9)
+    assert np.any((free_force > limit) & (free.damping > C_LO * 1.01))  # the valve has work
+    valve = fly_switched(model, law, 110.0, 1.2, force, time_constant=0.01, force_limit=limit)
+    valve_force = np.sqrt(valve.damper_power * valve.damping)
+    over = valve_force > limit
+    assert np.any(over)
+    np.testing.assert_allclose(valve.damping[over], C_LO)
+    with pytest.raises(ValueError, match="force_limit"):
+        fly_switched(model, law, 110.0, 1.2, force, force_limit=0.0)
