@@ -87,6 +87,9 @@ def register(subparsers) -> None:
     e.add_argument("--force-limits", default="400,250",
                    help="relief-valve force limits [N] of the switched damper: above it c2 "
                         "drops to c_lo (default 400,250)")
+    e.add_argument("--blocks", default="20,50",
+                   help="law decisions held over blocks of these many ms, as a slower loop "
+                        "would (default 20,50)")
     e.add_argument("--no-wagner", action="store_true",
                    help="skip the flight on unsteady (Wagner) aerodynamics")
     e.add_argument("--noise", type=float, default=0.05,
@@ -227,6 +230,11 @@ def _evaluate(args) -> int:
                  for m in _floats("--mismatches", args.mismatches, True)]
     settings += [Setting(f"force limit {v:g} N", lag, args.noise, force_limit=v)
                  for v in _floats("--force-limits", args.force_limits, True)]
+    for ms in _floats("--blocks", args.blocks, True):
+        if ms < 1 or ms != int(ms):
+            raise ValueError(f"--blocks must be whole numbers of ms >= 1, got {args.blocks}")
+        settings.append(Setting(f"decisions every {ms:g} ms", lag, args.noise,
+                                update_every=int(ms)))
     if not args.no_wagner:
         settings.append(Setting("wagner plant", lag, args.noise, aero="wagner"))
     if any(s.time_constant < 0 or s.noise < 0 or not s.force_limit > 0 for s in settings):

@@ -233,7 +233,7 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
                  time_constant: float = 0.01, noise=None, levels: int = DEFAULT_LEVELS,
                  hold: int = DEFAULT_HOLD, quantum: float = BATCH_QUANTUM,
                  initial_damping: float | None = None,
-                 force_limit: float = math.inf) -> SwitchedFlight:
+                 force_limit: float = math.inf, update_every: int = 1) -> SwitchedFlight:
     """Fly ``plant`` with the switching law armed (module docstring).
 
     Parameters
@@ -259,6 +259,9 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
         [N] a relief valve: on a sample whose true damper force |k2 delta| exceeds it, c2 is
         the table's lowest level whatever the law asks (the force is then no longer c2 times
         the velocity the law assumes). inf: no valve.
+    update_every : int
+        [samples] between the law's decisions (1: every sample); a slower loop holds each
+        decision, made on the last sample of a block, over the next block.
 
     Returns
     -------
@@ -320,8 +323,10 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
         max(float(initial_damping), law.c_lo), law.c_hi)
     if not float(force_limit) > 0:
         raise ValueError(f"force_limit must be > 0 N, got {force_limit}")
+    if isinstance(update_every, bool) or int(update_every) != update_every or update_every < 1:
+        raise ValueError(f"update_every must be an integer >= 1, got {update_every}")
     lag = _Damper(tau, dt, law.c_lo, law.c_hi, table.size, c_start, float(force_limit),
-                  plant.absorber.series_stiffness, maxwell_index(plant))
+                  plant.absorber.series_stiffness, maxwell_index(plant), int(update_every))
     run = _loop_one if nf == 1 else _loop_batch
     states, level, targets = run(maps, period_map, periods, hold, inputs, fh_in, width, lag)
     states = states[..., :n]
@@ -351,6 +356,7 @@ class _Damper:
     force_limit: float = math.inf
     k2: float = 0.0
     deflection: int = 0  # column of the plant's delta
+    every: int = 1  # samples between decisions
 
     @property
     def decay(self) -> float:
@@ -386,7 +392,7 @@ def _loop_one(maps, period_map, periods, hold, inputs, fh_in, width, lag):
     c_hi, c_lo, c = lag.c_hi, lag.c_lo, lag.c_start
     log_lo, per_level = math.log(lag.c_lo), lag.per_level
     relief, force_limit = math.isfinite(lag.force_limit), lag.force_limit
-    k2, d_col = lag.k2, lag.deflection
+    k2, d_col, every = lag.k2, lag.deflection, lag.every
     target_hi = c >= math.sqrt(c_lo * c_hi)
     prev_fh = 0.0
     for p, start in enumerate(periods):
@@ -394,7 +400,7 @@ def _loop_one(maps, period_map, periods, hold, inputs, fh_in, width, lag):
         if p and period_map[p] != period_map[p - 1]:  # (F, h) with the new condition's maps
             z[start, width:width + 2] = g_state[period_map[p]] @ z[start, :width]
         for i in range(start, min(start + hold, nsamp)):
-            if i:
+            if i and i % every == 0:
                 target_hi = prev_fh > 0.0  # the decision of sample i-1 acts from i on
             f_in, h_in = fh_list[i]
             prev_fh = (view[i, f_col] + f_in) * (view[i, h_col] + h_in)
@@ -435,7 +441,7 @@ def _loop_batch(maps, period_map, periods, hold, inputs, fh_in, width, lag):
         if p and period_map[p] != period_map[p - 1]:
             state[:, width:width + 2] = state[:, :width] @ g_state[period_map[p]].T
         for i in range(start, min(start + hold, nsamp)):
-            if i:
+            if i and i % lag.every == 0:
                 target_hi = prev_fh > 0.0
             state[:, width + 2:] = inputs_t[i]
             fh = state[:, width:width + 2] + fh_t[i]

@@ -190,3 +190,15 @@ def test_relief_valve_drops_c2_while_the_force_is_above_its_limit(wing):
     np.testing.assert_allclose(valve.damping[over], C_LO)
     with pytest.raises(ValueError, match="force_limit"):
         fly_switched(model, law, 110.0, 1.2, force, force_limit=0.0)
+
+
+def test_a_slower_loop_changes_its_target_only_at_block_starts(wing):
+    _, model = wing
+    law = SwitchingLaw(law_gain(model, 115.0, 1.2, C_LO, C_HI), C_LO, C_HI)
+    force = np.random.default_rng(7).normal(0, 1000.0, (2, 3000))
+    flight = fly_switched(model, law, 110.0, 1.2, force, update_every=20)
+    for targets in flight.target:
+        changes = np.flatnonzero(np.diff(targets)) + 1
+        assert changes.size > 5 and np.all(changes % 20 == 0)
+    with pytest.raises(ValueError, match="update_every"):
+        fly_switched(model, law, 110.0, 1.2, force, update_every=0)
