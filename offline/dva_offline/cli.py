@@ -21,6 +21,7 @@ from dva_offline.evaluation import cli as evaluation_cli
 from dva_offline.isolator import cli as isolator_cli
 from dva_offline.replay import cli as replay_cli
 from dva_offline.report import cli as report_cli
+from dva_offline.switching import cli as switching_cli
 from dva_offline.training import cli as training_cli
 from dva_offline.wing import cli as wing_cli
 
@@ -38,6 +39,7 @@ COMMANDS = {
     "report": report_cli.register,
     "replay": replay_cli.register,
     "bag": bag_cli.register,
+    "switching": switching_cli.register,
 }
 
 

@@ -1,0 +1,160 @@
+"""JSON file of the switching c2 law's gains, written by `dva control switching-design`.
+
+What the damper's controller needs (law gain, observer gain, c2 levels, the wing it was
+designed for) plus how the design was chosen. Checked on load: format, version, units, every
+number finite, shapes consistent, 0 < c_lo < c_hi; the wing fingerprint lets a user refuse a
+file made for another wing. Example (abridged)::
+
+    {"format": "dva_switching_gains", "version": 1, "design": "lyapunov",
+     "wing_fingerprint": "3f0c...", "design_airspeed": 115.0, "density": 1.2,
+     "c_lo": 150.0, "c_hi": 2500.0, "time_constant": 0.01, "sample_rate": 1000.0,
+     "effort": 100.0, "lead": 0.011, "state_names": [...], "gain": [...],
+     "observer": [[...], ...], "force_gain": [...],
+     "units": {...}, "selection": [...], "description": "..."}
+"""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from aero_dva.atomic_io import atomic_output
+from aero_dva.control.switching_design import DESIGNS
+from aero_dva.flight.switched_flight import MEASURED_OUTPUTS, SwitchingLaw
+from aero_dva.text_input import read_text_input
+
+__all__ = ["FILE_FORMAT", "FILE_VERSION", "UNITS", "SwitchingGains", "SwitchingGainsError",
+           "gains_from_dict", "gains_to_dict", "load_gains", "save_gains"]
+
+FILE_FORMAT = "dva_switching_gains"
+FILE_VERSION = 1
+UNITS = {"airspeed": "m/s", "density": "kg/m^3", "damping": "N s/m", "time_constant": "s",
+         "sample_rate": "Hz", "measured": list(MEASURED_OUTPUTS)}
+_NUMBERS = ("design_airspeed", "density", "c_lo", "c_hi", "time_constant", "sample_rate",
+            "effort", "lead")
+
+
+class SwitchingGainsError(ValueError):
+    """A switching-gains file is missing, unreadable or invalid."""
+
+
+@dataclass(frozen=True)
+class SwitchingGains:
+    """The contents of a gains file (see the module docstring)."""
+
+    law: SwitchingLaw
+    design: str
+    wing_fingerprint: str
+    design_airspeed: float
+    density: float
+    time_constant: float
+    sample_rate: float
+    effort: float
+    state_names: tuple
+    lead: float = 0.0
+    selection: list = field(default_factory=list)
+    description: str = ""
+
+
+def gains_to_dict(g: SwitchingGains) -> dict:
+    """The JSON object of ``g``."""
+    return {
+        "format": FILE_FORMAT, "version": FILE_VERSION, "design": g.design,
+        "wing_fingerprint": g.wing_fingerprint, "design_airspeed": g.design_airspeed,
+        "density": g.density, "c_lo": g.law.c_lo, "c_hi": g.law.c_hi,
+        "time_constant": g.time_constant, "sample_rate": g.sample_rate, "effort": g.effort,
+        "lead": g.lead, "state_names": list(g.state_names), "gain": g.law.gain.tolist(),
+        "observer": None if g.law.observer is None else g.law.observer.tolist(),
+        "force_gain": None if g.law.force_gain is None else g.law.force_gain.tolist(),
+        "units": dict(UNITS), "selection": g.selection, "description": g.description,
+    }
+
+
+def gains_from_dict(data, source: str = "<dict>") -> SwitchingGains:
+    """Validate a JSON object; errors name ``source`` and the field."""
+
+    def fail(what: str) -> SwitchingGainsError:
+        return SwitchingGainsError(f"switching gains {source}: {what}")
+
+    if not isinstance(data, dict):
+        raise fail("the top level is not a JSON object")
+    if data.get("format") != FILE_FORMAT:
+        raise fail(f"format is {data.get('format')!r}, expected {FILE_FORMAT!r}")
+    if data.get("version") != FILE_VERSION:
+        raise fail(f"version {data.get('version')!r} is not {FILE_VERSION}")
+    if data.get("units") != UNITS:
+        raise fail(f"units are {data.get('units')!r}, expected {UNITS!r}")
+    if data.get("design") not in DESIGNS:
+        raise fail(f"design {data.get('design')!r} is not one of {list(DESIGNS)}")
+    values = {}
+    for key in _NUMBERS:
+        value = data.get(key)
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise fail(f"field {key!r} must be a number, got {type(value).__name__}")
+        if not math.isfinite(value):
+            raise fail(f"field {key!r} must be finite, got {value}")
+        values[key] = float(value)
+    for key in ("design_airspeed", "density", "sample_rate", "effort"):
+        if not values[key] > 0:
+            raise fail(f"field {key!r} must be > 0, got {values[key]}")
+    for key in ("time_constant", "lead"):
+        if values[key] < 0:
+            raise fail(f"field {key!r} must be >= 0, got {values[key]}")
+    names = data.get("state_names")
+    if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+        raise fail("field 'state_names' must be a list of strings")
+    if "maxwell_deflection" not in names:
+        raise fail("field 'state_names' has no 'maxwell_deflection' (not a Maxwell DVA)")
+    if not isinstance(data.get("wing_fingerprint"), str):
+        raise fail("field 'wing_fingerprint' must be a string")
+    try:
+        gain = np.array(data.get("gain"), dtype=float)
+        observer = data.get("observer")
+        observer = None if observer is None else np.array(observer, dtype=float)
+        force_gain = data.get("force_gain")
+        force_gain = None if force_gain is None else np.array(force_gain, dtype=float)
+    except (TypeError, ValueError):
+        raise fail("fields 'gain', 'observer' and 'force_gain' must be numbers") from None
+    if gain.shape != (len(names),):
+        raise fail(f"field 'gain' must have {len(names)} entries (one per state), "
+                   f"got shape {gain.shape}")
+    try:
+        law = SwitchingLaw(gain, values["c_lo"], values["c_hi"], observer, force_gain)
+    except ValueError as exc:
+        raise fail(str(exc)) from None
+    selection = data.get("selection", [])
+    description = data.get("description", "")
+    if not isinstance(selection, list) or not isinstance(description, str):
+        raise fail("'selection' must be a list and 'description' a string")
+    return SwitchingGains(law=law, design=data["design"],
+                          wing_fingerprint=data["wing_fingerprint"],
+                          design_airspeed=values["design_airspeed"], density=values["density"],
+                          time_constant=values["time_constant"],
+                          sample_rate=values["sample_rate"], effort=values["effort"],
+                          lead=values["lead"],
+                          state_names=tuple(names), selection=selection,
+                          description=description)
+
+
+def save_gains(gains: SwitchingGains, path) -> Path:
+    """Write ``gains`` as JSON, atomically. Returns the path."""
+    text = json.dumps(gains_to_dict(gains), indent=2, allow_nan=False)
+    path = Path(path)
+    with atomic_output(path) as stream:
+        stream.write(text + "\n")
+    return path
+
+
+def load_gains(path) -> SwitchingGains:
+    """Read and validate a gains file (:class:`SwitchingGainsError` naming what is wrong)."""
+    path = Path(path)
+    text = read_text_input(path, "switching gains", error=SwitchingGainsError)
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise SwitchingGainsError(f"switching gains {str(path)!r}: not valid JSON ({exc})") \
+            from None
+    return gains_from_dict(data, repr(str(path)))

@@ -1,0 +1,75 @@
+"""The switching-gains file: round trip and refusal of bad files, naming the field."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from aero_dva.control.switching_design import law_gain
+from aero_dva.control.switching_io import (
+    SwitchingGains,
+    SwitchingGainsError,
+    gains_to_dict,
+    load_gains,
+    save_gains,
+)
+from aero_dva.flight.switched_flight import SwitchingLaw
+from aero_dva.wing.model import AeroelasticModel
+from aero_dva.wing.wing_io import load_wing
+
+
+@pytest.fixture(scope="module")
+def gains():
+    cfg = load_wing(None)
+    model = AeroelasticModel(cfg.wing, cfg.absorber, cfg.aero)
+    gain = law_gain(model, 115.0, 1.2, 100.0, 2500.0, design="clipped")
+    law = SwitchingLaw(gain, 100.0, 2500.0, np.full((7, 4), 0.25))
+    return SwitchingGains(law=law, design="clipped", wing_fingerprint="abc",
+                          design_airspeed=115.0, density=1.2, time_constant=0.01,
+                          sample_rate=1000.0, effort=1.0, state_names=model.state_names,
+                          selection=[{"effort": 1.0}], description="test")
+
+
+def test_round_trip(tmp_path, gains):
+    back = load_gains(save_gains(gains, tmp_path / "g.json"))
+    assert np.array_equal(back.law.gain, gains.law.gain)
+    assert np.array_equal(back.law.observer, gains.law.observer)
+    assert (back.law.c_lo, back.law.c_hi, back.design) == (100.0, 2500.0, "clipped")
+    assert back.selection == [{"effort": 1.0}]
+
+
+@pytest.mark.parametrize("change, message", [
+    ({"format": "x"}, "format"),
+    ({"c_lo": 3000.0}, "c_lo < c_hi"),
+    ({"c_hi": None}, "'c_hi' must be a number"),
+    ({"time_constant": -0.1}, "time_constant"),
+    ({"gain": [1.0, 2.0]}, "'gain' must have 7 entries"),
+    ({"observer": [[1.0]]}, "observer"),
+    ({"design": "magic"}, "design"),
+    ({"units": {"damping": "N s/mm"}}, "units"),
+])
+def test_bad_files_are_refused_naming_the_field(tmp_path, gains, change, message):
+    data = gains_to_dict(gains)
+    data.update(change)
+    path = tmp_path / "bad.json"
+    path.write_text(json.dumps(data))
+    with pytest.raises(SwitchingGainsError, match=message):
+        load_gains(path)
+
+
+def test_non_finite_gain_is_refused(tmp_path, gains):
+    data = gains_to_dict(gains)
+    text = json.dumps(data).replace(str(data["gain"][0]), "NaN", 1)
+    path = tmp_path / "nan.json"
+    path.write_text(text)
+    with pytest.raises(SwitchingGainsError, match="finite"):
+        load_gains(path)
+
+
+def test_missing_and_broken_files(tmp_path):
+    with pytest.raises(SwitchingGainsError):
+        load_gains(tmp_path / "none.json")
+    (tmp_path / "broken.json").write_text("{")
+    with pytest.raises(SwitchingGainsError, match="not valid JSON"):
+        load_gains(tmp_path / "broken.json")

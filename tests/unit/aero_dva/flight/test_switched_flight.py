@@ -1,0 +1,204 @@
+"""The per-sample switched flight against a plain reference loop, the physics it claims, and
+its observer and lag."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy import linalg
+
+from aero_dva.control.switching_design import kalman_filter_gain, law_gain, measured_rms
+from aero_dva.flight.batch_simulator import simulate_flights
+from aero_dva.flight.peak_limit import peak_limit_airspeed
+from aero_dva.flight.switched_flight import (
+    SwitchingLaw,
+    c2_levels,
+    fly_switched,
+    maxwell_index,
+    measurement_matrices,
+)
+from aero_dva.wing.model import AeroelasticModel
+from aero_dva.wing.wing_io import load_wing
+
+U_CR = 100.0  # [m/s] the chapter-6 wing's bare critical airspeed
+C_LO, C_HI = 100.0, 2500.0
+
+
+@pytest.fixture(scope="module")
+def wing():
+    cfg = load_wing(None)
+    return cfg, AeroelasticModel(cfg.wing, cfg.absorber, cfg.aero)
+
+
+def reference_flight(model, law, speed, rho, force, noise, tau, dt=1e-3):
+    """The law written out sample by sample with scipy's expm: continuous lag, c2 rounded to
+    the table in log c2, filtered estimate from the measurements, decision acting one sample
+    later."""
+    n = model.n_states
+    table = c2_levels(law.c_lo, law.c_hi, tau)
+    idx = maxwell_index(model)
+    k2 = model.absorber.series_stiffness
+    x, pred = np.zeros(n), np.zeros(n)
+    c, target_hi, decision = law.c_hi, True, True
+    les, damping = [], []
+    for i, f in enumerate(force):
+        target_hi = decision if i else True
+        target = law.c_hi if target_hi else law.c_lo
+        if tau > 0:
+            decay = math.exp(-dt / tau)
+            mean = target + (c - target) * tau / dt * (1 - decay)
+            c = target + (c - target) * decay
+            level = table[np.argmin(np.abs(np.log(table) - math.log(mean)))]
+        else:
+            level = target
+        a, b = model.matrices(speed, rho, level)
+        cm, dm = measurement_matrices(model, speed, rho, level)
+        y = cm @ x + dm * f + noise[i]
+        est = x if law.observer is None else pred + law.observer @ (y - cm @ pred)
+        decision = (k2 * est[idx]) * (law.gain @ est) > 0
+        aug = np.zeros((n + 1, n + 1))
+        aug[:n, :n], aug[:n, n] = a * dt, b * dt
+        e = linalg.expm(aug)
+        les.append(model.c_displacement[2] @ x)
+        damping.append(level)
+        x = e[:n, :n] @ x + e[:n, n] * f
+        pred = e[:n, :n] @ est
+    return np.array(les), np.array(damping)
+
+
+@pytest.mark.parametrize("tau, with_observer", [(0.0, False), (0.01, True)])
+def test_matches_a_plain_sample_by_sample_loop(wing, tau, with_observer):
+    cfg, model = wing
+    speed, rho = 1.15 * U_CR, cfg.air_density
+    gain = law_gain(model, speed, rho, C_LO, C_HI)
+    scale = measured_rms(model, U_CR, rho, 624.7, 1000.0, 1000.0)
+    observer = kalman_filter_gain(model, speed, rho, 500.0, 1000.0, 1000.0, 0.05 * scale) \
+        if with_observer else None
+    law = SwitchingLaw(gain, C_LO, C_HI, observer)
+    rng = np.random.default_rng(3)
+    force = rng.normal(0, 1000.0, 400)
+    noise = rng.normal(0, 1.0, (400, 4)) * 0.05 * scale
+    flight = fly_switched(model, law, speed, rho, force, time_constant=tau,
+                          noise=noise if with_observer else None)
+    le, damping = reference_flight(model, law, speed, rho, force,
+                                   noise if with_observer else np.zeros((400, 4)), tau)
+    np.testing.assert_allclose(flight.damping, damping, rtol=1e-12)
+    np.testing.assert_allclose(flight.leading_edge, le, rtol=1e-7,
+                               atol=1e-9 * np.max(np.abs(le)))
+    assert 0 < np.count_nonzero(np.diff(flight.target)) < 399  # it did switch
+
+
+def test_a_law_that_never_switches_is_the_held_c2_flight(wing):
+    cfg, model = wing
+    force = np.random.default_rng(0).normal(0, 1000.0, 3000)
+    law = SwitchingLaw(np.zeros(model.n_states), 624.7, 624.7 * (1 + 1e-9))
+    flight = fly_switched(model, law, 105.0, cfg.air_density, force, time_constant=0.0,
+                          initial_damping=624.7)
+    held = simulate_flights(cfg.wing, cfg.absorber, force=force, airspeed=105.0,
+                            density=cfg.air_density, damping=624.7)
+    le = held.displacements[0, 2]
+    assert np.all(flight.damping == 624.7)
+    np.testing.assert_allclose(flight.leading_edge, le, rtol=1e-6, atol=1e-9 * np.abs(le).max())
+
+
+def test_a_batch_flies_each_flight_as_alone(wing):
+    cfg, model = wing
+    law = SwitchingLaw(law_gain(model, 115.0, 1.2, C_LO, C_HI), C_LO, C_HI)
+    force = np.random.default_rng(1).normal(0, 1000.0, (3, 2000))
+    speed = np.linspace(110.0, 120.0, 2000)
+    batch = fly_switched(model, law, speed, 1.2, force)
+    for j in range(3):
+        one = fly_switched(model, law, speed, 1.2, force[j])
+        np.testing.assert_allclose(batch.leading_edge[j], one.leading_edge, rtol=1e-9,
+                                   atol=1e-12)
+        assert np.array_equal(batch.target[j], one.target)
+
+
+def test_lagged_c2_stays_within_the_table_spacing_of_the_true_lag(wing):
+    cfg, model = wing
+    law = SwitchingLaw(law_gain(model, 115.0, 1.2, C_LO, C_HI), C_LO, C_HI)
+    force = np.random.default_rng(2).normal(0, 1000.0, 3000)
+    flight = fly_switched(model, law, 115.0, 1.2, force, time_constant=0.01)
+    c, decay, means = C_HI, math.exp(-0.1), []
+    for hi in flight.target:
+        t = C_HI if hi else C_LO
+        means.append(t + (c - t) * 10 * (1 - decay))
+        c = t + (c - t) * decay
+    ratio = flight.damping / np.array(means)
+    half_step = math.exp(math.log(C_HI / C_LO) / (len(c2_levels(C_LO, C_HI, 0.01)) - 1) / 2)
+    assert np.all(ratio <= half_step * (1 + 1e-12))
+    assert np.all(ratio >= 1 / half_step * (1 - 1e-12))
+    assert len(np.unique(flight.damping)) > 10  # c2 really moved through the table
+
+
+def test_switching_keeps_bounded_where_the_best_constant_c2_flutters(wing):
+    # 1.18 U_cr is above the best constant c2's flutter airspeed (1.1505 U_cr, docs).
+    cfg, model = wing
+    speed = 1.18 * U_CR
+    force = np.random.default_rng(4).normal(0, 1000.0, 12000)
+    fixed = fly_switched(model, SwitchingLaw(np.zeros(7), 624.7, 624.71), speed, 1.2, force,
+                         time_constant=0.0, initial_damping=624.7)
+    law = SwitchingLaw(law_gain(model, 1.15 * U_CR, 1.2, C_LO, C_HI), C_LO, C_HI)
+    switched = fly_switched(model, law, speed, 1.2, force, time_constant=0.0)
+
+    def rms(x, a, b):
+        return np.sqrt(np.mean(x[a:b] ** 2))
+
+    assert rms(fixed.leading_edge, 10000, 12000) > 10 * rms(fixed.leading_edge, 1000, 3000)
+    assert rms(switched.leading_edge, 10000, 12000) < 2 * rms(switched.leading_edge, 1000, 3000)
+    assert switched.switches_per_second > 10
+    assert switched.dissipated() > 0
+
+
+def test_bad_inputs_are_refused(wing):
+    _, model = wing
+    with pytest.raises(ValueError, match="c_lo < c_hi"):
+        SwitchingLaw(np.zeros(7), 500.0, 100.0)
+    with pytest.raises(ValueError, match="observer"):
+        SwitchingLaw(np.zeros(7), 100.0, 500.0, np.zeros((7, 3)))
+    law = SwitchingLaw(np.zeros(6), 100.0, 500.0)
+    with pytest.raises(ValueError, match="gain has 6 entries"):
+        fly_switched(model, law, 100.0, 1.2, np.zeros(10))
+    law = SwitchingLaw(np.zeros(7), 100.0, 500.0)
+    with pytest.raises(ValueError, match="airspeed"):
+        fly_switched(model, law, np.nan, 1.2, np.zeros(10))
+    with pytest.raises(ValueError, match="time_constant"):
+        fly_switched(model, law, 100.0, 1.2, np.zeros(10), time_constant=-1.0)
+
+
+def test_peak_limit_airspeed():
+    speed = np.linspace(80.0, 120.0, 5)
+    response = np.array([[0.1, -0.2, 3.0, 0.1, 0.1], [0.1, 0.1, 0.1, 0.1, 0.1]])
+    out = peak_limit_airspeed(speed, response, 1.0)
+    assert out[0] == 100.0 and np.isnan(out[1])
+    assert peak_limit_airspeed(speed, [0, 0, np.inf, 0, 0], 1.0) == 100.0
+
+
+def test_relief_valve_drops_c2_while_the_force_is_above_its_limit(wing):
+    cfg, model = wing
+    law = SwitchingLaw(law_gain(model, 115.0, 1.2, C_LO, C_HI), C_LO, C_HI)
+    force = np.random.default_rng(6).normal(0, 1000.0, 4000)
+    free = fly_switched(model, law, 110.0, 1.2, force, time_constant=0.01)
+    free_force = np.sqrt(free.damper_power * free.damping)
+    limit = np.quantile(free_force, 0.9)
+    assert np.any((free_force > limit) & (free.damping > C_LO * 1.01))  # the valve has work
+    valve = fly_switched(model, law, 110.0, 1.2, force, time_constant=0.01, force_limit=limit)
+    valve_force = np.sqrt(valve.damper_power * valve.damping)
+    over = valve_force > limit
+    assert np.any(over)
+    np.testing.assert_allclose(valve.damping[over], C_LO)
+    with pytest.raises(ValueError, match="force_limit"):
+        fly_switched(model, law, 110.0, 1.2, force, force_limit=0.0)
+
+
+def test_a_slower_loop_changes_its_target_only_at_block_starts(wing):
+    _, model = wing
+    law = SwitchingLaw(law_gain(model, 115.0, 1.2, C_LO, C_HI), C_LO, C_HI)
+    force = np.random.default_rng(7).normal(0, 1000.0, (2, 3000))
+    flight = fly_switched(model, law, 110.0, 1.2, force, update_every=20)
+    for targets in flight.target:
+        changes = np.flatnonzero(np.diff(targets)) + 1
+        assert changes.size > 5 and np.all(changes % 20 == 0)
+    with pytest.raises(ValueError, match="update_every"):
+        fly_switched(model, law, 110.0, 1.2, force, update_every=0)
