@@ -12,6 +12,7 @@ import sys
 import warnings
 
 from dva_offline import __version__
+from dva_offline.cli_failures import INTERNAL_ERROR_EXIT, internal_error_line, is_input_error
 
 # name -> module; a module registers exactly one top-level subcommand.
 SUBCOMMAND_MODULES = {
@@ -59,17 +60,23 @@ def main(argv: list[str] | None = None) -> int:
         warnings.simplefilter("always", RuntimeWarning)
         try:
             code = int(args.func(args) or 0)
-        except (CliError, ValueError, TypeError, FileNotFoundError, FileExistsError) as exc:
-            # Input problems are reported in one line naming the bad input, never as a
-            # traceback (DVA_DEBUG=1 shows the traceback when hunting a bug).
-            if os.environ.get("DVA_DEBUG"):
-                raise
-            _say_warnings(args.command, caught)
-            print(f"dva {args.command}: error: {exc}", file=sys.stderr)
-            return 2
         except KeyboardInterrupt:
             print(f"dva {args.command}: interrupted", file=sys.stderr)
             return 130
+        except Exception as exc:
+            # Input problems are reported in one line naming the bad input (exit 2), a fault
+            # of the tools as an internal error (exit 3), never as a traceback (DVA_DEBUG=1
+            # shows it when hunting a bug).
+            _say_warnings(args.command, caught)
+            if not is_input_error(exc, (CliError,)):
+                print(internal_error_line(args.command, exc), file=sys.stderr)
+                if os.environ.get("DVA_DEBUG"):
+                    raise
+                return INTERNAL_ERROR_EXIT
+            if os.environ.get("DVA_DEBUG"):
+                raise
+            print(f"dva {args.command}: error: {exc}", file=sys.stderr)
+            return 2
     _say_warnings(args.command, caught)
     return code
 
