@@ -34,8 +34,9 @@ MAX_ALIASES = 64
 #: Integers of this magnitude or more are refused (they do not fit in 64 bits).
 MAX_ABS_INT = 2**63
 #: The limits in one sentence, for ``--help`` texts and error hints.
-LIMITS = (f"input files: at most {MAX_TEXT_BYTES // 2**20} MiB of UTF-8 text, {MAX_DEPTH} "
-          f"levels of nesting, integers below 2**63, finite numbers")
+LIMITS = (f"YAML and JSON files at most {MAX_TEXT_BYTES // 2**20} MiB of UTF-8 text, "
+          f"{MAX_DEPTH} levels of nesting, {MAX_ALIASES} aliases, integers below 2**63, "
+          "finite JSON numbers")
 
 _HEADER_READERS = {(1, 0): np.lib.format.read_array_header_1_0,
                    (2, 0): np.lib.format.read_array_header_2_0}

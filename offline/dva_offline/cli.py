@@ -33,6 +33,16 @@ class CliError(Exception):
     """A user-facing error: printed as ``dva: error: ...`` with exit code 2, no traceback."""
 
 
+def input_limits() -> str:
+    """The limits every command reads its files within, and the exit codes (for --help)."""
+    from aero_dva.safe_files import LIMITS
+    from dva_offline.isolator.isolator_io import MAX_FRF_POINTS, MAX_ROWS
+
+    return (f"Limits: {LIMITS}; CSV tables at most {MAX_ROWS:,} rows, FRF tables at most "
+            f"{MAX_FRF_POINTS:,} points; .npz arrays no larger than the file. Exit codes: 0 "
+            f"done, 2 bad input, {INTERNAL_ERROR_EXIT} internal error, 130 interrupted.")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="dva",
@@ -40,6 +50,7 @@ def build_parser() -> argparse.ArgumentParser:
             "Offline tools for the aeroelastic wing with a tunable Maxwell-element dynamic "
             "vibration absorber (DVA). Run 'dva <command> --help' for a command's options."
         ),
+        epilog=input_limits(),
     )
     parser.add_argument("--version", action="version", version=f"dva {__version__}")
     subparsers = parser.add_subparsers(dest="command", metavar="<command>")

@@ -15,7 +15,6 @@ import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
-
 from aero_dva.bag.bag_reader import BagReadError, bag_files, file_summary
 from aero_dva.bag.bag_writer import COMPRESSIONS, BagWriter, TopicInfo, qos_profile_yaml
 from aero_dva.bag.mcap_scan import Damage, FileScan

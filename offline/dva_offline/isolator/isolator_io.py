@@ -25,6 +25,7 @@ by :func:`~dva_offline.isolator.frf_data.modulus_to_stiffness`.
 from __future__ import annotations
 
 import csv
+import sys
 from array import array
 from dataclasses import dataclass
 from pathlib import Path
@@ -47,10 +48,19 @@ MAX_ROWS = 1_000_000
 #: identification or discrepancy fit holds a few Jacobians of this many rows, so the limit
 #: bounds its memory (docs/reliability.md).
 MAX_FRF_POINTS = 100_000
+#: Tables of more points than this are announced before the fit (it takes a while).
+LARGE_FRF_POINTS = 10_000
 #: [bytes] largest universal file read (an ASCII dataset 58 takes about 40 bytes a point).
 MAX_UFF_BYTES = 64 * 2**20
 STEP_AMPLITUDES = ("force_amplitude_n", "response_amplitude")
 STEP_PHASES = ("force_phase", "response_phase")
+
+
+def say_large_table(path, n_points: int) -> None:
+    """A line on stderr before a long fit: the user sees why nothing else is said for a while."""
+    if n_points > LARGE_FRF_POINTS:
+        print(f"read {n_points:,} points of {path}; a fit of this many takes minutes (at most "
+              f"{MAX_FRF_POINTS:,} are read)", file=sys.stderr, flush=True)
 
 
 def append_numeric_row(values: array, row: list[str], header: list[str], path, line: int,
