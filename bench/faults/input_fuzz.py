@@ -31,7 +31,8 @@ DIGITS = "__DIGITS__"
 # Numbers at and past the limits of a float, and other values where a number belongs.
 EXTREME_VALUES = [10**400, -(10**400), 2**63, -(2**63), 2**62, DIGITS,
                   1.7976931348623157e308, -1.7976931348623157e308, 5e-324, 1e-300, 0, -1, 0.0,
-                  -0.0, math.nan, math.inf, -math.inf, True, None, "", "1e999", "nan", [], {}, [1.0, 2.0], "x" * 300]
+                  -0.0, math.nan, math.inf, -math.inf, True, None, "", "1e999", "nan", [], {},
+                  [1.0, 2.0], "x" * 300]
 EXTREME_CELLS = ["1e309", "-1e309", "1e-400", "nan", "inf", "-inf", "", "abc", "0x10", "1_0",
                  "9" * 400, "-" + "9" * 400, "1.7976931348623157e308", "5e-324", " 1 ", "١٢"]
 
