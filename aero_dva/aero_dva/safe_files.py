@@ -122,9 +122,11 @@ def _json_depth(text: str) -> int:
     return int(np.cumsum(steps).max())
 
 
-def parse_json(text: str, where: str, error: type[ValueError] = InputFileError):
+def parse_json(text: str, where: str, error: type[ValueError] = InputFileError, *,
+               nonfinite: bool = False):
     """The JSON document ``text``: nesting at most :data:`MAX_DEPTH`, integers below 2**63,
-    every number finite; ``error`` starting with ``where`` otherwise."""
+    every number finite (``nonfinite``: NaN, Infinity and 1e999 are left to the caller, which
+    checks each field by name); ``error`` starting with ``where`` otherwise."""
     depth = _json_depth(text)
     if depth > MAX_DEPTH:
         raise error(f"{where}: nested {depth} levels deep; at most {MAX_DEPTH} are read")
@@ -137,11 +139,13 @@ def parse_json(text: str, where: str, error: type[ValueError] = InputFileError):
 
     def real(token: str) -> float:
         number = float(token)
-        if not np.isfinite(number):
+        if not nonfinite and not np.isfinite(number):
             raise error(f"{where}: the number {token[:30]} is out of the float range")
         return number
 
     def constant(token: str):
+        if nonfinite:
+            return float(token)
         raise error(f"{where}: {token} is not a finite number (JSON has none)")
 
     try:
@@ -184,11 +188,14 @@ def check_npz(path, what: str = "file", error: type[ValueError] = InputFileError
                     shape, _, dtype = _HEADER_READERS[version](member)
                     header_bytes = member.tell()
                 if dtype.hasobject:
-                    raise error(f"{where}: array {name!r} holds Python objects; only numbers "
-                                "and text are read")
+                    raise error(f"{where}: array {name!r} holds Python objects (refused "
+                                "without pickle: only numbers and text are read)")
                 needed = int(np.prod(shape, dtype=object)) * dtype.itemsize
                 stored = info.file_size - header_bytes
-                if needed > stored or needed > max_bytes:
+                # an empty axis makes an empty array, but numpy still refuses the other axes'
+                # product past its index range: bound that too
+                spanned = int(np.prod([max(n, 1) for n in shape], dtype=object))
+                if needed > stored or max(needed, spanned) > max_bytes:
                     raise error(f"{where}: array {name!r} declares shape {shape} "
                                 f"({needed:,} bytes) but {stored:,} bytes are stored (at most "
                                 f"{max_bytes:,} read)")

@@ -190,7 +190,7 @@ def load_rbf_network(path, expected_input_dim: int | None = None) -> RBFNetwork:
             if raw.dtype.kind != "U" or raw.shape != ():
                 raise _fail(path, "the 'header' entry is not a JSON string")
             header = parse_json(str(raw), f"RBF network file {str(path)!r}: the header",
-                                RBFFileError)
+                                RBFFileError, nonfinite=True)  # fields checked by name
             if not isinstance(header, dict):
                 raise _fail(path, "the header is not a JSON object")
             if header.get("format") != FILE_FORMAT:
@@ -205,7 +205,9 @@ def load_rbf_network(path, expected_input_dim: int | None = None) -> RBFNetwork:
                 raise _fail(path, f"input_dim is {dim}, the controller needs {expected_input_dim}")
             centres = _float_array(path, data, "centres", (n_neurons, dim))
             weights = _float_array(path, data, "output_weights", (n_neurons,))
-        except (OSError, zipfile.BadZipFile, EOFError) as exc:
+        except RBFFileError:
+            raise
+        except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
             raise _fail(path, f"an archive member is unreadable ({exc})") from None
     scaling = _header_field(path, header, "input_scaling", dict)
     spread = _header_field(path, header, "spread", float)

@@ -126,5 +126,6 @@ def load_schedule(path) -> AirspeedSchedule:
     """
     path = Path(path)
     text = read_text_input(path, "airspeed schedule", error=ScheduleFileError)
-    data = parse_json(text, f"airspeed schedule {str(path)!r}", ScheduleFileError)
+    data = parse_json(text, f"airspeed schedule {str(path)!r}", ScheduleFileError,
+                      nonfinite=True)  # each field is checked finite by name
     return schedule_from_dict(data, repr(str(path)))
