@@ -3,11 +3,13 @@ per input format, a writer per kind of damage, and the kinds that apply to each 
 from __future__ import annotations
 
 import functools
+import io
 import json
 import math
 import subprocess
 import sys
 import tempfile
+import zipfile
 from collections.abc import Callable
 from pathlib import Path
 
@@ -17,6 +19,8 @@ import yaml
 # a training plan small enough to write in a second
 SMALL_PLAN = ["--ratios", "0.8:0.81:0.01", "--factors", "1.0", "--n-damping", "3"]
 HUGE_LINES = 10_000_000
+DEEP_LEVELS = 3000  # nesting of the deep-nesting kind (Python's recursion limit is 1000)
+HUGE_INTEGER = 10**400  # the huge-integer kind: no float holds it
 ODD_DIR = "dir with spaces, ünïcødé ✈"
 ODD_NAME = "mesure n°1 — données"
 
@@ -146,7 +150,12 @@ def _plan_dict() -> dict:
     return json.loads(_plan_text())
 
 
-def _write_network(path: Path, *, nan: bool = False, header: bool = True) -> None:
+def _write_network(path: Path, *, nan: bool = False, header: bool = True,
+                   header_fields: dict | None = None, deep_field: str | None = None,
+                   declared_shape: tuple | None = None) -> None:
+    """A valid 33-input network, or one damaged: NaN in a centre, no header, header fields
+    changed, one header field a nesting of :data:`DEEP_LEVELS` lists, or the centres' .npy
+    header declaring ``declared_shape`` over the few bytes stored."""
     from aero_dva.control.rbf_io import save_rbf_network
     from aero_dva.control.rbf_network import InputScaling, RBFNetwork
 
@@ -168,8 +177,51 @@ def _write_network(path: Path, *, nan: bool = False, header: bool = True) -> Non
         arrays["centres"] = centres
     if not header:
         arrays.pop("header")
+    if header_fields or deep_field:
+        fields = {**json.loads(str(arrays["header"])), **(header_fields or {})}
+        text = json.dumps(fields)
+        if deep_field:
+            fields[deep_field] = "__DEEP__"
+            text = json.dumps(fields).replace('"__DEEP__"', deep_list_text())
+        arrays["header"] = np.array(text)
     with open(path, "wb") as stream:
         np.savez(stream, **arrays)
+    if declared_shape is not None:
+        _replace_member(path, "centres.npy", npy_member(declared_shape, "<f8", b"\0" * 64))
+
+
+def npy_member(shape, descr: str, data: bytes) -> bytes:
+    """An .npy file whose header declares ``shape`` and ``descr`` over the bytes ``data``."""
+    buffer = io.BytesIO()
+    np.lib.format.write_array_header_1_0(buffer, {"descr": descr, "fortran_order": False,
+                                                  "shape": tuple(shape)})
+    return buffer.getvalue() + data
+
+
+def _replace_member(path: Path, name: str, data: bytes) -> None:
+    with zipfile.ZipFile(path) as archive:
+        members = {info.filename: archive.read(info) for info in archive.infolist()}
+    members[name] = data
+    with zipfile.ZipFile(path, "w") as archive:
+        for member, content in members.items():
+            archive.writestr(member, content)
+
+
+def deep_list_text(levels: int | None = None) -> str:
+    """``levels`` (default :data:`DEEP_LEVELS`) nested flow lists around 1: valid YAML and
+    JSON that recursive parsers cannot build."""
+    levels = DEEP_LEVELS if levels is None else levels
+    return "[" * levels + "1" + "]" * levels
+
+
+def _deep_yaml(path: Path, data: dict, *keys) -> None:
+    text = yaml.safe_dump(_with(data, *keys, "__DEEP__"), sort_keys=False)
+    path.write_text(text.replace("__DEEP__", deep_list_text(), 1), encoding="utf-8")
+
+
+def _deep_json(path: Path, data: dict, *keys) -> None:
+    text = json.dumps(_with(data, *keys, "__DEEP__"))
+    path.write_text(text.replace('"__DEEP__"', deep_list_text(), 1), encoding="utf-8")
 
 
 def _write_bag_without_topics(path: Path) -> None:
@@ -273,6 +325,8 @@ WRITERS: dict[str, dict[str, Callable[[Path], None]]] = {
         "missing-keys": lambda p: _yaml(p, _with(_wing_dict(), "wing", "mass", ...)),
         "nan": lambda p: _yaml(p, _with(_wing_dict(), "wing", "mass", float("nan"))),
         "negative": lambda p: _yaml(p, _with(_wing_dict(), "wing", "mass", -1000.0)),
+        "deep-nesting": lambda p: _deep_yaml(p, _wing_dict(), "wing", "mass"),
+        "huge-integer": lambda p: _yaml(p, _with(_wing_dict(), "wing", "mass", HUGE_INTEGER)),
     },
     "section": {
         "valid": lambda p: _yaml(p, SECTION),
@@ -281,6 +335,8 @@ WRITERS: dict[str, dict[str, Callable[[Path], None]]] = {
         "missing-keys": lambda p: _yaml(p, _with(SECTION, "mass_ratio", ...)),
         "nan": lambda p: _yaml(p, _with(SECTION, "mass_ratio", float("nan"))),
         "negative-frequency": lambda p: _yaml(p, _with(SECTION, "pitch_frequency", -1.0)),
+        "deep-nesting": lambda p: _deep_yaml(p, SECTION, "mass_ratio"),
+        "huge-integer": lambda p: _yaml(p, _with(SECTION, "mass_ratio", HUGE_INTEGER)),
     },
     "scenario": {
         "syntax-error": lambda p: p.write_text("airspeed: {kind: ramp\n", encoding="utf-8"),
@@ -288,12 +344,17 @@ WRITERS: dict[str, dict[str, Callable[[Path], None]]] = {
         "nan": lambda p: _yaml(p, _with(_scenario_dict(), "duration", float("nan"))),
         "negative-frequency": lambda p: _yaml(p, _with(_scenario_dict(), "sample_rate",
                                                        -1000.0)),
+        "deep-nesting": lambda p: _deep_yaml(p, _scenario_dict(), "duration"),
+        "huge-integer": lambda p: _yaml(p, _with(_scenario_dict(), "duration", HUGE_INTEGER)),
     },
     "schedule": {
         "syntax-error": lambda p: p.write_text('{"a0": 1.0,', encoding="utf-8"),
         "missing-keys": lambda p: p.write_text(json.dumps(_with(_schedule_dict(), "a1", ...)),
                                                encoding="utf-8"),
         "nan": lambda p: _json_nan(p, _schedule_dict(), "a0"),
+        "deep-nesting": lambda p: _deep_json(p, _schedule_dict(), "a0"),
+        "huge-integer": lambda p: p.write_text(json.dumps(_with(_schedule_dict(), "a0",
+                                                                HUGE_INTEGER)), encoding="utf-8"),
     },
     "plan": {
         "syntax-error": lambda p: p.write_text('{"format": ', encoding="utf-8"),
@@ -301,10 +362,18 @@ WRITERS: dict[str, dict[str, Callable[[Path], None]]] = {
                                                encoding="utf-8"),
         "nan": lambda p: p.write_text(json.dumps(_with(_plan_dict(), "dwells", "airspeed",
                                                        [math.nan] * 6)), encoding="utf-8"),
+        "deep-nesting": lambda p: _deep_json(p, _plan_dict(), "dwells", "airspeed"),
+        "huge-integer": lambda p: p.write_text(json.dumps(_with(_plan_dict(), "dwells",
+                                                                "airspeed", HUGE_INTEGER)),
+                                               encoding="utf-8"),
     },
     "network": {
         "missing-keys": lambda p: _write_network(p, header=False),
         "nan": lambda p: _write_network(p, nan=True),
+        "deep-nesting": lambda p: _write_network(p, deep_field="input_names"),
+        "huge-integer": lambda p: _write_network(p, header_fields={"output_bias": HUGE_INTEGER}),
+        "huge-shape": lambda p: _write_network(p, declared_shape=(600_000, 600_000)),
+        "tiny-spread": lambda p: _write_network(p, header_fields={"spread": 1e-300}),
     },
     "bag": {
         "missing-topics": _write_bag_without_topics,

@@ -24,6 +24,7 @@ from dva_offline.report import cli as report_cli
 from dva_offline.switching import cli as switching_cli
 from dva_offline.training import cli as training_cli
 from dva_offline.wing import cli as wing_cli
+from dva_offline.cli_failures import INTERNAL_ERROR_EXIT, internal_error_line, is_input_error
 
 __all__ = ["COMMANDS", "CliError", "build_parser", "main"]
 
@@ -43,6 +44,16 @@ COMMANDS = {
 }
 
 
+def input_limits() -> str:
+    """The limits every command reads its files within, and the exit codes (for --help)."""
+    from aero_dva.safe_files import LIMITS
+    from dva_offline.isolator.files import MAX_FRF_POINTS, MAX_ROWS
+
+    return (f"Limits: {LIMITS}; CSV tables at most {MAX_ROWS:,} rows, FRF tables at most "
+            f"{MAX_FRF_POINTS:,} points; .npz arrays no larger than the file. Exit codes: 0 "
+            f"done, 2 bad input, {INTERNAL_ERROR_EXIT} internal error, 130 interrupted.")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="dva",
@@ -50,6 +61,7 @@ def build_parser() -> argparse.ArgumentParser:
             "Offline tools for the aeroelastic wing with a tunable Maxwell-element dynamic "
             "vibration absorber (DVA). Run 'dva <command> --help' for a command's options."
         ),
+        epilog=input_limits(),
     )
     parser.add_argument("--version", action="version", version=f"dva {__version__}")
     subparsers = parser.add_subparsers(dest="command", metavar="<command>")
@@ -70,17 +82,23 @@ def main(argv: list[str] | None = None) -> int:
         warnings.simplefilter("always", RuntimeWarning)
         try:
             code = int(args.func(args) or 0)
-        except (CliError, ValueError, TypeError, FileNotFoundError, FileExistsError) as exc:
-            # Input problems are reported in one line naming the bad input, never as a
-            # traceback (DVA_DEBUG=1 shows the traceback when hunting a bug).
-            if os.environ.get("DVA_DEBUG"):
-                raise
-            _say_warnings(args.command, caught)
-            print(f"dva {args.command}: error: {exc}", file=sys.stderr)
-            return 2
         except KeyboardInterrupt:
             print(f"dva {args.command}: interrupted", file=sys.stderr)
             return 130
+        except Exception as exc:
+            # Input problems are reported in one line naming the bad input (exit 2), a fault
+            # of the tools as an internal error (exit 3), never as a traceback (DVA_DEBUG=1
+            # shows it when hunting a bug).
+            _say_warnings(args.command, caught)
+            if not is_input_error(exc, (CliError,)):
+                print(internal_error_line(args.command, exc), file=sys.stderr)
+                if os.environ.get("DVA_DEBUG"):
+                    raise
+                return INTERNAL_ERROR_EXIT
+            if os.environ.get("DVA_DEBUG"):
+                raise
+            print(f"dva {args.command}: error: {exc}", file=sys.stderr)
+            return 2
     _say_warnings(args.command, caught)
     return code
 

@@ -14,12 +14,12 @@ from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-import yaml
 from mcap.reader import SeekingReader
 
 from aero_dva.bag.chunk_survey import survey_file
 from aero_dva.bag.schemas import normalize_type_name, schema_typestore, typestore
 from aero_dva.bag.writer import TopicInfo
+from aero_dva.safe_files import read_yaml
 
 __all__ = [
     "RECOVER_HINT",
@@ -134,7 +134,7 @@ def bag_files(path, allow_truncated: bool = False) -> list[Path]:
             f"(still running or crashed); MCAP files there: {[p.name for p in found]}; "
             + RECOVER_HINT.format(bag=path))
     try:
-        info = yaml.safe_load(meta.read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
+        info = read_yaml(meta, "bag metadata", BagReadError)["rosbag2_bagfile_information"]
         if info["storage_identifier"] != "mcap":
             raise BagReadError(
                 f"bag {str(path)!r} uses storage {info['storage_identifier']!r}, not mcap")
@@ -143,7 +143,7 @@ def bag_files(path, allow_truncated: bool = False) -> list[Path]:
         files = [path / Path(p).name for p in info["relative_file_paths"]]
     except BagReadError:
         raise
-    except (yaml.YAMLError, KeyError, TypeError, UnicodeDecodeError) as exc:
+    except (KeyError, TypeError, AttributeError) as exc:
         raise BagReadError(f"{str(meta)!r} is not valid rosbag2 metadata ({exc!r})") from None
     missing = [str(f) for f in files if not f.is_file()]
     if missing:

@@ -22,6 +22,7 @@ from aero_dva.bag.chunk_survey import DamagedRange, FileSurvey, survey_file
 from aero_dva.bag.mcap_scan import Damage, FileScan
 from aero_dva.bag.reader import BagReadError, bag_files, file_summary
 from aero_dva.bag.writer import COMPRESSIONS, BagWriter, TopicInfo, qos_profile_yaml
+from aero_dva.safe_files import read_yaml
 
 __all__ = ["BagInfo", "RecoveryResult", "bag_info", "recover_bag"]
 
@@ -249,9 +250,9 @@ def _ros_distro(path: Path) -> str | None:
     if meta is None or not meta.is_file():
         return None
     try:
-        info = yaml.safe_load(meta.read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
+        info = read_yaml(meta, "bag metadata")["rosbag2_bagfile_information"]
         return info.get("ros_distro") or None
-    except (yaml.YAMLError, KeyError, TypeError, UnicodeDecodeError):
+    except (ValueError, KeyError, TypeError, AttributeError):
         return None
 
 

@@ -24,12 +24,17 @@ import numpy as np
 
 from aero_dva.atomic_io import atomic_output
 from aero_dva.control.rbf_network import InputScaling, RBFNetwork
+from aero_dva.safe_files import check_npz, parse_json
 
 __all__ = ["FILE_FORMAT", "FILE_VERSION", "RBFFileError", "load_rbf_network", "save_rbf_network"]
 
 FILE_FORMAT = "dva_rbf_network"
 FILE_VERSION = 1
 _SCALING_DEFINITION = "x_scaled = (x - offset) / scale"
+
+
+#: Bounds of a network's spread in scaled input units (inputs are scaled to about [-1, 1]).
+MIN_SPREAD, MAX_SPREAD = 1e-6, 1e6
 
 
 class RBFFileError(ValueError):
@@ -169,10 +174,12 @@ def load_rbf_network(path, expected_input_dim: int | None = None) -> RBFNetwork:
     path = Path(path)
     if not path.is_file():
         raise _fail(path, "no such file")
+    if zipfile.is_zipfile(path):  # every array's declared shape must fit in the file
+        check_npz(path, "RBF network file", RBFFileError)
     try:
         data = np.load(path, allow_pickle=False)
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
-        raise _fail(path, f"not a readable .npz archive ({exc})") from None
+    except Exception as exc:  # numpy's header parser fails on damaged bytes in many ways
+        raise _fail(path, f"not a readable .npz archive ({type(exc).__name__}: {exc})") from None
     if not isinstance(data, np.lib.npyio.NpzFile):
         raise _fail(path, "not an .npz archive (a single .npy array)")
     with data:
@@ -182,10 +189,8 @@ def load_rbf_network(path, expected_input_dim: int | None = None) -> RBFNetwork:
             raw = data["header"]
             if raw.dtype.kind != "U" or raw.shape != ():
                 raise _fail(path, "the 'header' entry is not a JSON string")
-            try:
-                header = json.loads(str(raw))
-            except json.JSONDecodeError as exc:
-                raise _fail(path, f"the header is not valid JSON ({exc})") from None
+            header = parse_json(str(raw), f"RBF network file {str(path)!r}: the header",
+                                RBFFileError, nonfinite=True)  # fields checked by name
             if not isinstance(header, dict):
                 raise _fail(path, "the header is not a JSON object")
             if header.get("format") != FILE_FORMAT:
@@ -200,12 +205,17 @@ def load_rbf_network(path, expected_input_dim: int | None = None) -> RBFNetwork:
                 raise _fail(path, f"input_dim is {dim}, the controller needs {expected_input_dim}")
             centres = _float_array(path, data, "centres", (n_neurons, dim))
             weights = _float_array(path, data, "output_weights", (n_neurons,))
-        except (OSError, zipfile.BadZipFile, EOFError) as exc:
+        except RBFFileError:
+            raise
+        except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
             raise _fail(path, f"an archive member is unreadable ({exc})") from None
     scaling = _header_field(path, header, "input_scaling", dict)
     spread = _header_field(path, header, "spread", float)
-    if spread <= 0:
-        raise _fail(path, f"spread must be > 0, got {spread}")
+    if not MIN_SPREAD <= spread <= MAX_SPREAD:
+        # inputs are scaled to about [-1, 1]: a spread outside these bounds makes every
+        # neuron a spike or a constant (and 1/spread^2 overflows long before 1e-300)
+        raise _fail(path, f"spread must be within [{MIN_SPREAD:g}, {MAX_SPREAD:g}] (scaled "
+                          f"input units), got {spread}")
     offset = _vector(path, scaling, "offset", dim)
     scale = _vector(path, scaling, "scale", dim)
     if np.any(scale <= 0):

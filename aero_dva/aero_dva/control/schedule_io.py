@@ -26,6 +26,7 @@ from pathlib import Path
 
 from aero_dva.atomic_io import atomic_output
 from aero_dva.control.airspeed_schedule import AirspeedSchedule
+from aero_dva.safe_files import parse_json
 from aero_dva.text_input import read_text_input
 
 __all__ = [
@@ -125,10 +126,6 @@ def load_schedule(path) -> AirspeedSchedule:
     """
     path = Path(path)
     text = read_text_input(path, "airspeed schedule", error=ScheduleFileError)
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise ScheduleFileError(
-            f"airspeed schedule {str(path)!r}: not valid JSON ({exc})"
-        ) from None
+    data = parse_json(text, f"airspeed schedule {str(path)!r}", ScheduleFileError,
+                      nonfinite=True)  # each field is checked finite by name
     return schedule_from_dict(data, repr(str(path)))

@@ -34,7 +34,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from aero_dva.flight.hidden_plant import CHANNELS, PlantOptions
 from aero_dva.flight.scenario import (
@@ -43,7 +42,7 @@ from aero_dva.flight.scenario import (
     ScenarioError,
     sweep_duration,
 )
-from aero_dva.text_input import read_text_input
+from aero_dva.safe_files import read_yaml
 
 _TOP_KEYS = {"name", "duration", "sample_rate", "block_size", "airspeed", "density", "excitation",
              "sweep", "plant"}
@@ -65,11 +64,15 @@ def _number(section: str, key: str, value: Any) -> float:
     return float(value)
 
 
+#: Most airspeed steps of one scenario (a sweep has tens; more is a typo in the step).
+MAX_STEPS = 10_000
+
+
 def _airspeed(raw: Any) -> AirspeedProfile:
     if not isinstance(raw, dict) or "kind" not in raw:
         raise ScenarioError("airspeed must be a mapping with a 'kind' (constant, ramp or steps)")
     kind = raw["kind"]
-    relative = any(key.endswith("ratio") or key == "ratios" for key in raw)
+    relative = any(str(key).endswith("ratio") or key == "ratios" for key in raw)
     absolute = any(key in raw for key in ("value", "start", "end", "values"))
     if relative and absolute:
         raise ScenarioError("airspeed mixes m/s keys and *_ratio keys; use one kind of unit")
@@ -83,12 +86,19 @@ def _airspeed(raw: Any) -> AirspeedProfile:
     elif kind == "steps":
         listed = raw.get("ratios" if relative else "values")
         if listed is not None:
+            if not isinstance(listed, list):
+                raise ScenarioError(f"airspeed steps must be a list of numbers, got {listed!r}"
+                                    [:160])
             values = tuple(_number("airspeed", "values", v) for v in listed)
         else:
             start, end, step = (_number("airspeed", k + suffix, raw.get(k + suffix))
                                 for k in ("start", "end", "step"))
             if step <= 0 or end < start:
                 raise ScenarioError("airspeed steps need step > 0 and end >= start")
+            count = (end - start) / step + 1
+            if not count <= MAX_STEPS:
+                raise ScenarioError(f"airspeed steps from {start:g} to {end:g} by {step:g} make "
+                                    f"{count:.3g} steps; at most {MAX_STEPS} are flown")
             count = int(np.floor((end - start) / step + 1e-9)) + 1
             values = tuple(float(v) for v in start + step * np.arange(count))
     else:
@@ -133,6 +143,22 @@ def _plant(raw: Any) -> PlantOptions | None:
         raise ScenarioError(str(exc)) from None
 
 
+def _section(raw: dict, key: str) -> dict:
+    """The optional mapping ``raw[key]`` (empty when absent)."""
+    section = raw.get(key) or {}
+    if not isinstance(section, dict):
+        raise ScenarioError(f"{key} must be a mapping, got {section!r}"[:160])
+    return section
+
+
+def _list(section: dict, name: str, key: str) -> list:
+    """The optional list ``section[key]`` (empty when absent)."""
+    values = section.get(key) or []
+    if not isinstance(values, list):
+        raise ScenarioError(f"{name}.{key} must be a list of numbers, got {values!r}"[:160])
+    return values
+
+
 def scenario_from_dict(raw: Any, default_name: str = "scenario") -> Scenario:
     """Build and validate a :class:`Scenario` from parsed YAML; errors name the bad key."""
     if not isinstance(raw, dict):
@@ -143,11 +169,11 @@ def scenario_from_dict(raw: Any, default_name: str = "scenario") -> Scenario:
     if "airspeed" not in raw:
         raise ScenarioError("scenario needs an 'airspeed' section")
     airspeed = _airspeed(raw["airspeed"])
-    density = raw.get("density", {}) or {}
-    excitation = raw.get("excitation", {}) or {}
-    sweep = raw.get("sweep", {}) or {}
+    density = _section(raw, "density")
+    excitation = _section(raw, "excitation")
+    sweep = _section(raw, "sweep")
     dwell = _number("sweep", "dwell", sweep.get("dwell", 2.0))
-    damping = tuple(_number("sweep", "damping", c) for c in sweep.get("damping", []))
+    damping = tuple(_number("sweep", "damping", c) for c in _list(sweep, "sweep", "damping"))
     duration = raw.get("duration")
     if duration == "auto" and airspeed.kind == "steps":
         duration = sweep_duration(len(airspeed.values), len(damping), dwell)
@@ -155,7 +181,8 @@ def scenario_from_dict(raw: Any, default_name: str = "scenario") -> Scenario:
     if unknown:
         raise ScenarioError(f"unknown keys {sorted(unknown)} in excitation; known: "
                             "force_std, seed, levels, level_dwell")
-    levels = tuple(_number("excitation", "levels", v) for v in excitation.get("levels", []))
+    levels = tuple(_number("excitation", "levels", v)
+                   for v in _list(excitation, "excitation", "levels"))
     seed = excitation.get("seed", 0)
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise ScenarioError(f"excitation.seed must be a non-negative integer, got {seed!r}")
@@ -184,12 +211,7 @@ def scenario_from_dict(raw: Any, default_name: str = "scenario") -> Scenario:
 def load_scenario(path: str | Path) -> Scenario:
     """Read a scenario YAML file; :class:`ScenarioError` names the file and the problem."""
     path = Path(path)
-    text = read_text_input(path, "scenario", error=ScenarioError)
-    try:
-        raw = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        detail = " ".join(str(exc).split())  # the parser's message spans several lines
-        raise ScenarioError(f"{path}: not valid YAML ({detail})") from None
+    raw = read_yaml(path, "scenario", ScenarioError)
     try:
         return scenario_from_dict(raw, default_name=path.stem)
     except ScenarioError as exc:

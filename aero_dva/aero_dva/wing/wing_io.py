@@ -29,7 +29,7 @@ from pathlib import Path
 import yaml
 
 from aero_dva.data_files import data_file
-from aero_dva.text_input import read_text_input
+from aero_dva.safe_files import read_yaml
 from aero_dva.wing.absorbers import MaxwellAbsorber, PassiveAbsorber
 from aero_dva.wing.aerodynamics import QuasiSteadyAero, aero_from_name
 from aero_dva.wing.checks import positive
@@ -154,16 +154,17 @@ def config_from_dict(data: dict, where: str = "wing file") -> WingConfig:
 def load_wing(path=None) -> WingConfig:
     """Read a wing file (default: the chapter-6 wing, :func:`default_wing_path`)."""
     path = Path(default_wing_path() if path is None else path)
-    return config_from_dict(_read_yaml(path, "wing file"), str(path))
+    data = _read_yaml(path, "wing file")
+    try:
+        return config_from_dict(data, str(path))
+    except (TypeError, ValueError) as exc:
+        if str(path) in str(exc):
+            raise
+        raise ValueError(f"wing file {str(path)!r}: {exc}") from None
 
 
 def _read_yaml(path: Path, what: str):
-    text = read_text_input(path, what)
-    try:
-        return yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        detail = " ".join(str(exc).split())  # the parser's message spans several lines
-        raise ValueError(f"{what} {str(path)!r}: not valid YAML ({detail})") from None
+    return read_yaml(path, what)
 
 
 

@@ -55,6 +55,7 @@ def _conditions(args):
         grouping = table_io.Grouping("a single sweep (UFF 58)", (), 1, ())
         return [data], columns, grouping, {}
     table = table_io.read_table(path)
+    isolator_files.say_large_table(path, table.n_rows)
     try:
         conditions, grouping, info = table_io.conditions_from_table(
             table, quantity, table_io.ColumnMap.parse(args.columns), args.frequency_unit,

@@ -30,8 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
-from dva_offline.isolator.files import append_numeric_row
 from dva_offline.isolator.frf_data import MIN_POINTS, FrfData, condition_columns
+from dva_offline.isolator.files import MAX_FRF_POINTS, append_numeric_row
 
 FREQUENCY_UNITS = {"hz": 1.0, "khz": 1e3, "rad/s": 1.0 / (2 * np.pi), "1/s": 1.0}
 # factor to SI per quantity family; the SI unit of each family is the first entry
@@ -122,7 +122,7 @@ def _text_lines(path: Path):
 def read_table(path) -> Table:
     """Read a numeric CSV with a header row and an optional units row (module docstring).
 
-    Read row by row, at most :data:`~dva_offline.isolator.files.MAX_ROWS` data rows: a
+    Read row by row, at most :data:`~dva_offline.isolator.files.MAX_FRF_POINTS` rows: a
     larger file is refused there, not read to its end. Errors name the file."""
     path = Path(path)
     if not path.is_file():
@@ -152,7 +152,7 @@ def _read_rows(path: Path) -> Table:
         if i == 0 and not all(_is_number(c) for c in row if c.strip()):
             units = {name: cell.strip() for name, cell in zip(header, row)}
             continue
-        append_numeric_row(values, row, header, path, i + 2, rows)
+        append_numeric_row(values, row, header, path, i + 2, rows, MAX_FRF_POINTS)
         rows += 1
     if not rows:
         raise ValueError(f"{path}: no data rows")

@@ -30,6 +30,7 @@ from dva_offline.evaluation.graph_cases import (
     CaseStats,
     FlightCase,
 )
+from aero_dva.safe_files import read_yaml
 
 __all__ = ["flight_bag", "flight_record_path", "load_base_scenario", "load_records",
            "plot_summary", "plot_traces", "save_json", "write_scenario"]
@@ -45,12 +46,7 @@ def save_json(path, payload) -> Path:
 def load_base_scenario(path) -> dict:
     """The base scenario YAML as a mapping, checked as the simulator will check it."""
     path = Path(path)
-    text = read_text_input(path, "--scenario")
-    try:
-        raw = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        detail = " ".join(str(exc).split())  # the parser's message spans several lines
-        raise ValueError(f"--scenario {path}: not valid YAML ({detail})") from None
+    raw = read_yaml(path, "--scenario")
     try:
         scenario = scenario_from_dict(raw, default_name=path.stem)  # names the bad key
     except ValueError as exc:

@@ -103,6 +103,7 @@ def _read_frf(args):
         data = isolator_files.read_stepped_sine_csv(path, quantity)
     else:
         data = isolator_files.read_frf_csv(path, quantity)
+    isolator_files.say_large_table(path, data.frequency_hz.size)
     try:
         data = select_points(data, args.fmin_hz, args.fmax_hz, args.min_coherence)
     except ValueError as exc:

@@ -25,6 +25,7 @@ by :func:`~dva_offline.isolator.frf_data.modulus_to_stiffness`.
 from __future__ import annotations
 
 import csv
+import sys
 from array import array
 from dataclasses import dataclass
 from pathlib import Path
@@ -43,20 +44,36 @@ FRF_COLUMNS = ("frequency_hz", "real", "imag")
 #: Most data rows read from one CSV file (16 min of a time series at 1 kHz; an FRF has a few
 #: thousand points); a larger file is refused after this many rows, not read to its end.
 MAX_ROWS = 1_000_000
+#: Most points of one FRF table (an analyser gives a few thousand lines, at most 25,600): an
+#: identification or discrepancy fit holds a few Jacobians of this many rows, so the limit
+#: bounds its memory (docs/reliability.md).
+MAX_FRF_POINTS = 100_000
+#: Tables of more points than this are announced before the fit (it takes a while).
+LARGE_FRF_POINTS = 10_000
+#: [bytes] largest universal file read (an ASCII dataset 58 takes about 40 bytes a point).
+MAX_UFF_BYTES = 64 * 2**20
 STEP_AMPLITUDES = ("force_amplitude_n", "response_amplitude")
 STEP_PHASES = ("force_phase", "response_phase")
 
 
+def say_large_table(path, n_points: int) -> None:
+    """A line on stderr before a long fit: the user sees why nothing else is said for a while."""
+    if n_points > LARGE_FRF_POINTS:
+        print(f"read {n_points:,} points of {path}; a fit of this many takes minutes (at most "
+              f"{MAX_FRF_POINTS:,} are read)", file=sys.stderr, flush=True)
+
+
 def append_numeric_row(values: array, row: list[str], header: list[str], path, line: int,
-                       rows: int) -> None:
+                       rows: int, max_rows: int = MAX_ROWS) -> None:
     """Append the data row ``row`` (line ``line`` of ``path``; ``rows`` read before it) to
-    ``values`` as floats: one value per header column, at most :data:`MAX_ROWS` rows (a
+    ``values`` as floats: one value per header column, at most ``max_rows`` rows (a
     runaway file is refused there, not read to its end); errors name the file, line and
     column."""
     if len(row) != len(header):
         raise ValueError(f"{path}: line {line} has {len(row)} values, header has {len(header)}")
-    if rows == MAX_ROWS:
-        raise ValueError(f"{path}: more than {MAX_ROWS} data rows; at most that many are read "
+    if rows == max_rows:
+        kind = "FRF points" if max_rows == MAX_FRF_POINTS else "data rows"
+        raise ValueError(f"{path}: more than {max_rows:,} {kind}; at most that many are read "
                          "(decimate or split the file)")
     for name, cell in zip(header, row):
         try:
@@ -66,7 +83,7 @@ def append_numeric_row(values: array, row: list[str], header: list[str], path, l
                              "number") from None
 
 
-def _read_table(path) -> tuple[list[str], np.ndarray]:
+def _read_table(path, max_rows: int = MAX_ROWS) -> tuple[list[str], np.ndarray]:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such file")
@@ -85,7 +102,7 @@ def _read_table(path) -> tuple[list[str], np.ndarray]:
                     if len(set(header)) != len(header):
                         raise ValueError(f"{path}: duplicate column names in header {header}")
                     continue
-                append_numeric_row(values, row, header, path, reader.line_num, rows)
+                append_numeric_row(values, row, header, path, reader.line_num, rows, max_rows)
                 rows += 1
     except UnicodeDecodeError as exc:
         raise ValueError(f"{path}: not UTF-8 text (byte at offset {exc.start}); a CSV file "
@@ -125,7 +142,7 @@ def _check_increasing(path, header, data, name="frequency_hz"):
 
 def read_frf_csv(path, quantity: str) -> FrfData:
     """Read an FRF CSV (see module docstring); validation errors name the file and problem."""
-    header, data = _read_table(path)
+    header, data = _read_table(path, MAX_FRF_POINTS)
     _require(path, header, FRF_COLUMNS)
     _check_finite(path, header, data, FRF_COLUMNS)
     _check_increasing(path, header, data)
@@ -152,7 +169,7 @@ def read_frf_csv_conditions(path, quantity: str, columns=None) -> list[FrfData]:
     list of FrfData
         One per condition, in order of first appearance in the file.
     """
-    header, data = _read_table(path)
+    header, data = _read_table(path, MAX_FRF_POINTS)
     _require(path, header, FRF_COLUMNS)
     _check_finite(path, header, data, FRF_COLUMNS)
     cols = {name: data[:, i] for i, name in enumerate(header)}
@@ -177,7 +194,7 @@ def read_stepped_sine_csv(path, quantity: str) -> FrfData:
     ``real,imag`` files may hold any quantity; amplitude/phase files hold response/force, so
     ``quantity`` must be ``receptance`` or ``accelerance``.
     """
-    header, data = _read_table(path)
+    header, data = _read_table(path, MAX_FRF_POINTS)
     _require(path, header, ["frequency_hz"])
     if "real" in header or "imag" in header:
         return read_frf_csv(path, quantity)
@@ -330,16 +347,27 @@ def read_uff58(path, quantity: str, index: int = 0) -> FrfData:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such file")
-    uff = pyuff.UFF(str(path))
-    sets = [i for i, t in enumerate(uff.get_set_types()) if int(t) == 58]
-    if len(sets) <= index:
+    size = path.stat().st_size
+    if size > MAX_UFF_BYTES:
+        raise ValueError(f"{path}: {size / 2**20:.0f} MiB; at most {MAX_UFF_BYTES // 2**20} MiB "
+                         "of universal file are read")
+    try:
+        uff = pyuff.UFF(str(path))
+        sets = [i for i, t in enumerate(uff.get_set_types()) if int(t) == 58]
+        ds = uff.read_sets(sets[index]) if len(sets) > index else None
+    except Exception as exc:  # pyuff fails on damaged files in many ways, none of them ours
+        detail = " ".join(f"{type(exc).__name__}: {exc}".split())[:160]
+        raise ValueError(f"{path}: not a readable universal file ({detail})") from None
+    if ds is None:
         raise ValueError(f"{path}: has {len(sets)} dataset(s) 58, asked for number {index}")
-    ds = uff.read_sets(sets[index])
-    values = np.asarray(ds["data"])
+    values = np.asarray(ds.get("data", []))
+    if values.size > MAX_FRF_POINTS:
+        raise ValueError(f"{path}: {values.size:,} points; at most {MAX_FRF_POINTS:,} FRF "
+                         "points are read")
     if not np.iscomplexobj(values):
         raise ValueError(f"{path}: dataset 58 number {index} is real, expected a complex FRF")
     try:
-        return FrfData(np.asarray(ds["x"], dtype=float), values, quantity)
+        return FrfData(np.asarray(ds.get("x", []), dtype=float), values, quantity)
     except ValueError as exc:
         raise ValueError(f"{path}: {exc}") from None
 

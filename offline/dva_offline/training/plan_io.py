@@ -21,6 +21,7 @@ import numpy as np
 from aero_dva.atomic_io import atomic_output
 from aero_dva.text_input import read_text_input
 from dva_offline.training.plan import PlanSettings, TrainingPlan
+from aero_dva.safe_files import read_json
 
 __all__ = ["FILE_FORMAT", "PLAN_FILE", "load_plan", "plan_from_dict", "plan_to_dict",
            "save_plan"]
@@ -79,7 +80,7 @@ def plan_from_dict(data, where: str = "training plan") -> TrainingPlan:
             density=np.asarray(dwells["density"], dtype=float),
             damping=np.asarray(dwells["damping"], dtype=float),
             condition=np.asarray(dwells["condition"], dtype=int))
-    except (KeyError, TypeError, ValueError) as exc:
+    except (KeyError, TypeError, ValueError, OverflowError) as exc:
         raise ValueError(f"{where}: {type(exc).__name__}: {exc}") from None
     n = plan.airspeed.size
     arrays = (plan.airspeed, plan.density, plan.damping, plan.condition)
@@ -107,9 +108,5 @@ def load_plan(path) -> tuple[TrainingPlan, str]:
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"no training plan file {path}")
-    text = read_text_input(path, "training plan")  # refuses binary and oversized files
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"training plan {path}: not JSON ({exc})") from None
+    data = read_json(path, "training plan")  # refuses binary, oversized and deep files
     return plan_from_dict(data, f"training plan {path}"), str(data.get("wing", ""))

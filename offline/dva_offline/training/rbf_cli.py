@@ -139,6 +139,11 @@ def _rbf(args) -> int:
         except ValueError:
             raise ValueError(f"--spreads expects numbers separated by commas, got "
                              f"{args.spreads!r}") from None
+        from aero_dva.control.rbf_io import MAX_SPREAD, MIN_SPREAD
+
+        if not all(MIN_SPREAD <= s <= MAX_SPREAD for s in spreads):
+            raise ValueError(f"--spreads must lie within [{MIN_SPREAD:g}, {MAX_SPREAD:g}] "
+                             f"(a network file holds no other), got {args.spreads!r}")
     else:
         spreads = DEFAULT_SPREADS
     if not (math.isfinite(args.min_activation) and 0 <= args.min_activation < 1):

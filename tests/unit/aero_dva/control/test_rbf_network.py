@@ -224,7 +224,7 @@ def rewrite(path, **changes):
         ({"output_weights": None}, "'output_weights' is missing"),
         ({"header": {"version": 99}}, "version 99"),
         ({"header": {"format": "other"}}, "format is 'other'"),
-        ({"header": {"spread": -1.0}}, "spread must be > 0"),
+        ({"header": {"spread": -1.0}}, "spread must be within"),
         ({"header": {"input_names": ["a"]}}, "'input_names' must be 33 strings"),
         ({"header": {"input_scaling": {"offset": [0.0] * 33, "scale": [0.0] * 33}}}, "scale"),
     ],

@@ -97,7 +97,7 @@ def test_plan_file_round_trip_and_errors(mini, tmp_path):
     with pytest.raises(ValueError, match="density > 0"):
         plan_from_dict(bad)
     (tmp_path / "p.json").write_text("{not json")
-    with pytest.raises(ValueError, match="not JSON"):
+    with pytest.raises(ValueError, match="not valid JSON"):
         load_plan(tmp_path / "p.json")
 
 
