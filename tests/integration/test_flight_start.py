@@ -30,7 +30,7 @@ class Controller:
 
     def __init__(self, context, answer: bool = True):
         self.node = Node("probe_controller", context=context)
-        self.events: list[tuple[str, float]] = []
+        self.events: list[tuple[str, float]] = []  # (block, first sample) or (command, stamp)
         self.diagnostics: list = []
         self._answer = answer
         self._first_seen: float | None = None
@@ -46,7 +46,7 @@ class Controller:
         self.node.create_timer(0.01, self._release)
 
     def _on_block(self, msg) -> None:
-        self.events.append(("block", msg.first_sample_index / msg.sample_rate))
+        self.events.append(("block", msg.first_sample_index))
 
     def _on_condition(self, msg) -> None:
         if self._answer:
@@ -95,7 +95,7 @@ def test_flight_holds_for_the_first_command_then_follows_the_controller(
     spin(executor, lambda: len([e for e in controller.events if e[0] == "block"]) == 10,
          timeout=10.0)
     blocks = [t for kind, t in controller.events if kind == "block"]
-    assert blocks == [0.05 * i for i in range(10)]
+    assert blocks == [50 * i for i in range(10)]  # sample indices
     # Lockstep from the first block on: the block after t is flown only once the command
     # answering the block at t was sent, though the first answer came 0.5 s of wall time late.
     order = [kind for kind, _ in controller.events]
