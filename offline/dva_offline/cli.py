@@ -14,6 +14,7 @@ import warnings
 
 from dva_offline import __version__, info
 from dva_offline.bag import cli as bag_cli
+from dva_offline.cli_failures import INTERNAL_ERROR_EXIT, internal_error_line, is_input_error
 from dva_offline.cli_tools import CliError
 from dva_offline.control import cli as control_cli
 from dva_offline.discrepancy import cli as discrepancy_cli
@@ -24,7 +25,6 @@ from dva_offline.report import cli as report_cli
 from dva_offline.switching import cli as switching_cli
 from dva_offline.training import cli as training_cli
 from dva_offline.wing import cli as wing_cli
-from dva_offline.cli_failures import INTERNAL_ERROR_EXIT, internal_error_line, is_input_error
 
 __all__ = ["COMMANDS", "CliError", "build_parser", "main"]
 

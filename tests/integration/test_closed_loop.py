@@ -101,7 +101,8 @@ def network_file(design, tmp_path_factory):
     return save_rbf_network(network, tmp_path_factory.mktemp("rbf") / "network.npz")
 
 
-def _fly(executor, spin, ros_context, tmp_path, design, *controllers: Node, lag: float = 0.2):
+def _fly(executor, spin, ros_context, tmp_path, design, *controllers: Node, lag: float = 0.2,
+         first_input: float = 0.0):
     scenario = tmp_path / "scenario.yaml"
     scenario.write_text(f"name: hold\nduration: {design['duration']:.3f}\nblock_size: 50\n"
                         f"airspeed: {{kind: constant, value: {design['airspeed']}}}\n"
@@ -111,7 +112,9 @@ def _fly(executor, spin, ros_context, tmp_path, design, *controllers: Node, lag:
         Parameter("wait_for_subscribers", value=1), Parameter("damper_timeout", value=5.0),
         # The flight starts with the damper at the poor setting: only the controller can save it.
         Parameter("damper_initial", value=POOR_C2), Parameter("damper_fallback", value=POOR_C2),
-        Parameter("max_command_lag", value=lag)])
+        Parameter("max_command_lag", value=lag),
+        # the flight holds past the controller's first input until its first command
+        Parameter("first_input_time", value=first_input)])
     probe = Node("probe", context=ros_context)
     states, blocks = [], []
     probe.create_subscription(DamperState, "dva/damper_state", states.append, 5000)
@@ -149,7 +152,7 @@ def test_spectrum_rbf_loop_keeps_the_wing_bounded(executor, spin, ros_context, t
     rbf = RBFController(context=ros_context, parameter_overrides=_sim_time() + [
         Parameter("network_file", value=str(network_file))])
     outcome, states = _fly(executor, spin, ros_context, tmp_path, design, spectrum, rbf,
-                           lag=0.15)
+                           lag=0.15, first_input=2.0)  # the first spectrum: a 2 s window
     assert outcome == "completed"
     from_network = [s for s in states if s.source == "rbf_network"]
     assert from_network, "the network never commanded the damper"

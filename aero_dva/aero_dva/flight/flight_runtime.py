@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from aero_dva import data_files
+from aero_dva.flight.applied_control import AppliedControl
 from aero_dva.flight.damper import (
     DAMPER_RANGE,
     CommandResult,
@@ -169,6 +170,7 @@ class FlightRuntime:
         self._rng = np.random.default_rng(self.scenario.seed)
         self._index = 0
         self._sweep = self.scenario.airspeed.kind == "steps"
+        self.applied = AppliedControl()  # blocks by the source of the c2 they were flown with
 
     @property
     def time(self) -> float:
@@ -205,6 +207,7 @@ class FlightRuntime:
         else:
             # The damper is updated once per block: commands arrive between blocks.
             damping = np.full(n, self._damper.update(float(t[0])))
+        self.applied.count(self._damper.snapshot().source)
         force = self.scenario.force_std * self._rng.standard_normal(n)
         if self.scenario.force_levels:
             force *= force_scale_at(self.scenario, t)

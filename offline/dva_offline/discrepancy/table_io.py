@@ -30,8 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
-from dva_offline.isolator.frf_data import MIN_POINTS, FrfData, condition_columns
 from dva_offline.isolator.files import MAX_FRF_POINTS, append_numeric_row
+from dva_offline.isolator.frf_data import MIN_POINTS, FrfData, condition_columns
 
 FREQUENCY_UNITS = {"hz": 1.0, "khz": 1e3, "rad/s": 1.0 / (2 * np.pi), "1/s": 1.0}
 # factor to SI per quantity family; the SI unit of each family is the first entry

@@ -22,7 +22,7 @@ import yaml
 
 from aero_dva.atomic_io import atomic_output
 from aero_dva.flight.scenario_io import scenario_from_dict
-from aero_dva.text_input import read_text_input
+from aero_dva.safe_files import read_yaml
 from aero_dva.wing.model import LEADING_EDGE
 from dva_offline.evaluation.graph_cases import (
     CONTROLLER_LABELS,
@@ -30,7 +30,6 @@ from dva_offline.evaluation.graph_cases import (
     CaseStats,
     FlightCase,
 )
-from aero_dva.safe_files import read_yaml
 
 __all__ = ["flight_bag", "flight_record_path", "load_base_scenario", "load_records",
            "plot_summary", "plot_traces", "save_json", "write_scenario"]

@@ -19,9 +19,8 @@ from pathlib import Path
 import numpy as np
 
 from aero_dva.atomic_io import atomic_output
-from aero_dva.text_input import read_text_input
-from dva_offline.training.plan import PlanSettings, TrainingPlan
 from aero_dva.safe_files import read_json
+from dva_offline.training.plan import PlanSettings, TrainingPlan
 
 __all__ = ["FILE_FORMAT", "PLAN_FILE", "load_plan", "plan_from_dict", "plan_to_dict",
            "save_plan"]

@@ -86,7 +86,9 @@ SPEC = NodeSpec(
               "N subscribers in the graph (TOPIC or TOPIC:N, N default 1), e.g. the links "
               "between the nodes the bag is replayed into"),
         Param("wait_timeout", 30.0, "wall time after which playing starts anyway (with a "
-              "warning)", "s", 0.0, 1.0e6),
+              "warning), or fails (wait_timeout_fails)", "s", 0.0, 1.0e6),
+        Param("wait_timeout_fails", False, "fail (exit code 1, nothing played) when the graph "
+              "is not complete after wait_timeout, instead of playing anyway"),
         Param("delay", 0.5, "wall time from the end of the wait to the first message: DDS "
               "matches the two ends of a topic separately, and a subscriber that has not yet "
               "matched the player drops what it is sent", "s", 0.0, 3600.0),
@@ -135,6 +137,8 @@ class BagPlayer(Node):
         self._wait_nodes = [n for n in values["wait_for_nodes"] if n]
         self._wait_topics = [self._topic_count(t) for t in values["wait_for_topics"] if t]
         self._wait_timeout = float(values["wait_timeout"])
+        self._wait_fails = bool(values["wait_timeout_fails"])
+        self.exit_code = 0  # run_node's exit code: 1 when the graph never came up
         self._delay = float(values["delay"])
         self.played = self._select(values["topics"])
 
@@ -224,6 +228,12 @@ class BagPlayer(Node):
             if not missing:
                 return True
             if time.monotonic() > deadline:
+                if self._wait_fails:
+                    self.get_logger().error(f"the node graph was not complete after "
+                                            f"{self._wait_timeout:g} s (missing: {missing}): "
+                                            "nothing played")
+                    self.exit_code = 1
+                    return False
                 self.get_logger().warning(f"starting without {missing} after "
                                           f"{self._wait_timeout:g} s")
                 return True

@@ -43,7 +43,9 @@ def build_commands(args, inputs: list[str]) -> dict[str, list[str]]:
                           *ros_params(output=args.out, **sim_time),
                           "-p", "exclude:=[/rosout,/parameter_events]"],
     }
-    commands.update(controller_commands(args, **sim_time))
+    # The commands are held until the recorder has matched them (the spectra until the network
+    # and the recorder have).
+    commands.update(controller_commands(args, command_readers=1, **sim_time))
     others = list(commands)
     # The links between the nodes must be up before the first message, not only the nodes:
     # the spectra reach the network and the recorder, the commands the recorder.
@@ -54,7 +56,8 @@ def build_commands(args, inputs: list[str]) -> dict[str, list[str]]:
         *ros_params(bag=args.bag, rate=args.rate, wait_for_subscribers=1,
                  wait_for_nodes="[" + ",".join(others) + "]",
                  wait_for_topics="[" + ",".join(f'"{t}"' for t in links) + "]", delay=1.0,
-                 topics="[" + ",".join(inputs) + "]", wait_timeout=60.0),
+                 topics="[" + ",".join(inputs) + "]", wait_timeout=60.0,
+                 wait_timeout_fails=True),
     ]
     return commands
 
@@ -91,8 +94,10 @@ def run(args) -> dict:
     finally:
         codes = {name: stop_process(p, timeout=15.0) for name, p in reversed(processes.items())}
     if codes.get("bag_player") != 0:
-        raise SystemExit(f"replay_flight: error: bag_player failed ({codes['bag_player']}); "
-                         f"see {logs / 'bag_player.log'}")
+        lines = (logs / "bag_player.log").read_text(errors="replace").strip().splitlines()
+        why = next((line for line in reversed(lines) if "ERROR" in line), "")
+        raise SystemExit(f"replay_flight: error: bag_player failed ({codes['bag_player']})"
+                         f"{': ' + why.strip() if why else ''}; see {logs / 'bag_player.log'}")
     counts = {name: info.message_count for name, info in bag_topics(out).items()}
     return {"bag": str(out), "node_logs": str(logs), "played": inputs, "rate": args.rate,
             "wall_time": time.monotonic() - started, "exit_codes": codes, "counts": counts}

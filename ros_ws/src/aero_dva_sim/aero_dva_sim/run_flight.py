@@ -26,6 +26,13 @@ CONTROLLERS = ("fixed", "schedule", "rbf", "none")
 # one 50 ms block for the per-block schedule, the 20 Hz period for the fixed controller, one
 # 0.1 s spectrum hop plus a block for the RBF network.
 DEFAULT_COMMAND_LAG = {"schedule": 0.05, "fixed": 0.1, "rbf": 0.15, "none": 0.0}
+FIXED_RATE = 20.0  # [Hz sim] of the fixed controller's commands
+SPECTRUM_WINDOW = 2.0  # [s] the spectrum node's default window: the RBF network's first input
+# Subscribers (besides the recorder) each of the simulator's topics needs before the first
+# block, per controller: the schedule reads the flight condition, the spectrum node the
+# accelerations and damper states.
+CONTROLLER_INPUTS = {"schedule": ("flight/condition",),
+                     "rbf": ("wing/acceleration", "dva/damper_state")}
 
 
 def executable(package: str, name: str) -> str:
@@ -60,19 +67,46 @@ def build_commands(args, bag: Path) -> dict[str, list[str]]:
         "mcap_recorder": [executable("aero_dva_sim", "mcap_recorder"), "--ros-args",
                           *ros_params(output=bag, **sim_time)],
     }
-    commands.update(controller_commands(args, **sim_time))
-    # The flight starts once every other node of the graph is up (none misses its start).
-    others = list(commands)
-    commands["simulator"] = [
+    # Commands are held until the simulator and the recorder have both matched them.
+    commands.update(controller_commands(args, command_readers=2, **sim_time))
+    commands["simulator"] = simulator_command(args, others=list(commands))
+    return commands
+
+
+def graph_links(controller: str, others: list[str]) -> list[str]:
+    """``TOPIC:N`` entries the simulator waits for before its first block: the recorder and the
+    controller's nodes subscribed to what they read, every node to /clock, the recorder to the
+    commands (and spectra) it must record from the first one on."""
+    links = [f"{ch}:2" for ch in CONTROLLER_INPUTS.get(controller, ())]
+    links.append(f"/clock:{len(others)}")
+    if controller != "none":
+        links.append("dva/damper_command:2")
+    if controller == "rbf":
+        links.append("dva/spectrum:2")
+    return links
+
+
+def simulator_command(args, others: list[str]) -> list[str]:
+    """The simulator's command line: the flight starts once the graph is complete (every node
+    up and every link matched, or it fails after --wait-timeout) and holds at the controller's
+    first input until its first command has arrived."""
+    lag = DEFAULT_COMMAND_LAG[args.controller] if args.max_command_lag is None \
+        else args.max_command_lag
+    return [
         executable("aero_dva_sim", "simulator"), "--ros-args",
         *ros_params(scenario=args.scenario, wing=args.wing, absorber=args.absorber,
                  real_time_factor=args.real_time_factor, wait_for_subscribers=1,
                  wait_for_nodes="[" + ",".join(others) + "]",
-                 max_command_lag=DEFAULT_COMMAND_LAG[args.controller]
-                 if args.max_command_lag is None else args.max_command_lag,
+                 wait_for_topics="[" + ",".join(f'"{t}"' for t in graph_links(
+                     args.controller, others)) + "]",
+                 wait_for_command_publishers=0 if args.controller == "none" else 1,
+                 wait_timeout=args.wait_timeout, wait_timeout_fails=True,
+                 max_command_lag=lag,
+                 first_input_time=SPECTRUM_WINDOW if args.controller == "rbf" else 0.0,
+                 first_command_timeout=args.wait_timeout,
+                 command_wait_timeout=args.command_wait_timeout,
                  damper_timeout=1e9 if args.controller == "none" else args.damper_timeout),
     ]
-    return commands
 
 
 def die_with_parent() -> None:
@@ -146,8 +180,8 @@ def run(args) -> dict:
         codes = {name: stop_process(p, timeout=15.0) for name, p in reversed(processes.items())}
     wall = time.monotonic() - started
     if codes.get("simulator") not in (0, None):
-        raise SystemExit(f"run_flight: error: simulator failed ({codes['simulator']}); "
-                         f"see {logs / 'simulator.log'}")
+        raise SystemExit(f"run_flight: error: simulator failed ({codes['simulator']}): "
+                         f"{_last_error(logs / 'simulator.log')}; see {logs / 'simulator.log'}")
     log = load_flight_log(bag)
     summary = summarize(log).to_dict()
     final = next((d["values"] for d in reversed(log.diagnostics)
@@ -156,8 +190,39 @@ def run(args) -> dict:
                    wall_time=wall, exit_codes=codes,
                    flight_wall_time=float(final.get("wall_time_s", "nan")),
                    command_latency_median=float(final.get("command_latency_median_s", "nan")))
+    summary.update(applied_control(args, final, bag))
     return {k: (None if isinstance(v, float) and math.isnan(v) else v)
             for k, v in summary.items()}
+
+
+def _last_error(path: Path) -> str:
+    """The simulator's last error line (why it failed), or its last line."""
+    lines = path.read_text(errors="replace").strip().splitlines() if path.exists() else []
+    errors = [line for line in lines if "ERROR" in line or "error:" in line]
+    return (errors or lines or ["no output"])[-1].strip()
+
+
+def applied_control(args, final: dict, bag: Path) -> dict:
+    """What the flight was flown with, from the simulator's end-of-flight report in the bag:
+    blocks on the controller's, the start-up and the fallback c2, commands received, expected
+    and recorded, and ``control_problem``: why the flight must not count as controlled."""
+    from aero_dva.bag.bag_reader import bag_topics
+    from aero_dva.bag.channels import DAMPER_COMMAND, SPECTRUM
+    from aero_dva.flight.applied_control import control_problem, expected_commands
+
+    counts = {name: info.message_count for name, info in bag_topics(bag).items()}
+    blocks = int(final.get("blocks", 0))
+    block_duration = float(final.get("block_duration_s", 0.0))
+    out = {key: int(final.get(key, 0)) for key in (
+        "blocks", "blocks_controlled", "blocks_startup", "blocks_fallback",
+        "commands_received", "commands_accepted", "controller_wait_timeouts")}
+    out.update(
+        commands_expected=expected_commands(args.controller, blocks, block_duration,
+                                            counts.get(SPECTRUM.absolute(), 0), FIXED_RATE),
+        commands_recorded=counts.get(DAMPER_COMMAND.absolute(), 0),
+        control_problem=None if args.controller == "none" else control_problem(
+            blocks, out["blocks_controlled"], out["blocks_fallback"], args.max_fallback_share))
+    return out
 
 
 def _format(summary: dict) -> str:
@@ -183,6 +248,11 @@ def _format(summary: dict) -> str:
             else "none within the flight"),
         f"leading-edge RMS     {number('leading_edge_rms', '.3e')} m (before divergence)",
         f"mean applied c2      {number('mean_damping', '.0f')} N s/m",
+        f"c2 applied from      the controller in {summary['blocks_controlled']} of "
+        f"{summary['blocks']} blocks, start-up {summary['blocks_startup']}, fallback "
+        f"{summary['blocks_fallback']}",
+        f"commands             {summary['commands_received']} received of "
+        f"{summary['commands_expected']} expected, {summary['commands_recorded']} recorded",
         f"bag (MCAP)           {summary['bag']}",
         f"node logs            {summary['node_logs']}",
     ]
@@ -213,6 +283,16 @@ def build_parser() -> argparse.ArgumentParser:
                              "0 = free running)")
     parser.add_argument("--damper-timeout", type=float, default=0.5,
                         help="[s] sim time without commands before the fallback c2 applies")
+    parser.add_argument("--max-fallback-share", type=float, default=0.02,
+                        help="fail (exit 1) when more than this share of the blocks ran on the "
+                             "fallback c2 (default 0.02); a flight whose controller never acted "
+                             "always fails")
+    parser.add_argument("--wait-timeout", type=float, default=60.0,
+                        help="[s] wall time allowed for the graph to come up and for the first "
+                             "command; the run fails after it (default 60)")
+    parser.add_argument("--command-wait-timeout", type=float, default=10.0,
+                        help="[s] wall time the flight waits for a late command before flying "
+                             "on with the damper's fallback (default 10)")
     parser.add_argument("--output", default=None,
                         help="bag directory to create (default runs/<scenario>_<controller>_"
                              "<UTC time>)")
@@ -224,22 +304,27 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def controller_commands(args, **params) -> dict[str, list[str]]:
+def controller_commands(args, command_readers: int = 0, **params) -> dict[str, list[str]]:
     """Node name -> command line of the controller nodes ``args.controller`` needs (rbf: the
-    spectrum node and the network; none: no node), each with the ROS parameters ``params``."""
+    spectrum node and the network; none: no node), each with the ROS parameters ``params``.
+    With ``command_readers``, the controller holds its first commands until that many
+    subscribers have matched them (the spectrum node its spectra until the network and the
+    recorder have)."""
     def node(package, name, **own):
         return [executable(package, name), "--ros-args", *ros_params(**own, **params)]
 
+    hold = {"hold_until_subscribers": command_readers} if command_readers else {}
     if args.controller == "rbf":
-        return {"spectrum": node("dva_controller", "spectrum"),
+        return {"spectrum": node("dva_controller", "spectrum",
+                                 **({"hold_until_subscribers": 2} if command_readers else {})),
                 "rbf_controller": node("dva_controller", "rbf_controller",
-                                       network_file=args.network)}
+                                       network_file=args.network, **hold)}
     if args.controller == "schedule":
         return {"airspeed_controller": node("dva_controller", "airspeed_controller",
-                                            schedule_file=args.schedule)}
+                                            schedule_file=args.schedule, **hold)}
     if args.controller == "fixed":
         return {"fixed_controller": node("dva_controller", "fixed_controller",
-                                         damping=args.damping, rate=20.0)}
+                                         damping=args.damping, rate=FIXED_RATE, **hold)}
     return {}
 
 
@@ -279,6 +364,10 @@ def main(argv: list[str] | None = None) -> int:
     if summary is None:
         return code
     print(json.dumps(summary, indent=2) if args.json else _format(summary))
+    if summary.get("control_problem"):
+        print(f"run_flight: error: flight not counted as controlled by "
+              f"'{args.controller}': {summary['control_problem']}", file=sys.stderr)
+        return 1
     return 0
 
 

@@ -80,14 +80,26 @@ SPEC = NodeSpec(
         Param("wait_for_subscribers", 0, "start the flight when every data topic has this many "
               "subscribers", "", 0, 1000),
         Param("wait_for_nodes", [""], "... and these nodes are in the graph"),
+        Param("wait_for_topics", [""], "... and these topics have N subscribers (TOPIC:N): "
+              "matched to the simulator's publisher for its own topics (/clock included), in "
+              "the graph for the others (dva/damper_command: the recorder's)"),
+        Param("wait_for_command_publishers", 0, "... and this many dva/damper_command "
+              "publishers have matched the simulator", "", 0, 1000),
         Param("wait_timeout", 30.0, "wall time after which the flight starts anyway (with a "
-              "warning)", "s", 0.0, 1.0e6),
+              "warning), or fails (wait_timeout_fails)", "s", 0.0, 1.0e6),
+        Param("wait_timeout_fails", False, "fail the flight (exit code 1) when the graph is "
+              "not complete after wait_timeout, instead of starting anyway"),
         Param("exit_on_end", True, "stop the node when the flight ends"),
         Param("max_command_lag", 0.0, "sim time the flight may run ahead of the newest accepted "
               "command's stamp (0: free running); bounds the loop's sim-time latency whatever "
               "the machine's load", "s", 0.0, 3600.0),
         Param("command_wait_timeout", 2.0, "wall time to wait for the controller before flying "
               "on (the damper's stale fallback then acts)", "s", 0.0, 3600.0),
+        Param("first_input_time", 0.0, "with max_command_lag: sim time of the controller's "
+              "first input (0: the first block; the spectrum window for the RBF network); the "
+              "flight holds past it until the first command has arrived", "s", 0.0, 1.0e6),
+        Param("first_command_timeout", 30.0, "wall time the flight holds for the first command "
+              "before it fails (exit code 1): the controller never acted", "s", 0.0, 1.0e6),
     ),
     topics="""
 publishes wing/acceleration, wing/displacement, wing/excitation, flight/condition,
@@ -108,7 +120,16 @@ class Simulator(Node):
         self._rtf = float(self.get_parameter("real_time_factor").value)
         self._wait_for = int(self.get_parameter("wait_for_subscribers").value)
         self._wait_for_nodes = [n for n in self.get_parameter("wait_for_nodes").value if n]
+        self._wait_topics = [topic_count(t) for t in self.get_parameter("wait_for_topics").value
+                             if t]
+        self._wait_command_pubs = int(self.get_parameter("wait_for_command_publishers").value)
         self._wait_timeout = float(self.get_parameter("wait_timeout").value)
+        self._wait_fails = bool(self.get_parameter("wait_timeout_fails").value)
+        self._first_input = float(self.get_parameter("first_input_time").value)
+        self._first_timeout = float(self.get_parameter("first_command_timeout").value)
+        self._first_hold_since: float | None = None
+        self.exit_code = 0  # run_node's exit code: 1 when the flight failed
+        self.commands_received = 0
         self._exit_on_end = bool(self.get_parameter("exit_on_end").value)
         # run_node spins until ``done``: the end of the flight, or shutdown without exit_on_end
         self.done = self.finished if self._exit_on_end else None
@@ -129,7 +150,8 @@ class Simulator(Node):
         self.lag_timeouts = 0
         self.rejected: dict[str, int] = {}  # rejection reason -> commands rejected
         self._rejections_reported: dict[str, tuple[float, int]] = {}  # reason -> (wall, count)
-        self.create_subscription(DamperCommand, ch.DAMPER_COMMAND.name, self._on_command, 10)
+        self._command_sub = self.create_subscription(DamperCommand, ch.DAMPER_COMMAND.name,
+                                                     self._on_command, 10)
 
         self._wall = Clock(clock_type=ClockType.STEADY_TIME)
         self._started_wall: float | None = None
@@ -160,6 +182,7 @@ class Simulator(Node):
 
     # ------------------------------------------------------------------ callbacks
     def _on_command(self, msg: DamperCommand) -> None:
+        self.commands_received += 1
         result = self.runtime.command(msg.damping, msg.source)
         if result is not None and result.accepted:
             # The command acts from the next block on; its stamp is its input's time.
@@ -187,21 +210,42 @@ class Simulator(Node):
                        {"command": msg.damping, "source": msg.source, "reason": reason,
                         "rejected_since_last_report": since, "rejected_total": count})
 
+    def _missing(self) -> list[str]:
+        """What the start of the flight still waits for (empty: nothing)."""
+        own = {**self._pub, ch.CLOCK.name: self._clock_pub}
+        missing = [f"{self._wait_for} subscribers on {t}" for t in DATA_TOPICS
+                   if self._pub[t].get_subscription_count() < self._wait_for]
+        missing += [f"node {n}" for n in sorted(set(self._wait_for_nodes)
+                                                - set(self.get_node_names()))]
+        for topic, count in self._wait_topics:
+            have = (own[topic].get_subscription_count() if topic in own
+                    else self.count_subscribers(topic))
+            if have < count:
+                missing.append(f"{count} subscribers on {topic} ({have})")
+        if self._command_sub.get_publisher_count() < self._wait_command_pubs:
+            missing.append(f"{self._wait_command_pubs} publishers matched on "
+                           f"{ch.DAMPER_COMMAND.name}")
+        return missing
+
     def _ready(self) -> bool:
-        counts = {t: self._pub[t].get_subscription_count() for t in DATA_TOPICS}
-        missing = sorted(set(self._wait_for_nodes) - set(self.get_node_names()))
-        if min(counts.values()) >= self._wait_for and not missing:
+        missing = self._missing()
+        if not missing:
             return True
         if time.monotonic() - self._waiting_since > self._wait_timeout:
-            self.get_logger().warning(
-                f"starting without all subscribers {counts} or nodes {missing}")
+            if self._wait_fails:
+                self._fail(f"the node graph was not complete after {self._wait_timeout:g} s "
+                           f"(missing: {'; '.join(missing)}): flight not started")
+                return False
+            self.get_logger().warning(f"starting without {'; '.join(missing)}")
             return True
         return False
 
     def _waiting_for_controller(self) -> bool:
         """With ``max_command_lag``, hold the flight until the controller has caught up."""
-        if self._max_lag <= 0 or self._last_command_stamp is None:
+        if self._max_lag <= 0:
             return False
+        if self._last_command_stamp is None:
+            return self._waiting_for_first_command()
         if self.runtime.time <= self._last_command_stamp + self._max_lag + 1e-9:
             self._lag_since = None
             return False
@@ -218,6 +262,20 @@ class Simulator(Node):
         self.lag_timeouts += 1
         return False
 
+    def _waiting_for_first_command(self) -> bool:
+        """Hold past the controller's first input until its first command has arrived: a
+        start that depended on when discovery completes would make every run differ."""
+        if self.runtime.time <= self._first_input + 1e-9:
+            return False
+        now = time.monotonic()
+        if self._first_hold_since is None:
+            self._first_hold_since = now
+        if self._first_timeout > 0 and now - self._first_hold_since > self._first_timeout:
+            self._fail(f"no damper command within {self._first_timeout:g} s (wall) of the "
+                       f"first input at t = {self._first_input:g} s: the controller never "
+                       "acted; flight stopped")
+        return True
+
     def _step(self) -> None:
         if self.finished.done():
             return
@@ -227,6 +285,8 @@ class Simulator(Node):
             self._started_wall = time.monotonic()
         while True:
             if self._waiting_for_controller():
+                if self.finished.done():
+                    return
                 self._set_stepping(False)
                 return
             if self._sim_time_due() < self.runtime.time - 0.5 * self.runtime.block_duration:
@@ -303,15 +363,18 @@ class Simulator(Node):
         values = {"sim_time_s": sim, "wall_time_s": wall, "controller_wait_timeouts":
                   self.lag_timeouts,
                   "real_time_factor": sim / wall if wall > 0 else math.inf,
-                  "critical_airspeed_no_dva": self.runtime.critical_airspeed}
+                  "critical_airspeed_no_dva": self.runtime.critical_airspeed,
+                  "block_duration_s": self.runtime.block_duration,
+                  "commands_received": self.commands_received,
+                  "commands_accepted": len(self._latencies),
+                  **self.runtime.applied.values()}
         values.update({f"published:{t}": n for t, n in self.published.items()})
         values.update({f"rejected:{reason}": n for reason, n in self.rejected.items()})
         if self._latencies:
             latency = np.array(self._latencies)
             values.update(command_latency_median_s=float(np.median(latency)),
                           command_latency_p95_s=float(np.percentile(latency, 95)),
-                          command_latency_max_s=float(latency.max()),
-                          commands_accepted=latency.size)
+                          command_latency_max_s=float(latency.max()))
         return values
 
     def _diagnose(self, level: str, text: str, values: dict) -> None:
@@ -326,11 +389,30 @@ class Simulator(Node):
             self.runtime.time, ch.FLIGHT_DIAGNOSTIC_NAME, ch.SIMULATOR_HARDWARE_ID,
             [(level, text, values)]))
 
+    def _fail(self, text: str) -> None:
+        if self.finished.done():
+            return
+        self._diagnose("error", text, self._summary())
+        self.exit_code = 1
+        self._finish("failed")
+
     def _finish(self, outcome: str) -> None:
         self._timer.cancel()
         self._poll.cancel()
         if not self.finished.done():
             self.finished.set_result(outcome)
+
+
+def topic_count(entry: str) -> tuple[str, int]:
+    """``"TOPIC:N"`` (or ``"TOPIC"``, N = 1) of the ``wait_for_topics`` parameter."""
+    name, sep, count = entry.rpartition(":")
+    if not sep:
+        return entry, 1
+    try:
+        return name, int(count)
+    except ValueError:
+        raise ValueError(f"parameter 'wait_for_topics': {entry!r} is not TOPIC or TOPIC:N"
+                         ) from None
 
 
 def main(args=None) -> int:

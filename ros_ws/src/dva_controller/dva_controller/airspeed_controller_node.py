@@ -30,6 +30,7 @@ from aero_dva.control.schedule_io import load_schedule
 from dva_controller.shared_params import DAMPER_RANGE, damping_range
 from dva_msgs.msg import DamperCommand, FlightCondition
 from dva_ros_common import conversions
+from dva_ros_common.held_publisher import HOLD_PARAM, HeldPublisher
 from dva_ros_common.node_params import NodeSpec, Param, declare_parameters
 from dva_ros_common.node_tools import INPUT_HEALTH_PARAMS, InputHealth, Status, run_node
 
@@ -55,6 +56,7 @@ SPEC = NodeSpec(
         Param("max_airspeed", 400.0, "larger airspeeds are treated as sensor or unit errors "
               "and ignored", "m/s", 1.0, 1.0e4),
         *INPUT_HEALTH_PARAMS,
+        HOLD_PARAM,
     ),
     topics="""
 subscribes flight/condition (dva_msgs/FlightCondition)
@@ -101,7 +103,9 @@ class AirspeedController(Node):
             self, "airspeed schedule", ch.FLIGHT_CONDITION.name, self.counts, self._status
         )
 
-        self._command_pub = self.create_publisher(DamperCommand, ch.DAMPER_COMMAND.name, 10)
+        self._command_pub = HeldPublisher(
+            self, self.create_publisher(DamperCommand, ch.DAMPER_COMMAND.name, 10),
+            values["hold_until_subscribers"])
         self.create_subscription(FlightCondition, ch.FLIGHT_CONDITION.name, self._on_condition, 10)
         self.get_logger().info(
             f"c2 = {self.schedule.a0:g} + {self.schedule.a1:g} U N s/m ({origin}), "

@@ -15,6 +15,7 @@ from aero_dva.bag import channels as ch
 from dva_controller.shared_params import MAX_DAMPING
 from dva_msgs.msg import DamperCommand
 from dva_ros_common.conversions import damper_command
+from dva_ros_common.held_publisher import HOLD_PARAM, HeldPublisher
 from dva_ros_common.node_params import NodeSpec, Param, declare_parameters
 from dva_ros_common.node_tools import run_node
 
@@ -27,6 +28,7 @@ SPEC = NodeSpec(
         Param("damping", 1500.0, "c2 to command", "N s/m", 0.0, MAX_DAMPING, dynamic=True),
         Param("rate", 10.0, "publishing rate, in ROS time (sim time with use_sim_time)", "Hz",
               0.01, 1000.0),
+        HOLD_PARAM,
     ),
     topics="publishes dva/damper_command (dva_msgs/DamperCommand, source \"fixed\")",
 )
@@ -40,7 +42,9 @@ class FixedController(Node):
         values = declare_parameters(self, SPEC)
         self._damping = self._checked_damping(values["damping"])
         rate = float(values["rate"])
-        self._publisher = self.create_publisher(DamperCommand, ch.DAMPER_COMMAND.name, 10)
+        self._publisher = HeldPublisher(
+            self, self.create_publisher(DamperCommand, ch.DAMPER_COMMAND.name, 10),
+            values["hold_until_subscribers"])
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.create_timer(1.0 / rate, self._publish)
         self.get_logger().info(f"commanding c2 = {self._damping:g} N s/m at {rate:g} Hz")

@@ -44,6 +44,7 @@ from dva_controller.shared_params import (
 )
 from dva_msgs.msg import DamperCommand, ScaledSpectrum
 from dva_ros_common import conversions
+from dva_ros_common.held_publisher import HOLD_PARAM, HeldPublisher
 from dva_ros_common.node_params import NodeSpec, Param, declare_parameters
 from dva_ros_common.node_tools import INPUT_HEALTH_PARAMS, InputHealth, Status, run_node
 
@@ -65,6 +66,7 @@ SPEC = NodeSpec(
         *SPECTRUM_SHAPE,
         *DAMPER_RANGE,
         *INPUT_HEALTH_PARAMS,
+        HOLD_PARAM,
     ),
     topics="""
 subscribes dva/spectrum (dva_msgs/ScaledSpectrum)
@@ -117,7 +119,9 @@ class RBFController(Node):
         self._health = InputHealth(self, "rbf network", ch.SPECTRUM.name, self.counts,
                                    self._status)
 
-        self._command_pub = self.create_publisher(DamperCommand, ch.DAMPER_COMMAND.name, 10)
+        self._command_pub = HeldPublisher(
+            self, self.create_publisher(DamperCommand, ch.DAMPER_COMMAND.name, 10),
+            values["hold_until_subscribers"])
         self.create_subscription(ScaledSpectrum, ch.SPECTRUM.name, self._on_spectrum, 10)
         self.get_logger().info(
             f"RBF network {path}: {self.network.n_neurons} neurons, {dim} inputs "

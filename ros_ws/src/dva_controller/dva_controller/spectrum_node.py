@@ -32,6 +32,7 @@ from aero_dva.control.spectrum_stream import SpectrumStream
 from dva_controller.shared_params import SPECTRUM_SHAPE, spectrum_shape
 from dva_msgs.msg import AccelerationBlock, DamperState, ScaledSpectrum
 from dva_ros_common import conversions
+from dva_ros_common.held_publisher import HOLD_PARAM, HeldPublisher
 from dva_ros_common.node_params import NodeSpec, Param, declare_parameters
 from dva_ros_common.node_tools import INPUT_HEALTH_PARAMS, InputHealth, Status, run_node
 
@@ -48,6 +49,7 @@ SPEC = NodeSpec(
         Param("hop", 0.1, "time between window starts; a whole number of samples", "s",
               1.0e-3, 3600.0),
         *INPUT_HEALTH_PARAMS,
+        HOLD_PARAM,
     ),
     topics="""
 subscribes wing/acceleration (dva_msgs/AccelerationBlock)
@@ -72,7 +74,9 @@ class SpectrumNode(Node):
         self.counts = self._stream.counts
         self._health = InputHealth(self, "window", ch.ACCELERATION.name, self.counts, self._status)
 
-        self._spectrum_pub = self.create_publisher(ScaledSpectrum, ch.SPECTRUM.name, 10)
+        self._spectrum_pub = HeldPublisher(
+            self, self.create_publisher(ScaledSpectrum, ch.SPECTRUM.name, 10),
+            values["hold_until_subscribers"])
         self.create_subscription(AccelerationBlock, ch.ACCELERATION.name, self._on_block,
                                  QOS_DEPTH)
         self.create_subscription(DamperState, ch.DAMPER_STATE.name, self._on_damper_state,

@@ -191,8 +191,10 @@ def run_node(node_class: Callable[[], Node], spec: NodeSpec, args=None, *,
     files (a one-line error). The node spins until its ``done`` future completes, if it has
     one that is not None, else until shutdown. A node with a ``close()`` method has it called
     once at the end, with SIGINT and SIGTERM ignored so that a second Ctrl-C cannot cut it
-    short (the recorder closes its bag there). Errors while spinning are left to raise, so they
-    keep their traceback. ``args`` is the whole command line (default ``sys.argv``).
+    short (the recorder closes its bag there). A node's ``exit_code`` attribute, if it has one,
+    is the exit code after a normal end (the simulator's 1 for a failed flight). Errors while
+    spinning are left to raise, so they keep their traceback. ``args`` is the whole command
+    line (default ``sys.argv``).
 
     ``drain(node)``, a count of messages the node has taken: SIGINT and SIGTERM stop the spin
     but leave the context up, and the node takes what is still queued (until the count stops

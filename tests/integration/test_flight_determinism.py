@@ -1,0 +1,80 @@
+"""run_flight gives the same record idle and beside busy loops, and never reports a flight its
+controller did not fly as controlled.
+
+The record (divergence, leading-edge RMS, mean applied c2, commands) is compared digit for digit:
+the flights run the same code with the same seed on one machine, and in lockstep the simulator
+applies every command at the block the controller answered, so the c2 history, and with it
+every sample, is the same whatever the load (docs/reliability.md). A short ramp whose schedule
+changes c2 every block makes any difference in timing show in the mean c2.
+"""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from concurrent.futures import ThreadPoolExecutor
+
+from aero_dva.control.airspeed_schedule import AirspeedSchedule
+from aero_dva.control.schedule_io import save_schedule
+
+from .conftest import ros2_run_path
+
+RECORD = ("divergence_ratio", "leading_edge_rms", "mean_damping", "commands_recorded",
+          "commands_received", "blocks_startup", "blocks_fallback")
+BUSY_LOOP = "while True:\n    pass\n"
+
+
+def _files(tmp_path):
+    scenario = tmp_path / "short.yaml"
+    scenario.write_text("name: short\nduration: 3.0\nblock_size: 50\n"
+                        "airspeed: {kind: ramp, start_ratio: 0.8, end_ratio: 0.9}\n"
+                        "excitation: {force_std: 1000.0, seed: 5}\n")
+    schedule = save_schedule(AirspeedSchedule(a0=-2150.0, a1=31.5, airspeed_range=(0.0, 400.0),
+                                              damping_range=(0.0, 2500.0)),
+                             tmp_path / "schedule.json")
+    return scenario, schedule
+
+
+def _fly(tmp_path, name: str, *args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [str(ros2_run_path("aero_dva_sim", "run_flight")), "--output", str(tmp_path / name),
+         "--json", *args], capture_output=True, text=True, timeout=600)
+
+
+def _record(result: subprocess.CompletedProcess) -> tuple:
+    assert result.returncode == 0, result.stdout + result.stderr
+    summary = json.loads(result.stdout)
+    return tuple(summary[k] for k in RECORD)
+
+
+def test_same_record_idle_and_beside_busy_loops(tmp_path):
+    scenario, schedule = _files(tmp_path)
+    args = ("--scenario", str(scenario), "--controller", "schedule", "--schedule", str(schedule))
+    idle = [_record(_fly(tmp_path, f"idle{i}", *args)) for i in range(2)]
+    busy = [subprocess.Popen([sys.executable, "-c", BUSY_LOOP]) for _ in range(2)]
+    try:
+        with ThreadPoolExecutor(max_workers=2) as pool:
+            loaded = [_record(r) for r in pool.map(
+                lambda i: _fly(tmp_path, f"loaded{i}", *args), range(2))]
+    finally:
+        for process in busy:
+            process.kill()
+            process.wait()
+    assert idle[1] == idle[0] and loaded == [idle[0], idle[0]], (idle, loaded)
+    record = dict(zip(RECORD, idle[0]))
+    # 60 blocks: the first on the start-up c2, every other one on a command; one command per
+    # flight condition in the bag, every one but the last block's received in time
+    assert record["blocks_startup"] == 1 and record["blocks_fallback"] == 0
+    assert record["commands_received"] == 59 and record["commands_recorded"] == 60
+    assert record["divergence_ratio"] is None
+
+
+def test_a_flight_mostly_on_the_fallback_fails_and_says_why(tmp_path):
+    scenario, _ = _files(tmp_path)
+    # Commands every 50 ms of sim time, stale after 10 ms: some blocks start on the fallback.
+    result = _fly(tmp_path, "stale", "--scenario", str(scenario), "--controller", "fixed",
+                  "--damping", "900", "--damper-timeout", "0.01")
+    assert result.returncode == 1, result.stdout + result.stderr
+    summary = json.loads(result.stdout)  # the summary is still printed, with the counts
+    assert summary["blocks_fallback"] > 0.02 * summary["blocks"]
+    assert "were flown on the fallback c2" in result.stderr.splitlines()[-1]
