@@ -152,6 +152,8 @@ def test_paced_flight_keeps_its_real_time_factor(executor, spin, ros_context, tm
     executor.add_node(sim)
     assert spin(executor, sim.finished.done, timeout=60.0)
     assert spin(executor, lambda: "flight completed" in probe.messages(), timeout=5.0)
+    # The report can overtake the last blocks on their way to the probe: wait for them.
+    assert spin(executor, lambda: len(probe.blocks) >= 50, timeout=5.0), len(probe.blocks)
     final = next(s for d in probe.diagnostics for s in d.status
                  if s.message == "flight completed")
     values = {kv.key: float(kv.value) for kv in final.values
