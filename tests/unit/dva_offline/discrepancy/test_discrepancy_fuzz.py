@@ -11,7 +11,7 @@ from dva_offline.discrepancy.fuzz_run import commands, run_table
 from dva_offline.discrepancy.fuzz_tables import KINDS, random_table
 
 SEED = 17
-N_TABLES = 8  # about 4 min on two idle cores in the bench; the 200-table run is the bench
+N_TABLES = 8  # the suite's share; the 200-table run is bench/bench_discrepancy_fuzz.py
 
 
 def test_tables_have_real_scales():
