@@ -206,8 +206,8 @@ def applied_control(args, final: dict, bag: Path) -> dict:
     """What the flight was flown with, from the simulator's end-of-flight report in the bag:
     blocks on the controller's, the start-up and the fallback c2, commands received, expected
     and recorded, and ``control_problem``: why the flight must not count as controlled."""
-    from aero_dva.bag.reader import bag_topics
     from aero_dva.bag.channels import DAMPER_COMMAND, SPECTRUM
+    from aero_dva.bag.reader import bag_topics
     from aero_dva.flight.applied_control import control_problem, expected_commands
 
     counts = {name: info.message_count for name, info in bag_topics(bag).items()}
