@@ -173,6 +173,11 @@ class FlightRuntime:
         self.applied = AppliedControl()  # blocks by the source of the c2 they were flown with
 
     @property
+    def sweeps_damping(self) -> bool:
+        """The scenario is a stepped sweep that operates the damper itself (commands ignored)."""
+        return self._sweep
+
+    @property
     def time(self) -> float:
         """[s] sim time of the next sample."""
         return self._index / self.sample_rate

@@ -242,8 +242,8 @@ class Simulator(Node):
 
     def _waiting_for_controller(self) -> bool:
         """With ``max_command_lag``, hold the flight until the controller has caught up."""
-        if self._max_lag <= 0:
-            return False
+        if self._max_lag <= 0 or self.runtime.sweeps_damping:
+            return False  # (a stepped sweep applies its own c2: no command to wait for)
         if self._last_command_stamp is None:
             return self._waiting_for_first_command()
         if self.runtime.time <= self._last_command_stamp + self._max_lag + 1e-9:

@@ -15,7 +15,7 @@ from aero_dva.wing.wing_io import load_wing, reference_wing_path
 from dva_offline.wing import calibration as wc
 
 REFERENCE = load_wing(reference_wing_path())
-SCRIPT = Path(__file__).resolve().parents[3] / "scripts" / "calibrate_reference_wing.py"
+SCRIPT = Path(__file__).resolve().parents[4] / "scripts" / "calibrate_reference_wing.py"
 
 # The reference wing's ratios as `dva wing design` computes them (docs/wing.md table).
 REFERENCE_RATIOS = {
