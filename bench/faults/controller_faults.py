@@ -125,7 +125,12 @@ def run_controller_trial(mode: str, kill_after: float, work: Path, *, damping: f
     states = list(probe.states)
     before = [s for s in states if s.wall <= killed]
     after = [s for s in states if s.wall > killed]
-    first = next(s for s in after if s.status == STATUS_FALLBACK)
+    # The kill's fallback is the first fallback state after the controller's last applied c2,
+    # in sim time: on a busy machine the free-running flight can fall back (and recover) before
+    # the kill, and the probe can receive such earlier states after it.
+    last_ok = max((s.stamp for s in states if s.status == STATUS_OK), default=-math.inf)
+    first = min((s for s in states if s.status == STATUS_FALLBACK and s.stamp > last_ok),
+                key=lambda s: s.stamp)
     between = [s for s in after if s.wall < first.wall]
     walls = [before[-1].wall] + [s.wall for s in after if s.wall <= first.wall]
     gaps = [b - a for a, b in zip(walls, walls[1:])]
