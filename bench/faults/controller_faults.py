@@ -52,8 +52,9 @@ class ControllerTrial:
         [N s/m] c2 applied in the states that reached the probe between the kill and the
         fallback (by wall time: none when the fallback's state is the first to arrive).
     held_min, held_max : float
-        [N s/m] c2 applied in the states stamped (sim time) from the last accepted command to
-        the fallback: the damper's own account of what it held, whatever the probe's backlog.
+        [N s/m] c2 applied in the states (status ok) stamped (sim time) from the last accepted
+        command to the fallback: the damper's own account of what it held, whatever the
+        probe's backlog.
     held_states : int
         How many such states reached the probe.
     statuses_between : dict
@@ -138,7 +139,11 @@ def run_controller_trial(mode: str, kill_after: float, work: Path, *, damping: f
                    None)
     values = [s.applied for s in between] or [math.nan]
     last_command = first.stamp - first.command_age
-    held = [s.applied for s in states if last_command <= s.stamp < first.stamp] or [math.nan]
+    # (the states in which the last command was in force; a command's age counts from its own
+    # stamp, which a starved controller sets late, so the window may also reach back over an
+    # earlier, correct fallback)
+    held = [s.applied for s in states
+            if last_command <= s.stamp < first.stamp and s.status == STATUS_OK] or [math.nan]
     return ControllerTrial(
         mode=mode, kill_after=kill_after, commanded=damping, fallback=first.applied,
         fallback_wall_delay=first.wall - killed, command_age=first.command_age,

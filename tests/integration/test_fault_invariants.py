@@ -52,7 +52,7 @@ def test_recorder_sigkill_recovery_keeps_complete_chunks(tmp_path):
 def test_killed_controller_leaves_its_c2_until_the_fallback(tmp_path):
     trial = run_controller_trial("free", float(RNG.uniform(0.1, 0.8)), tmp_path,
                                  damping=1500.0, damper_timeout=0.5)
-    # In sim time, from the dead controller's last command to the fallback, the damper held its
+    # In sim time, while the dead controller's last command was in force, the damper applied its
     # c2 (stamps, not arrival times: a loaded probe may see the fallback state first).
     assert trial.held_states >= 1, trial
     assert trial.held_min == trial.held_max == 1500.0, trial
