@@ -24,7 +24,8 @@ import yaml
 
 from aero_dva.text_input import MAX_TEXT_BYTES, InputFileError, read_text_input
 
-__all__ = ["LIMITS", "MAX_ALIASES", "MAX_ABS_INT", "MAX_DEPTH", "check_npz", "finite_float",
+__all__ = ["LIMITS", "MAX_ALIASES", "MAX_ABS_INT", "MAX_DEPTH", "check_file_header",
+           "check_npz", "finite_float",
            "parse_json", "parse_yaml", "read_json", "read_yaml"]
 
 #: Deepest nesting of lists and mappings read (the deepest shipped file has 3 levels).
@@ -152,6 +153,23 @@ def parse_json(text: str, where: str, error: type[ValueError] = InputFileError, 
         return json.loads(text, parse_int=integer, parse_float=real, parse_constant=constant)
     except json.JSONDecodeError as exc:
         raise error(f"{where}: not valid JSON ({exc})") from None
+
+
+def check_file_header(data, fail, file_format: str, version: int, units: dict | None = None,
+                      *, what: str = "the top level") -> None:
+    """Check the header fields of a project file read as a JSON object.
+
+    ``fail(text)`` returns the exception to raise (it names the file); ``what`` names the
+    object in the message. ``units``: checked when given.
+    """
+    if not isinstance(data, dict):
+        raise fail(f"{what} is not a JSON object")
+    if data.get("format") != file_format:
+        raise fail(f"format is {data.get('format')!r}, expected {file_format!r}")
+    if data.get("version") != version:
+        raise fail(f"version {data.get('version')!r} is not {version}")
+    if units is not None and data.get("units") != units:
+        raise fail(f"units are {data.get('units')!r}, expected {units!r}")
 
 
 def read_yaml(path, what: str = "file", error: type[ValueError] = InputFileError):

@@ -24,7 +24,7 @@ import numpy as np
 
 from aero_dva.atomic_io import atomic_output
 from aero_dva.control.rbf_network import InputScaling, RBFNetwork
-from aero_dva.safe_files import check_npz, parse_json
+from aero_dva.safe_files import check_file_header, check_npz, parse_json
 
 __all__ = ["FILE_FORMAT", "FILE_VERSION", "RBFFileError", "load_rbf_network", "save_rbf_network"]
 
@@ -191,12 +191,8 @@ def load_rbf_network(path, expected_input_dim: int | None = None) -> RBFNetwork:
                 raise _fail(path, "the 'header' entry is not a JSON string")
             header = parse_json(str(raw), f"RBF network file {str(path)!r}: the header",
                                 RBFFileError, nonfinite=True)  # fields checked by name
-            if not isinstance(header, dict):
-                raise _fail(path, "the header is not a JSON object")
-            if header.get("format") != FILE_FORMAT:
-                raise _fail(path, f"format is {header.get('format')!r}, expected {FILE_FORMAT!r}")
-            if header.get("version") != FILE_VERSION:
-                raise _fail(path, f"version {header.get('version')!r} is not {FILE_VERSION}")
+            check_file_header(header, lambda text: _fail(path, text), FILE_FORMAT,
+                              FILE_VERSION, what="the header")
             dim = _header_field(path, header, "input_dim", int)
             n_neurons = _header_field(path, header, "n_neurons", int)
             if dim < 1 or n_neurons < 0:

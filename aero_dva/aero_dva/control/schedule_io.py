@@ -26,7 +26,7 @@ from pathlib import Path
 
 from aero_dva.atomic_io import atomic_output
 from aero_dva.control.airspeed_schedule import AirspeedSchedule
-from aero_dva.safe_files import parse_json
+from aero_dva.safe_files import check_file_header, parse_json
 from aero_dva.text_input import read_text_input
 
 __all__ = [
@@ -77,14 +77,7 @@ def schedule_from_dict(data: dict, source: str = "<dict>") -> AirspeedSchedule:
     def fail(what: str) -> ScheduleFileError:
         return ScheduleFileError(f"airspeed schedule {source}: {what}")
 
-    if not isinstance(data, dict):
-        raise fail("the top level is not a JSON object")
-    if data.get("format") != FILE_FORMAT:
-        raise fail(f"format is {data.get('format')!r}, expected {FILE_FORMAT!r}")
-    if data.get("version") != FILE_VERSION:
-        raise fail(f"version {data.get('version')!r} is not {FILE_VERSION}")
-    if data.get("units") != UNITS:
-        raise fail(f"units are {data.get('units')!r}, expected {UNITS!r}")
+    check_file_header(data, fail, FILE_FORMAT, FILE_VERSION, UNITS)
     values = {}
     for key in _NUMBERS:
         if key not in data:

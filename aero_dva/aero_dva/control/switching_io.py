@@ -24,6 +24,7 @@ import numpy as np
 from aero_dva.atomic_io import atomic_output
 from aero_dva.control.switching_design import DESIGNS
 from aero_dva.flight.switched_flight import MEASURED_OUTPUTS, SwitchingLaw
+from aero_dva.safe_files import check_file_header, parse_json
 from aero_dva.text_input import read_text_input
 
 __all__ = ["FILE_FORMAT", "FILE_VERSION", "UNITS", "SwitchingGains", "SwitchingGainsError",
@@ -79,14 +80,7 @@ def gains_from_dict(data, source: str = "<dict>") -> SwitchingGains:
     def fail(what: str) -> SwitchingGainsError:
         return SwitchingGainsError(f"switching gains {source}: {what}")
 
-    if not isinstance(data, dict):
-        raise fail("the top level is not a JSON object")
-    if data.get("format") != FILE_FORMAT:
-        raise fail(f"format is {data.get('format')!r}, expected {FILE_FORMAT!r}")
-    if data.get("version") != FILE_VERSION:
-        raise fail(f"version {data.get('version')!r} is not {FILE_VERSION}")
-    if data.get("units") != UNITS:
-        raise fail(f"units are {data.get('units')!r}, expected {UNITS!r}")
+    check_file_header(data, fail, FILE_FORMAT, FILE_VERSION, UNITS)
     if data.get("design") not in DESIGNS:
         raise fail(f"design {data.get('design')!r} is not one of {list(DESIGNS)}")
     values = {}
@@ -152,9 +146,6 @@ def load_gains(path) -> SwitchingGains:
     """Read and validate a gains file (:class:`SwitchingGainsError` naming what is wrong)."""
     path = Path(path)
     text = read_text_input(path, "switching gains", error=SwitchingGainsError)
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise SwitchingGainsError(f"switching gains {str(path)!r}: not valid JSON ({exc})") \
-            from None
+    data = parse_json(text, f"switching gains {str(path)!r}", SwitchingGainsError,
+                      nonfinite=True)  # each field is checked by name
     return gains_from_dict(data, repr(str(path)))
