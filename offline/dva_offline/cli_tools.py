@@ -5,10 +5,12 @@ the parser stays fast.
 """
 from __future__ import annotations
 
+import argparse
 import json
 import math
 
-__all__ = ["CliError", "emit", "finite", "json_safe", "range2", "range3", "show_help"]
+__all__ = ["CliError", "command_family", "emit", "finite", "json_safe", "range2", "range3",
+           "show_help"]
 
 
 class CliError(Exception):
@@ -19,6 +21,16 @@ def show_help(parser) -> int:
     """A command group called without its subcommand: its help, exit code 2."""
     parser.print_help()
     return 2
+
+
+def command_family(subparsers, name: str, help_text: str, description: str, dest: str):
+    """A command group (``dva NAME <subcommand>``): its parser and its subparsers; called
+    without a subcommand it prints its help (exit code 2)."""
+    parser = subparsers.add_parser(name, help=help_text, description=description,
+                                   formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = parser.add_subparsers(dest=dest, metavar=f"<{name}-command>")
+    parser.set_defaults(func=lambda args: show_help(parser))
+    return parser, sub
 
 
 def range3(option: str, text: str, names: str = "START:STOP:N", minimum: float | None = None):

@@ -27,7 +27,7 @@ import time
 
 import numpy as np
 
-from dva_offline.cli_tools import emit, finite, range2, range3, show_help
+from dva_offline.cli_tools import command_family, emit, finite, range2, range3
 
 __all__ = ["register"]
 
@@ -75,11 +75,9 @@ def _common(p: argparse.ArgumentParser) -> None:
 
 def register(subparsers) -> None:
     """Add the ``control`` command and its subcommands."""
-    p = subparsers.add_parser("control", help="optimal c2 versus airspeed, airspeed schedule",
-                              description=__doc__,
-                              formatter_class=argparse.RawDescriptionHelpFormatter)
-    sub = p.add_subparsers(dest="control_command", metavar="<control-command>")
-    p.set_defaults(func=lambda args: show_help(p))
+    p, sub = command_family(subparsers, "control",
+                            "optimal c2 versus airspeed, airspeed schedule", __doc__,
+                            "control_command")
 
     o = sub.add_parser("optimal-c2", help="optimal c2 and minimum RMS vs airspeed (fig. 7.4)",
                        description="Optimal c2 minimising the exact stationary RMS of the "

@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dva_offline.cli_tools import range3, show_help
+from dva_offline.cli_tools import command_family, range3
 
 __all__ = ["register"]
 
@@ -43,11 +43,9 @@ def register(subparsers) -> None:
     """Add the ``train`` command and its subcommands."""
     from dva_offline.training import rbf_cli as train_rbf_cli
 
-    p = subparsers.add_parser("train", help="plan and record the training sweep, train the RBF "
-                                            "network", description=__doc__,
-                              formatter_class=argparse.RawDescriptionHelpFormatter)
-    sub = p.add_subparsers(dest="train_command", metavar="<train-command>")
-    p.set_defaults(func=lambda args: show_help(p))
+    p, sub = command_family(subparsers, "train",
+                            "plan and record the training sweep, train the RBF network",
+                            __doc__, "train_command")
 
     pl = sub.add_parser("plan", help="the (U, rho, c2) dwells of the training sweep (JSON)",
                         description="Plan the training dwells: airspeeds x densities, c2 "

@@ -20,7 +20,7 @@ import sys
 
 import numpy as np
 
-from dva_offline.cli_tools import emit, finite, show_help
+from dva_offline.cli_tools import command_family, emit, finite
 
 __all__ = ["register"]
 
@@ -61,11 +61,9 @@ def _common(p: argparse.ArgumentParser, section: bool = True) -> None:
 
 def register(subparsers) -> None:
     """Add the ``wing`` command and its subcommands."""
-    p = subparsers.add_parser("wing", help="wing with DVA: modal, flutter, design, simulate",
-                              description=__doc__,
-                              formatter_class=argparse.RawDescriptionHelpFormatter)
-    sub = p.add_subparsers(dest="wing_command", metavar="<wing-command>")
-    p.set_defaults(func=lambda args: show_help(p))
+    p, sub = command_family(subparsers, "wing",
+                            "wing with DVA: modal, flutter, design, simulate", __doc__,
+                            "wing_command")
 
     m = sub.add_parser("modal", help="frequencies and damping ratios vs airspeed (fig. 6.2)")
     _common(m)
