@@ -5,9 +5,15 @@ spectra out, with the same stamps, windows and c2 whether it runs in the node or
 rate and the damper states seen so far. The c2 a block came with is the applied c2 of the
 latest damper state stamped at or before the block's first sample (half a sample of slack for
 rounding), chosen by stamp rather than by arrival: the simulator's state after block k-1 is
-stamped with block k's start, so this is the c2 in force when block k began, and the choice
-does not depend on how DDS interleaves the two topics. That makes a re-run on a recorded bag
-(``dva replay``, the bag player into a fresh node) give the recorded spectra exactly.
+stamped with block k's start, so this is the c2 in force when block k began.
+
+DDS does not order two topics against each other: a replay at 10x on a busy machine can hand
+over block k before the state stamped at its start. Once damper states are flowing, a block
+that arrives before any state stamped at or after its start is therefore held (with the blocks
+behind it) until such a state arrives (:meth:`SpectrumStream.release`), or until the caller
+gives up waiting (``release(force=True)``: the node does after a second without states). So the
+choice does not depend on the interleaving, and a re-run on a recorded bag (``dva replay``, the
+bag player into a fresh node) gives the recorded spectra exactly.
 
 A spectrum is stamped with the time of its window's last sample, computed from the header
 stamp of the block that completed it; its ``damping`` is the mean c2 over the window's blocks,
@@ -26,6 +32,7 @@ from aero_dva.control.spectrum import ScaledSpectrum, SlidingSpectrum
 __all__ = ["SpectrumStream", "StreamEvent", "StreamSpectrum"]
 
 _NS = 1_000_000_000
+MAX_HELD_BLOCKS = 200  # a stalled damper-state topic costs at most this many blocks of memory
 
 
 @dataclass(frozen=True)
@@ -92,6 +99,8 @@ class SpectrumStream:
         self.problem: str | None = None  # a persistent input problem (unusable sample rate)
         self._state_stamps: list[int] = []  # [ns] damper states by stamp, ascending
         self._state_values: list[float] = []  # [N s/m] their applied c2
+        self._held: list[tuple] = []  # blocks waiting for their damper state, in arrival order
+        self._ready: tuple[list, list] = ([], [])  # analysed, not yet handed out by release
         self.counts = dict.fromkeys(
             ("blocks", "rejected", "resets", "spectra", "empty_windows", "damper_states"), 0)
 
@@ -105,7 +114,10 @@ class SpectrumStream:
         if not (math.isfinite(applied) and applied >= 0.0):
             return False
         if self._state_stamps and stamp_ns < self._state_stamps[-1]:
-            self._state_stamps.clear()  # time went back (a new run, a replay loop): start over
+            # time went back (a new run, a replay loop): start over; blocks still held belong
+            # to the old run: analyse them now with its states, out at the next release
+            self._ready = self.release(force=True)
+            self._state_stamps.clear()
             self._state_values.clear()
         self._state_stamps.append(int(stamp_ns))
         self._state_values.append(float(applied))
@@ -124,11 +136,59 @@ class SpectrumStream:
             del self._state_values[:i]
         return self._state_values[0]
 
+    @property
+    def held_blocks(self) -> int:
+        """Blocks waiting for a damper state stamped at or after their start."""
+        return len(self._held)
+
+    @property
+    def oldest_held_stamp(self) -> int | None:
+        """[ns] header stamp of the oldest held block (None when none is held)."""
+        return self._held[0][0] if self._held else None
+
     def block(self, stamp_ns: int, first_index: int, sample_rate: float,
               samples: np.ndarray) -> tuple[list[StreamSpectrum], list[StreamEvent]]:
         """Add one block (header stamp [ns] = its first sample's time, stream index, rate [Hz],
-        samples (channels, n)); return the spectra it completes and what to report."""
+        samples (channels, n)); return the spectra it completes and what to report. A block
+        whose damper state has not arrived yet is held and comes out of :meth:`release`."""
         self.counts["blocks"] += 1
+        self._held.append((int(stamp_ns), first_index, sample_rate, samples))
+        return self.release(force=len(self._held) > MAX_HELD_BLOCKS)
+
+    def release(self, force: bool = False) -> tuple[list[StreamSpectrum], list[StreamEvent]]:
+        """Process the held blocks whose damper state has arrived (all of them if ``force``:
+        those then use the latest state stamped before them); return their spectra and
+        events. Call after every damper state, and with ``force`` when states stopped."""
+        spectra, events = self._ready
+        self._ready = ([], [])
+        forced = 0
+        while self._held:
+            stamp_ns, first_index, sample_rate, samples = self._held[0]
+            waits = self._waits_for_state(stamp_ns, sample_rate)
+            if waits and not force:
+                break
+            forced += waits
+            self._held.pop(0)
+            s, e = self._process(stamp_ns, first_index, sample_rate, samples)
+            spectra += s
+            events += e
+        if forced:
+            events.append(StreamEvent(
+                "damper_state_missing",
+                f"{forced} block(s) analysed without the damper state stamped at their start "
+                f"(the latest earlier state's c2 used)", values={"blocks": forced}))
+        return spectra, events
+
+    def _waits_for_state(self, stamp_ns: int, sample_rate: float) -> bool:
+        """True while damper states flow but none stamped at or after the block's start has
+        arrived (an earlier one could still be on its way)."""
+        if not self._state_stamps or not (math.isfinite(sample_rate) and sample_rate > 0.0):
+            return False
+        slack = round(0.5 * _NS / sample_rate)
+        return self._state_stamps[-1] + slack < stamp_ns
+
+    def _process(self, stamp_ns: int, first_index: int, sample_rate: float,
+                 samples: np.ndarray) -> tuple[list[StreamSpectrum], list[StreamEvent]]:
         events: list[StreamEvent] = []
         index = int(first_index)
         if not (math.isfinite(sample_rate) and sample_rate > 0.0):

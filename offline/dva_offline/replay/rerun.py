@@ -74,16 +74,17 @@ def spectra_from_inputs(inputs: Iterable[BlockInput | StateInput], channels: Seq
     """The spectrum node's output for blocks and damper states in their recorded order."""
     rows = [ACCELERATION_CHANNELS.index(c) for c in channels]
     stream = SpectrumStream(channels, window_duration, hop, frequencies, window)
-    out = []
+    spectra = []
     for item in inputs:
         if isinstance(item, StateInput):
             stream.damper_state(item.stamp_ns, item.applied)
-            continue
-        spectra, _ = stream.block(item.stamp_ns, item.first_index, item.sample_rate,
-                                  item.samples[rows])
-        out += [SpectrumRecord(s.stamp_ns, s.spectrum.magnitudes, s.spectrum.band_sums,
-                               s.damping) for s in spectra]
-    return out
+            spectra += stream.release()[0]
+        else:
+            spectra += stream.block(item.stamp_ns, item.first_index, item.sample_rate,
+                                    item.samples[rows])[0]
+    spectra += stream.release(force=True)[0]  # blocks after the last state
+    return [SpectrumRecord(s.stamp_ns, s.spectrum.magnitudes, s.spectrum.band_sums, s.damping)
+            for s in spectra]
 
 
 def rbf_commands(spectra: Iterable[SpectrumRecord], law: RBFLaw) -> list[CommandRecord]:

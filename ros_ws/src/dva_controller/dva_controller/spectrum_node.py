@@ -17,7 +17,8 @@ controller (:mod:`dva_controller.shared_params`).
 Subscribes ``wing/acceleration`` (dva_msgs/AccelerationBlock) and ``dva/damper_state``
 (dva_msgs/DamperState, for the c2 applied during the window: the spectrum's ``damping`` is the
 mean over the window's blocks of the applied c2 of the latest state stamped at or before each
-block's start, chosen by stamp so that a re-run on a recorded bag gives the same value; see
+block's start, chosen by stamp so that a re-run on a recorded bag gives the same value; a block
+that arrives before its state waits for it, at most about ``STATE_WAIT`` s of wall time; see
 :mod:`aero_dva.control.spectrum_stream`, which does the node's work without ROS). Publishes
 ``dva/spectrum`` (dva_msgs/ScaledSpectrum) and ``/diagnostics``. All times honour ``use_sim_time``.
 """
@@ -25,6 +26,7 @@ from __future__ import annotations
 
 import sys
 
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 
 from aero_dva.bag import channels as ch
@@ -37,6 +39,8 @@ from dva_ros_common.node_params import NodeSpec, Param, declare_parameters
 from dva_ros_common.node_tools import INPUT_HEALTH_PARAMS, InputHealth, Status, run_node
 
 QOS_DEPTH = 100  # blocks of 10-50 ms: a few seconds of slack at 20x real time before a gap
+STATE_WAIT = 1.0  # [s] wall time a block waits for its damper state (1-2 ticks) before it is
+# analysed with the last known c2: long for a busy executor, short for a stalled state topic
 
 SPEC = NodeSpec(
     name="spectrum",
@@ -81,6 +85,10 @@ class SpectrumNode(Node):
                                  QOS_DEPTH)
         self.create_subscription(DamperState, ch.DAMPER_STATE.name, self._on_damper_state,
                                  QOS_DEPTH)
+        self._held_at_last_tick: int | None = None
+        self._frame_id = ""
+        self.create_timer(STATE_WAIT, self._release_stalled,  # wall time, also under sim time
+                          clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(
             f"spectra of {list(self.channels)} at {self.frequencies.size} frequencies "
             f"({self.frequencies.min():g}..{self.frequencies.max():g} Hz), "
@@ -96,6 +104,15 @@ class SpectrumNode(Node):
     def _on_damper_state(self, msg: DamperState) -> None:
         self._stream.damper_state(conversions.time_to_ns(msg.header.stamp),
                                   conversions.applied_damping(msg))
+        self._publish(*self._stream.release())
+
+    def _release_stalled(self) -> None:
+        """Analyse blocks that waited a whole tick for their damper state."""
+        oldest = self._stream.oldest_held_stamp
+        if oldest is not None and oldest == self._held_at_last_tick:
+            self._publish(*self._stream.release(force=True))
+            oldest = self._stream.oldest_held_stamp
+        self._held_at_last_tick = oldest
 
     def _on_block(self, msg: AccelerationBlock) -> None:
         self._health.mark_input()
@@ -108,14 +125,17 @@ class SpectrumNode(Node):
             self._health.report(conversions.WARN, "malformed",
                                 f"block at index {index} rejected: {exc}", index=index)
             return
-        spectra, events = self._stream.block(block.stamp_ns, block.first_sample_index,
-                                             block.sample_rate, block.samples)
+        self._frame_id = block.frame_id
+        self._publish(*self._stream.block(block.stamp_ns, block.first_sample_index,
+                                          block.sample_rate, block.samples))
+
+    def _publish(self, spectra, events) -> None:
         for event in events:
             level = conversions.ERROR if event.level == "error" else conversions.WARN
             self._health.report(level, event.event, event.text, **event.values)
         for item in spectra:
             self._spectrum_pub.publish(conversions.scaled_spectrum_message(
-                conversions.ns_to_time(item.stamp_ns), block.frame_id, self.channels,
+                conversions.ns_to_time(item.stamp_ns), self._frame_id, self.channels,
                 item.spectrum, item.hop, item.damping))
 
     # ------------------------------------------------------------------ diagnostics

@@ -94,3 +94,57 @@ def test_bad_blocks_are_reported_not_raised():
     stream.block(T0, 0, FS, np.ones((2, BLOCK)))
     _, events = stream.block(T0, 100, FS, np.ones((2, BLOCK)))  # 50..99 lost
     assert events[0].event == "reset_gap" and events[0].values["expected_index"] == 50
+
+
+def test_a_block_waits_for_the_state_stamped_at_its_start():
+    """A busy replay hands over block k before the state stamped at its start (DDS orders
+    topics separately): the block is held until that state arrives, so the spectra and their
+    c2 are those of the in-order feed."""
+    samples = _signals(4000)
+    c2 = lambda k: 300.0 + 10.0 * k  # noqa: E731
+    reference = _feed(_stream(), samples, c2, states_first=False)
+    stream, out = _stream(), []
+    for k, start in enumerate(range(0, samples.shape[1], BLOCK)):
+        spectra, events = stream.block(_stamp(start), start, FS,
+                                       samples[:, start:start + BLOCK])
+        out += spectra
+        assert not events
+        assert stream.held_blocks == (1 if k > 1 else 0)  # no state flows before block 1
+        if k > 0:  # block k's own state (the one after block k-1) arrives after block k
+            stream.damper_state(_stamp(start), c2(k - 1))
+            out += stream.release()[0]
+            assert stream.held_blocks == 0
+    assert [(s.stamp_ns, s.damping) for s in out] == \
+        [(s.stamp_ns, s.damping) for s in reference]
+
+
+def test_without_its_state_a_held_block_goes_out_when_forced_and_says_so():
+    samples = _signals(400)
+    stream = _stream()
+    stream.damper_state(_stamp(0), 500.0)
+    stream.block(_stamp(0), 0, FS, samples[:, :BLOCK])
+    assert stream.held_blocks == 0
+    stream.block(_stamp(BLOCK), BLOCK, FS, samples[:, BLOCK:2 * BLOCK])
+    assert stream.held_blocks == 1 and stream.oldest_held_stamp == _stamp(BLOCK)
+    spectra, events = stream.release()
+    assert stream.held_blocks == 1 and not events
+    spectra, events = stream.release(force=True)
+    assert stream.held_blocks == 0
+    assert [e.event for e in events] == ["damper_state_missing"]
+    assert events[0].values == {"blocks": 1}
+    assert stream.damping_at(_stamp(BLOCK), FS) == 500.0
+
+
+def test_time_going_back_lets_the_old_runs_held_blocks_out_with_their_own_c2():
+    samples = _signals(4000)
+    stream = _stream()
+    last = 2000 - BLOCK  # the block that completes the first window
+    for start in range(0, last, BLOCK):
+        stream.damper_state(_stamp(start), 600.0)
+        stream.block(_stamp(start), start, FS, samples[:, start:start + BLOCK])
+    stream.block(_stamp(last), last, FS, samples[:, last:2000])  # its state never comes
+    assert stream.held_blocks == 1
+    stream.damper_state(_stamp(0), 900.0)  # a new run
+    spectra, events = stream.release()
+    assert stream.held_blocks == 0 and events[0].event == "damper_state_missing"
+    assert spectra and all(s.damping == 600.0 for s in spectra)
