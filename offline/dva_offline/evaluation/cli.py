@@ -124,6 +124,7 @@ def _paired(args) -> int:
 
     from aero_dva import data_files
     from aero_dva.control.rbf_io import load_rbf_network
+    from aero_dva.control.rbf_network import SPECTRUM_INPUT_DIM
     from aero_dva.control.schedule_io import load_schedule
     from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
     from aero_dva.wing.model import AeroelasticModel
@@ -159,7 +160,7 @@ def _paired(args) -> int:
         raise ValueError(f"--scenario {scenario_path}: the evaluation flies a ramp, got "
                          f"airspeed kind {config.scenario.airspeed.kind!r}")
     started = time.monotonic()
-    out, made = evaluation_directory(args, controllers)
+    out, made, given = evaluation_directory(args, controllers)
     model = AeroelasticModel(config.wing, config.absorber, config.aero)
     u_cr = FlightRuntime(config).critical_airspeed
     fixed = made["fixed_c2"]
@@ -173,9 +174,11 @@ def _paired(args) -> int:
         if "oracle" in controllers else None
     setup = EvaluationSetup(
         config=config, model=model, critical_airspeed=u_cr, fixed_damping=fixed["damping"],
-        schedule=load_schedule(made["schedule"]) if "schedule" in made else None,
-        network=load_rbf_network(made["network"], expected_input_dim=33)
-        if "network" in made else None,
+        schedule=given.get("schedule") or (
+            load_schedule(made["schedule"]) if "schedule" in made else None),
+        network=given.get("network") or (
+            load_rbf_network(made["network"], expected_input_dim=SPECTRUM_INPUT_DIM)
+            if "network" in made else None),
         table=table, rms_range=(rms_low * u_cr, rms_high * u_cr))
     total = len(cases) * len(seeds) * len(controllers)
     bar = tqdm(total=total, desc="flights", unit="flight", file=sys.stderr, leave=False)

@@ -150,7 +150,7 @@ def evaluate_graph(args) -> int:
         data_files.data_file("scenario_ramp.yaml")
     base = load_base_scenario(scenario_path)
     started = time.monotonic()
-    out, made = evaluation_directory(args, controllers)
+    out, made, _ = evaluation_directory(args, controllers)  # flights read the paths
     (out / "flights").mkdir(exist_ok=True)
     scenarios = {(mu, seed): write_scenario(out / "scenarios",
                                             evaluation_scenario(base, mu, seed))

@@ -43,17 +43,19 @@ def log(text: str) -> None:
     tqdm.write(f"dva evaluate: {text}", file=sys.stderr)
 
 
-def evaluation_directory(args, controllers) -> tuple[Path, dict]:
-    """The evaluation's directory (``--out``, default ``runs/evaluation_<UTC time>``) and the
-    inputs given or made into its ``inputs/``; a directory created here is removed again when
-    making the inputs fails, so nothing is left that looks like an evaluation."""
-    check_given_inputs(args, controllers)
+def evaluation_directory(args, controllers) -> tuple[Path, dict, dict]:
+    """The evaluation's directory (``--out``, default ``runs/evaluation_<UTC time>``), the
+    inputs given or made into its ``inputs/`` (paths), and the given ones as read at the door
+    (``{"schedule": ..., "network": ...}``, so nobody reads them again); a directory created
+    here is removed again when making the inputs fails, so nothing is left that looks like an
+    evaluation."""
+    given = check_given_inputs(args, controllers)
     stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
     out = Path(args.out or f"runs/evaluation_{stamp}").resolve()
     created = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
     try:
-        return out, inputs(args, controllers, out / "inputs", log)
+        return out, inputs(args, controllers, out / "inputs", log), given
     except BaseException:
         if created:
             shutil.rmtree(out, ignore_errors=True)
@@ -113,20 +115,23 @@ def _save(path, payload):
     return save_json(path, payload)
 
 
-def check_given_inputs(args, controllers) -> None:
-    """Read the input files the user gave, before anything is made or flown: a bad one ends
-    the run here with the file named, instead of failing (or, for a controller that cannot
-    start, flying on the damper's fallback) in every flight."""
+def check_given_inputs(args, controllers) -> dict:
+    """Read the input files the user gave, once, before anything is made or flown: a bad one
+    ends the run here with the file named, instead of failing (or, for a controller that
+    cannot start, flying on the damper's fallback) in every flight. Returns what was read."""
     from aero_dva.bag.reader import bag_topics
     from aero_dva.control.rbf_io import load_rbf_network
+    from aero_dva.control.rbf_network import SPECTRUM_INPUT_DIM
     from aero_dva.control.schedule_io import load_schedule
 
+    given = {}
     if "schedule" in controllers and args.schedule:
-        load_schedule(args.schedule)
+        given["schedule"] = load_schedule(args.schedule)
     if "rbf" in controllers and args.network:
-        load_rbf_network(args.network)
+        given["network"] = load_rbf_network(args.network, expected_input_dim=SPECTRUM_INPUT_DIM)
     elif "rbf" in controllers and args.sweep_bag:
         bag_topics(args.sweep_bag)
+    return given
 
 
 def best_fixed_damping_of(wing) -> dict:

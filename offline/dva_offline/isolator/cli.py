@@ -6,12 +6,12 @@ named).
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
 import numpy as np
 
+from dva_offline.cli_tools import emit
 from dva_offline.isolator import files as isolator_files
 from dva_offline.isolator.element_types import classify_elements
 from dva_offline.isolator.frf_data import (
@@ -56,13 +56,6 @@ def _elements_json(model: MaxwellModel, types, k_std=None, c_std=None) -> list[d
     return out
 
 
-def _emit(args, payload: dict, lines: list[str]) -> None:
-    if args.json:
-        print(json.dumps(payload, allow_nan=True))
-    else:
-        print("\n".join(lines))
-
-
 def _cmd_modal(args) -> int:
     model = _model_from_args(args)
     modal = modal_properties(model)
@@ -84,7 +77,7 @@ def _cmd_modal(args) -> int:
           f"tau = {1e3 * e['tau_s']:.3f} ms, w_n tau = {e['omega_tau']:.3f}, Type {e['type']}"
           for i, e in enumerate(payload["elements"])),
     ]
-    _emit(args, payload, lines)
+    emit(args, payload, lines)
     return 0
 
 
@@ -279,7 +272,7 @@ def _cmd_identify(args) -> int:
           if check is not None else []),
         *(f"warning: {w}" for w in result.warnings),
     ]
-    _emit(args, payload, lines)
+    emit(args, payload, lines)
     return 0
 
 
@@ -301,7 +294,7 @@ def _cmd_estimate(args) -> int:
         "responses": list(series.response_names),
         "mean_coherence": float(np.nanmean(est.coherence[keep])),
     }
-    _emit(args, payload, [f"wrote {payload['n_points']} FRF points to {args.out} "
+    emit(args, payload, [f"wrote {payload['n_points']} FRF points to {args.out} "
                           f"(mean coherence {payload['mean_coherence']:.3f})"])
     return 0
 
@@ -362,7 +355,7 @@ def _cmd_stepped_sine(args) -> int:
         *([f"wrote {data.quantity} FRF to {args.out}"] if args.out else []),
         *(f"warning: {w}" for w in warn),
     ]
-    _emit(args, payload, lines)
+    emit(args, payload, lines)
     return 0
 
 
@@ -375,7 +368,7 @@ def _cmd_static(args) -> int:
         "static_stiffness_n_per_m": res.stiffness_n_per_m, "offset_n": res.offset_n,
         "n_points": res.n_points, "rms_residual_n": res.rms_residual_n,
     }
-    _emit(args, payload, [f"static stiffness {res.stiffness_n_per_m:.6g} N/m "
+    emit(args, payload, [f"static stiffness {res.stiffness_n_per_m:.6g} N/m "
                           f"from {res.n_points} points"])
     return 0
 
@@ -403,7 +396,7 @@ def _cmd_plot(args) -> int:
         written.append(str(plot_frf(args.plot, curves, data.quantity, title)))
     if not written:
         raise ValueError("nothing to plot: give a FRF file with --plot, or --study --plot-dir")
-    _emit(args, {"plots": written}, [f"wrote {p}" for p in written])
+    emit(args, {"plots": written}, [f"wrote {p}" for p in written])
     return 0
 
 
