@@ -1,0 +1,136 @@
+"""The per-sample loop of the switched flight, compiled (numba): the law, the damper's lag and
+relief valve, the observer and the plant's exact step (pure numerics).
+
+:func:`fly_maps` is what :func:`aero_dva.flight.switched_flight.fly_switched` runs once its
+maps are built. A sample costs a few small matrix-vector products and scalar operations, so in
+Python the interpreter's overhead per sample decided the flight's speed; the loop is compiled
+once per machine (``cache=True``) and runs as machine code.
+
+Per flight and sample ``i``, with ``x`` the plant's state, ``p`` the observer's prediction,
+``u = [f; noise]`` and ``q`` the held condition, in this order:
+
+1. every ``every`` samples, the decision of sample i-1 becomes the target;
+2. ``(F, h) = g_state[q] @ [x; p] + g_in[q] @ u``; ``F h > 0`` is this sample's decision;
+3. the damper's lag over the sample: its mean c2 selects the table level (nearest in log c2),
+   ``c`` is the lag's state at the sample's end; the relief valve forces level 0 while the
+   true force ``|k2 delta|`` exceeds the limit;
+4. ``p <- Ao[level] @ (est[q] @ [x; p; u])`` (the filtered estimate, predicted) and
+   ``x <- Ad[level] @ x + Bd[level] f``.
+
+The steps of condition q at a level are ``sum_j weight[q, j] steps[index[q, j], level]``
+(:func:`aero_dva.flight.smooth_tables.interpolated_maps`), formed when first flown.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+__all__ = ["fly_maps"]
+
+
+@njit(cache=True)
+def _form(out, steps, index, weight, k):
+    """``out = sum_j weight[j] steps[index[j], k]`` (zero weights skipped)."""
+    out[:] = 0.0
+    for j in range(index.size):
+        w = weight[j]
+        if w != 0.0:
+            src = steps[index[j], k]
+            for s in range(out.size):
+                out[s] += w * src[s]
+
+
+@njit(cache=True)
+def fly_maps(steps, index, weight, est, g_in, g_state, period_map, hold, inputs, n, tau,
+             decay, mean_factor, c_lo, c_hi, per_level, c_start, force_limit, k2, d_col,
+             every):
+    """Fly ``inputs`` (F, N, v) with the law (module docstring).
+
+    ``steps`` (B, L, S) holds per base condition and level the plant's ``[Ad | Bd]`` (n, n+1)
+    flattened, then the observer's ``Ao`` (m, m) if its model is another (else Ao = Ad);
+    ``est`` (K, m, n+m+v); ``g_in`` (K, 2, v); ``g_state`` (K, 2, n+m); ``period_map`` (P,)
+    the condition of each hold period of ``hold`` samples. Returns the plant's states (F, N,
+    n) at each sample's start, the levels flown (F, N) and the targets (F, N; True: c_hi).
+    """
+    nf, nsamp, nv = inputs.shape
+    m = est.shape[1]
+    nm = n + m
+    own_observer = steps.shape[2] > n * (n + 1)
+    states = np.empty((nf, nsamp, n))
+    level = np.empty((nf, nsamp), np.int64)
+    targets = np.empty((nf, nsamp), np.bool_)
+    relief = force_limit < math.inf
+    log_lo = math.log(c_lo)
+    z = np.zeros((nf, nm))
+    e = np.empty(m)
+    xn = np.empty(n)
+    c = np.full(nf, c_start)
+    target_hi = np.full(nf, c_start >= math.sqrt(c_lo * c_hi))
+    prev_fh = np.zeros(nf)
+    cur = np.empty(steps.shape[1:])
+    formed = np.zeros(steps.shape[1], np.bool_)
+    q_prev = -1
+    for i in range(nsamp):
+        q = period_map[i // hold]
+        if q != q_prev:
+            formed[:] = False
+            q_prev = q
+        gs = g_state[q]
+        gi = g_in[q]
+        eq = est[q]
+        for f in range(nf):
+            x = z[f]
+            u = inputs[f, i]
+            if i > 0 and i % every == 0:
+                target_hi[f] = prev_fh[f] > 0.0  # the decision of sample i-1 acts from i on
+            fv = 0.0
+            hv = 0.0
+            for j in range(nm):
+                fv += gs[0, j] * x[j]
+                hv += gs[1, j] * x[j]
+            for j in range(nv):
+                fv += gi[0, j] * u[j]
+                hv += gi[1, j] * u[j]
+            prev_fh[f] = fv * hv
+            if tau > 0.0:
+                target = c_hi if target_hi[f] else c_lo
+                mean = target + (c[f] - target) * mean_factor
+                c[f] = target + (c[f] - target) * decay
+                k = int((math.log(mean) - log_lo) / per_level + 0.5)
+            else:
+                k = 1 if target_hi[f] else 0
+            if relief and abs(x[d_col]) * k2 > force_limit:
+                k = 0
+            if not formed[k]:
+                _form(cur[k], steps, index[q], weight[q], k)
+                formed[k] = True
+            level[f, i] = k
+            targets[f, i] = target_hi[f]
+            for j in range(n):
+                states[f, i, j] = x[j]
+            step = cur[k]
+            if m > 0:
+                for r in range(m):
+                    s = 0.0
+                    for j in range(nm):
+                        s += eq[r, j] * x[j]
+                    for j in range(nv):
+                        s += eq[r, nm + j] * u[j]
+                    e[r] = s
+                base = n * (n + 1) if own_observer else 0
+                width = m if own_observer else n + 1
+                for r in range(m):
+                    s = 0.0
+                    for j in range(m):
+                        s += step[base + r * width + j] * e[j]
+                    x[n + r] = s  # p: written after its last read (est above)
+            for r in range(n):
+                s = step[r * (n + 1) + n] * u[0]
+                for j in range(n):
+                    s += step[r * (n + 1) + j] * x[j]
+                xn[r] = s
+            for r in range(n):
+                x[r] = xn[r]
+    return states, level, targets
