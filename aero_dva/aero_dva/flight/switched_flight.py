@@ -327,10 +327,12 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
         raise ValueError(f"update_every must be an integer >= 1, got {update_every}")
     lag = _Damper(tau, dt, law.c_lo, law.c_hi, table.size, c_start, float(force_limit),
                   plant.absorber.series_stiffness, maxwell_index(plant), int(update_every))
+    sample_map = np.repeat(period_map.astype(np.int64).ravel(), hold)[:nsamp]
     states, level, targets = fly_maps(
-        steps, index, weight, est, g_in, g_state, period_map.astype(np.int64).ravel(),
-        int(hold), inputs, n, tau, lag.decay, lag.mean_factor, lag.c_lo, lag.c_hi,
-        lag.per_level, c_start, lag.force_limit, lag.k2, lag.deflection, lag.every)
+        steps, index, weight, est, g_in, g_state, sample_map, inputs, n, tau, lag.decay,
+        lag.mean_factor, lag.c_lo, lag.c_hi, lag.per_level, lag.force_limit, lag.k2,
+        lag.deflection, lag.every, 0, np.zeros((nf, n + est.shape[1])), np.full(nf, c_start),
+        np.full(nf, c_start >= math.sqrt(law.c_lo * law.c_hi)), np.zeros(nf))
     le = states @ plant.c_displacement[2]
     stroke = states @ plant.c_displacement[3]
     damping = table[level]

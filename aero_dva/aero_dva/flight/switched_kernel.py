@@ -43,16 +43,20 @@ def _form(out, steps, index, weight, k):
 
 
 @njit(cache=True)
-def fly_maps(steps, index, weight, est, g_in, g_state, period_map, hold, inputs, n, tau,
-             decay, mean_factor, c_lo, c_hi, per_level, c_start, force_limit, k2, d_col,
-             every):
+def fly_maps(steps, index, weight, est, g_in, g_state, sample_map, inputs, n, tau, decay,
+             mean_factor, c_lo, c_hi, per_level, force_limit, k2, d_col, every, first, z, c,
+             target_hi, prev_fh):
     """Fly ``inputs`` (F, N, v) with the law (module docstring).
 
     ``steps`` (B, L, S) holds per base condition and level the plant's ``[Ad | Bd]`` (n, n+1)
     flattened, then the observer's ``Ao`` (m, m) if its model is another (else Ao = Ad);
-    ``est`` (K, m, n+m+v); ``g_in`` (K, 2, v); ``g_state`` (K, 2, n+m); ``period_map`` (P,)
-    the condition of each hold period of ``hold`` samples. Returns the plant's states (F, N,
-    n) at each sample's start, the levels flown (F, N) and the targets (F, N; True: c_hi).
+    ``est`` (K, m, n+m+v); ``g_in`` (K, 2, v); ``g_state`` (K, 2, n+m); ``sample_map`` (N,)
+    the held condition of each sample. ``first`` is the flight's index of the first sample
+    (decisions act every ``every`` samples of the flight). The loop's state, per flight, is
+    updated in place to carry a flight across calls: ``z`` (F, n+m) plant state and
+    prediction, ``c`` (F,) the lag's c2, ``target_hi`` (F,) and ``prev_fh`` (F,) the target in
+    force and the last sample's F h. Returns the plant's states (F, N, n) at each sample's
+    start, the levels flown (F, N) and the targets (F, N; True: c_hi).
     """
     nf, nsamp, nv = inputs.shape
     m = est.shape[1]
@@ -63,17 +67,13 @@ def fly_maps(steps, index, weight, est, g_in, g_state, period_map, hold, inputs,
     targets = np.empty((nf, nsamp), np.bool_)
     relief = force_limit < math.inf
     log_lo = math.log(c_lo)
-    z = np.zeros((nf, nm))
     e = np.empty(m)
     xn = np.empty(n)
-    c = np.full(nf, c_start)
-    target_hi = np.full(nf, c_start >= math.sqrt(c_lo * c_hi))
-    prev_fh = np.zeros(nf)
     cur = np.empty(steps.shape[1:])
     formed = np.zeros(steps.shape[1], np.bool_)
     q_prev = -1
     for i in range(nsamp):
-        q = period_map[i // hold]
+        q = sample_map[i]
         if q != q_prev:
             formed[:] = False
             q_prev = q
@@ -83,7 +83,7 @@ def fly_maps(steps, index, weight, est, g_in, g_state, period_map, hold, inputs,
         for f in range(nf):
             x = z[f]
             u = inputs[f, i]
-            if i > 0 and i % every == 0:
+            if first + i > 0 and (first + i) % every == 0:
                 target_hi[f] = prev_fh[f] > 0.0  # the decision of sample i-1 acts from i on
             fv = 0.0
             hv = 0.0
