@@ -266,8 +266,9 @@ def _format(summary: dict) -> str:
             else "none within the flight"),
         f"leading-edge RMS     {number('leading_edge_rms', '.3e')} m (before divergence)",
         f"mean applied c2      {number('mean_damping', '.0f')} N s/m",
-        f"switching law        {summary.get('blocks_switching', 0)} blocks, "
-        f"{number('switching_rate_mean', '.1f')} switches/s (mean over them)",
+        *([f"switching law        {summary.get('blocks_switching', 0)} blocks, "
+           f"{number('switching_rate_mean', '.1f')} switches/s (mean over them)"]
+          if summary["controller"] == "switching" else []),
         f"c2 applied from      the controller in {summary['blocks_controlled']} of "
         f"{summary['blocks']} blocks, start-up {summary['blocks_startup']}, fallback "
         f"{summary['blocks_fallback']}",
