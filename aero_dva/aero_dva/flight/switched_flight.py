@@ -183,21 +183,26 @@ def _measurement(model: AeroelasticModel, conditions: np.ndarray):
 
 
 def _steps(plant, observer_model, conditions: np.ndarray, levels: np.ndarray, dt: float):
-    """(K, L, S): per held condition and c2 level, the plant's ``[Ad | Bd]`` and (when the
-    observer's model is another) the observer's ``Ad``, flattened."""
+    """(K, L, S): per held condition and c2 level, the plant's ``[Ad | Bd]``, (when the
+    observer's model is another) the observer's ``Ad``, and the plant's input column of a
+    unit rate on the Maxwell deflection (a yield force's offset), flattened."""
     k, nl = conditions.shape[0], levels.size
     speeds = np.repeat(conditions[:, 0], nl)
     rhos = np.repeat(conditions[:, 1], nl)
+    n = plant.n_states
     a, b = plant.matrices_unchecked(speeds, rhos, np.tile(levels, k))
-    ad, bd = zoh(a, b, dt)
-    parts = [ad.reshape(k, nl, -1), bd.reshape(k, nl, -1)]
+    inputs = np.zeros(b.shape + (2,))
+    inputs[..., 0] = b
+    inputs[..., maxwell_index(plant), 1] = 1.0
+    ad, gamma = zoh(a, inputs, dt)
+    # [Ad | Bd] row by row, then Ao, then the deflection-rate column: the compiled loop's
+    # layout.
+    parts = [np.concatenate([ad, gamma[..., :1]], axis=-1).reshape(k, nl, -1)]
     if observer_model is not plant:
         a, b = observer_model.matrices_unchecked(speeds, rhos, np.tile(levels, k))
         parts.append(zoh(a, b, dt)[0].reshape(k, nl, -1))
-    # [Ad | Bd] row by row, then Ao: the layout the compiled loop reads.
-    n = plant.n_states
-    ab = np.concatenate([parts[0].reshape(k, nl, n, n), parts[1][..., None]], axis=-1)
-    return np.concatenate([ab.reshape(k, nl, -1)] + parts[2:], axis=-1)
+    parts.append(gamma[..., 1].reshape(k, nl, n))
+    return np.concatenate(parts, axis=-1)
 
 
 def _condition_maps(plant, observer_model, law, conditions):
@@ -238,7 +243,8 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
                  time_constant: float = 0.01, noise=None, levels: int = DEFAULT_LEVELS,
                  hold: int = DEFAULT_HOLD, quantum: float = BATCH_QUANTUM,
                  initial_damping: float | None = None,
-                 force_limit: float = math.inf, update_every: int = 1) -> SwitchedFlight:
+                 force_limit: float = math.inf, update_every: int = 1,
+                 yield_force: float = 0.0) -> SwitchedFlight:
     """Fly ``plant`` with the switching law armed (module docstring).
 
     Parameters
@@ -267,6 +273,12 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
     update_every : int
         [samples] between the law's decisions (1: every sample); a slower loop holds each
         decision, made on the last sample of a block, over the next block.
+    yield_force : float
+        [N] a Bingham damper's yield force (0: none, the damper force is c2 times its
+        velocity): locked while the spring force is at most it, else the force is c2 times
+        the velocity plus the yield force (:func:`~aero_dva.flight.switched_kernel.fly_maps`;
+        the lock and the sign are held over each sample). The law and its observer still
+        assume the linear damper.
 
     Returns
     -------
@@ -327,18 +339,27 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
         raise ValueError(f"update_every must be an integer >= 1, got {update_every}")
     lag = _Damper(tau, dt, law.c_lo, law.c_hi, table.size, c_start, float(force_limit),
                   plant.absorber.series_stiffness, maxwell_index(plant), int(update_every))
+    yield_force = float(yield_force)
+    if not (math.isfinite(yield_force) and yield_force >= 0.0):
+        raise ValueError(f"yield_force must be finite and >= 0 N, got {yield_force}")
+    locked = (_steps(plant, plant, keys, np.array([np.inf]), dt)[:, 0, :n * (n + 1)]
+              if yield_force > 0 else np.zeros((1, n * (n + 1))))
     sample_map = np.repeat(period_map.astype(np.int64).ravel(), hold)[:nsamp]
     states, level, targets = fly_maps(
         steps, index, weight, est, g_in, g_state, sample_map, inputs, n, tau, lag.decay,
         lag.mean_factor, lag.c_lo, lag.c_hi, lag.per_level, lag.force_limit, lag.k2,
         lag.deflection, lag.every, 0, np.zeros((nf, n + est.shape[1])), np.full(nf, c_start),
-        np.full(nf, c_start >= math.sqrt(law.c_lo * law.c_hi)), np.zeros(nf))
+        np.full(nf, c_start >= math.sqrt(law.c_lo * law.c_hi)), np.zeros(nf), yield_force,
+        np.ascontiguousarray(locked), table)
     le = states @ plant.c_displacement[2]
     stroke = states @ plant.c_displacement[3]
     damping = table[level]
-    spring_force = plant.absorber.series_stiffness * states[..., maxwell_index(plant)]
+    spring_force = np.abs(plant.absorber.series_stiffness * states[..., maxwell_index(plant)])
+    # F v_damper: F^2 / c2 for the linear damper; F (|F| - yield) / c2 while a Bingham
+    # damper flows, 0 while it is locked
+    flowing = np.maximum(spring_force - yield_force, 0.0)
     out = SwitchedFlight(leading_edge=le, stroke=stroke, damping=damping, target=targets,
-                         damper_power=spring_force**2 / damping, sample_rate=1.0 / dt)
+                         damper_power=spring_force * flowing / damping, sample_rate=1.0 / dt)
     if single:
         return SwitchedFlight(*(getattr(out, f)[0] for f in (
             "leading_edge", "stroke", "damping", "target", "damper_power")), 1.0 / dt)

@@ -45,11 +45,17 @@ def _form(out, steps, index, weight, k):
 @njit(cache=True)
 def fly_maps(steps, index, weight, est, g_in, g_state, sample_map, inputs, n, tau, decay,
              mean_factor, c_lo, c_hi, per_level, force_limit, k2, d_col, every, first, z, c,
-             target_hi, prev_fh):
+             target_hi, prev_fh, yield_force, locked, table):
     """Fly ``inputs`` (F, N, v) with the law (module docstring).
 
     ``steps`` (B, L, S) holds per base condition and level the plant's ``[Ad | Bd]`` (n, n+1)
-    flattened, then the observer's ``Ao`` (m, m) if its model is another (else Ao = Ad);
+    flattened, then the observer's ``Ao`` (m, m) if its model is another (else Ao = Ad), then
+    the plant's column ``g`` (n) of a unit deflection rate. A Bingham damper
+    (``yield_force`` > 0 [N]): on a sample whose spring force ``|k2 delta|`` is at most the
+    yield force the damper is locked and the plant takes ``locked[q]`` (``[Ad | Bd]`` at
+    c2 = inf); above it the damper flows with the force ``c2 v + yield sign(delta)``, i.e.
+    the level's step plus ``(k2 / c2) (yield / k2) sign(delta) g`` (the sign and the
+    lock held over the sample; ``table`` the levels' c2). The observer's model stays linear.
     ``est`` (K, m, n+m+v); ``g_in`` (K, 2, v); ``g_state`` (K, 2, n+m); ``sample_map`` (N,)
     the held condition of each sample. ``first`` is the flight's index of the first sample
     (decisions act every ``every`` samples of the flight). The loop's state, per flight, is
@@ -61,7 +67,8 @@ def fly_maps(steps, index, weight, est, g_in, g_state, sample_map, inputs, n, ta
     nf, nsamp, nv = inputs.shape
     m = est.shape[1]
     nm = n + m
-    own_observer = steps.shape[2] > n * (n + 1)
+    own_observer = steps.shape[2] > n * (n + 1) + n
+    g_at = steps.shape[2] - n
     states = np.empty((nf, nsamp, n))
     level = np.empty((nf, nsamp), np.int64)
     targets = np.empty((nf, nsamp), np.bool_)
@@ -126,10 +133,18 @@ def fly_maps(steps, index, weight, est, g_in, g_state, sample_map, inputs, n, ta
                     for j in range(m):
                         s += step[base + r * width + j] * e[j]
                     x[n + r] = s  # p: written after its last read (est above)
+            plant = step
+            offset = 0.0
+            if yield_force > 0.0:
+                force = k2 * x[d_col]
+                if abs(force) <= yield_force:
+                    plant = locked[q]
+                else:
+                    offset = yield_force / table[k] * (1.0 if force > 0.0 else -1.0)
             for r in range(n):
-                s = step[r * (n + 1) + n] * u[0]
+                s = plant[r * (n + 1) + n] * u[0] + offset * step[g_at + r]
                 for j in range(n):
-                    s += step[r * (n + 1) + j] * x[j]
+                    s += plant[r * (n + 1) + j] * x[j]
                 xn[r] = s
             for r in range(n):
                 x[r] = xn[r]

@@ -151,7 +151,8 @@ class SwitchedStream:
             steps, index, np.ones((used.size, 1)), est, g_in, g_state,
             sample_map.astype(np.int64).ravel(), inputs, self.model.n_states, lag.tau,
             lag.decay, lag.mean_factor, lag.c_lo, lag.c_hi, lag.per_level, math.inf, lag.k2,
-            lag.deflection, 1, int(first_index), self._z, self._c, self._target, self._prev)
+            lag.deflection, 1, int(first_index), self._z, self._c, self._target, self._prev,
+            0.0, np.zeros((1, 1)), self.table)
         x = states[0]  # (n, n_states) at each sample's start
         c_out = np.stack([mp[4] for mp in maps])[sample_map.ravel()]
         d_out = np.stack([mp[5] for mp in maps])[sample_map.ravel()]
