@@ -60,7 +60,8 @@ class RuntimeConfig:
         None flies the bare wing.
     damper : DamperConfig
     switching : SwitchingGains or None
-        The switching law's gains file, for the damper's own controller.
+        The switching law's gains file, for the damper's own controller
+        (:func:`aero_dva.control.switching_io.with_switching` sets it).
     switching_problem : str or None
         Why the law cannot run when asked for (no file, an invalid file, a file for another
         wing); None when it can.
@@ -144,36 +145,8 @@ def load_runtime_config(params: dict) -> RuntimeConfig:
     if outside:
         raise ValueError(f"sweep c2 values {outside} N s/m lie outside the damper's range "
                          f"[{low}, {high}] (parameters damper_min, damper_max)")
-    gains, problem = switching_gains(params.get("switching_gains") or "", wing_file, absorber)
     return RuntimeConfig(scenario=scenario, wing=wing_file.wing, aero=wing_file.aero,
-                         absorber=absorber, damper=damper, switching=gains,
-                         switching_problem=problem)
-
-
-def switching_gains(path: str, wing_file, absorber):
-    """``(gains, None)``, or ``(None, why the switching law cannot run)``: the file is
-    loaded and checked through :mod:`aero_dva.control.switching_io` and must be made for this
-    wing (its fingerprint) with the wing file's own absorber. A bad file is not fatal: the
-    damper then holds constant c2 values and says so when the law is asked for."""
-    from aero_dva.control.switching_io import SwitchingGainsError, load_gains
-    from aero_dva.wing.wing_io import wing_fingerprint
-
-    if not path:
-        return None, "no switching gains file (parameter switching_gains)"
-    try:
-        gains = load_gains(path)
-    except SwitchingGainsError as exc:
-        return None, f"invalid switching gains: {exc}"
-    design = wing_file.maxwell_design
-    if absorber is None or (absorber.mass, absorber.stiffness, absorber.series_stiffness,
-                            absorber.position) != (design.mass, design.stiffness,
-                                                   design.series_stiffness, design.position):
-        return None, "the switching gains are for the wing file's own Maxwell absorber"
-    if gains.wing_fingerprint != wing_fingerprint(wing_file):
-        return None, (f"switching gains {path!r} were designed for another wing "
-                      f"(fingerprint {gains.wing_fingerprint}, this wing's "
-                      f"{wing_fingerprint(wing_file)})")
-    return gains, None
+                         absorber=absorber, damper=damper)
 
 
 class FlightRuntime:

@@ -30,6 +30,7 @@ from rclpy.node import Node
 from rclpy.task import Future
 
 from aero_dva.bag import channels as ch
+from aero_dva.control.switching_io import with_switching
 from aero_dva.flight.damper import DamperMode, DamperStatus
 from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
 from dva_msgs.msg import DamperCommand
@@ -123,7 +124,9 @@ class Simulator(Node):
 
     def __init__(self, **kwargs) -> None:
         super().__init__(SPEC.name, **kwargs)
-        config = load_runtime_config(self._declare_parameters())
+        params = self._declare_parameters()
+        config = with_switching(load_runtime_config(params), params["switching_gains"],
+                                params["wing"])
         self.runtime = FlightRuntime(config)
         self.finished = Future()
         self._rtf = float(self.get_parameter("real_time_factor").value)

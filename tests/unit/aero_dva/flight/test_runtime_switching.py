@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from aero_dva.control.switching_io import with_switching
 from aero_dva.data_files import data_file
 from aero_dva.flight.damper import SWITCHING_SOURCE, DamperMode, DamperStatus
 from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
@@ -17,10 +18,9 @@ def runtime(tmp_path, ratio, duration=3.0, gains=None):
     scenario.write_text(f"name: hold\nduration: {duration}\nblock_size: 50\n"
                         f"airspeed: {{kind: constant, value_ratio: {ratio}}}\n"
                         "excitation: {force_std: 1000.0, seed: 7}\n")
-    config = load_runtime_config({
-        "scenario": str(scenario), "damper_time_constant": 0.01,
-        "switching_gains": str(data_file("switching_gains.json")) if gains is None else gains})
-    return FlightRuntime(config)
+    config = load_runtime_config({"scenario": str(scenario), "damper_time_constant": 0.01})
+    path = str(data_file("switching_gains.json")) if gains is None else gains
+    return FlightRuntime(with_switching(config, path))
 
 
 def fly(rt, source, blocks=None, command_blocks=None):

@@ -32,7 +32,8 @@ def wing():
     return cfg, AeroelasticModel(cfg.wing, cfg.absorber, cfg.aero)
 
 
-def reference_flight(model, law, speed, rho, force, noise, tau, dt=1e-3, observer_model=None):
+def reference_flight(model, law, speed, rho, force, noise, tau, dt=1e-3, observer_model=None,
+                     yield_force=0.0):
     """The law written out sample by sample with scipy's expm: continuous lag, c2 rounded to
     the table in log c2, filtered estimate from the measurements, decision acting one sample
     later."""
@@ -60,20 +61,29 @@ def reference_flight(model, law, speed, rho, force, noise, tau, dt=1e-3, observe
         cm_obs = measurement_matrices(obs_model, speed, rho, level)[0]
         est = x if law.observer is None else pred + law.observer @ (y - cm_obs @ pred)
         decision = (k2 * est[idx]) * (law.gain @ est) > 0
-        aug = np.zeros((n + 1, n + 1))
-        aug[:n, :n], aug[:n, n] = a * dt, b * dt
+        # A Bingham damper: locked (c2 = inf) at most at the yield force, else the linear
+        # damper plus the yield force's offset on the deflection rate
+        spring = k2 * x[idx]
+        offset = 0.0
+        if yield_force and abs(spring) <= yield_force:
+            a, b = model.matrices(speed, rho, math.inf)
+        elif yield_force:
+            offset = yield_force / level * math.copysign(1.0, spring)
+        aug = np.zeros((n + 2, n + 2))
+        aug[:n, :n], aug[:n, n], aug[idx, n + 1] = a * dt, b * dt, dt
         e = linalg.expm(aug)
         les.append(model.c_displacement[2] @ x)
         damping.append(level)
-        x = e[:n, :n] @ x + e[:n, n] * f
+        x = e[:n, :n] @ x + e[:n, n] * f + e[:n, n + 1] * offset
         aug[:n, :n] = obs_model.matrices(speed, rho, level)[0] * dt
         pred = linalg.expm(aug)[:n, :n] @ est
     return np.array(les), np.array(damping)
 
 
-@pytest.mark.parametrize("tau, with_observer, mismatch",
-                         [(0.0, False, False), (0.01, True, False), (0.01, True, True)])
-def test_matches_a_plain_sample_by_sample_loop(wing, tau, with_observer, mismatch):
+@pytest.mark.parametrize("tau, with_observer, mismatch, yield_force",
+                         [(0.0, False, False, 0.0), (0.01, True, False, 0.0),
+                          (0.01, True, True, 0.0), (0.01, True, False, 30.0)])
+def test_matches_a_plain_sample_by_sample_loop(wing, tau, with_observer, mismatch, yield_force):
     cfg, model = wing
     observer_model = model
     if mismatch:  # the flown plant 5 % stiffer in plunge than the observer's model
@@ -92,10 +102,11 @@ def test_matches_a_plain_sample_by_sample_loop(wing, tau, with_observer, mismatc
     noise = rng.normal(0, 1.0, (400, 4)) * 0.05 * scale
     flight = fly_switched(model, law, speed, rho, force, time_constant=tau,
                           noise=noise if with_observer else None,
-                          observer_model=observer_model if mismatch else None)
+                          observer_model=observer_model if mismatch else None,
+                          yield_force=yield_force)
     le, damping = reference_flight(model, law, speed, rho, force,
                                    noise if with_observer else np.zeros((400, 4)), tau,
-                                   observer_model=observer_model)
+                                   observer_model=observer_model, yield_force=yield_force)
     np.testing.assert_allclose(flight.damping, damping, rtol=1e-12)
     np.testing.assert_allclose(flight.leading_edge, le, rtol=1e-7,
                                atol=1e-9 * np.max(np.abs(le)))
@@ -239,3 +250,18 @@ def test_interpolated_steps_match_the_exact_steps_of_every_condition_and_level(w
         exact = build(keys[check], table)
         formed = np.einsum("qj,qjls->qls", weight[check], base[index[check]])
         assert np.abs(formed - exact).max() <= 1e-12 * np.abs(exact).max()
+
+
+def test_a_yield_force_above_every_force_locks_the_damper(wing):
+    # A Bingham damper that never yields is a locked damper: the wing flies as with c2 = inf.
+    from aero_dva.flight.streaming_simulator import StreamingSimulator
+
+    cfg, model = wing
+    force = np.random.default_rng(8).normal(0, 1000.0, 2000)
+    law = SwitchingLaw(law_gain(model, 100.0, 1.2, C_LO, C_HI), C_LO, C_HI)
+    flight = fly_switched(model, law, 100.0, 1.2, force, yield_force=1e9)
+    sim = StreamingSimulator(cfg.wing, cfg.absorber, quantum=2e-3)
+    locked = sim.advance(force, 100.0, 1.2, math.inf).displacements[2]
+    np.testing.assert_allclose(flight.leading_edge, locked, rtol=1e-6,
+                               atol=1e-9 * np.abs(locked).max())
+    assert np.all(flight.damper_power == 0.0)  # a locked damper dissipates nothing
