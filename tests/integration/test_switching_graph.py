@@ -160,3 +160,15 @@ def test_stale_commands_end_the_law_on_the_fallback_c2(executor, spin, ros_conte
     assert states[-1].mode == DamperState.MODE_CONSTANT
     assert any("no damper command within" in t and "switching law is disarmed" in t
                for t in texts)
+
+
+def test_run_flight_refuses_an_unreadable_gains_file_at_once(tmp_path, capsys):
+    from aero_dva_sim.run_flight import main as run_flight_main
+
+    bad = tmp_path / "gains.json"
+    bad.write_text('{"format": "something else"}')
+    assert run_flight_main(["--controller", "switching", "--gains", str(bad), "--output",
+                            str(tmp_path / "bag")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "switching gains" in err[0] and "something else" in err[0]
+    assert not (tmp_path / "bag").exists()  # no graph was started

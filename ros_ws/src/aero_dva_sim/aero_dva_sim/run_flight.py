@@ -372,6 +372,21 @@ def controller_files_given(prog: str, args) -> bool:
     return True
 
 
+def switching_gains_readable(prog: str, args) -> bool:
+    """--controller switching with --gains: the file must load and check (the nodes would only
+    fall back to the safe c2); False (and the error said) when it does not."""
+    if getattr(args, "controller", None) != "switching" or not getattr(args, "gains", None):
+        return True
+    from aero_dva.control.switching_io import SwitchingGainsError, load_gains
+
+    try:
+        load_gains(args.gains)
+    except SwitchingGainsError as exc:
+        print(f"{prog}: error: {exc}", file=sys.stderr)
+        return False
+    return True
+
+
 def run_on_domain(prog: str, run, args) -> tuple[dict | None, int]:
     """``(run(args), 0)`` on ``args.domain_id``, or on a ROS domain reserved for this run
     (released after); ``(None, exit code)`` with the error said when it fails."""
@@ -392,7 +407,8 @@ def run_on_domain(prog: str, run, args) -> tuple[dict | None, int]:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    if not controller_files_given("run_flight", args):
+    if not controller_files_given("run_flight", args) or \
+            not switching_gains_readable("run_flight", args):
         return 2
     summary, code = run_on_domain("run_flight", run, args)
     if summary is None:
