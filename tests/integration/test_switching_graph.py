@@ -36,8 +36,9 @@ HOLD = "airspeed: {kind: constant, value_ratio: 1.0}"
 
 def fly(executor, spin, ros_context, tmp_path, controller: Node | None, airspeed: str,
         duration: float, gains: str = GAINS, stop=None):
-    """Fly one scenario with ``controller``; returns the simulator, the damper states and the
-    simulator's diagnostics texts. ``stop(states)`` true removes the controller (silence)."""
+    """Fly one scenario with ``controller``; returns the simulator, the damper states, the
+    diagnostics texts and the displacement blocks. ``stop(states)`` true removes the
+    controller (silence)."""
     from diagnostic_msgs.msg import DiagnosticArray
 
     scenario = tmp_path / "scenario.yaml"
@@ -51,13 +52,13 @@ def fly(executor, spin, ros_context, tmp_path, controller: Node | None, airspeed
         Parameter("max_command_lag", value=0.2), Parameter("command_wait_timeout", value=0.5),
         Parameter("wait_for_command_publishers", value=1)])
     probe = Node("probe", context=ros_context)
-    states, texts = [], []
+    states, texts, blocks = [], [], []
     probe.create_subscription(DamperState, "dva/damper_state", states.append, 5000)
+    probe.create_subscription(DisplacementBlock, "wing/displacement", blocks.append, 5000)
     probe.create_subscription(
         DiagnosticArray, "/diagnostics",
         lambda m: texts.extend(f"{s.name}: {s.message}" for s in m.status), 1000)
     for msg_type, topic in ((ForceBlock, "wing/excitation"), (FlightCondition, "flight/condition"),
-                            (DisplacementBlock, "wing/displacement"),
                             (AccelerationBlock, "wing/acceleration")):
         probe.create_subscription(msg_type, topic, lambda _: None, 10)
     nodes = [probe, sim] if controller is None else [controller, probe, sim]
@@ -67,10 +68,11 @@ def fly(executor, spin, ros_context, tmp_path, controller: Node | None, airspeed
         assert spin(executor, lambda: stop(states) or sim.finished.done(), timeout=60.0)
         executor.remove_node(controller)
     assert spin(executor, sim.finished.done, timeout=120.0)
-    spin(executor, lambda: len(states) >= sim.published["dva/damper_state"], timeout=5.0)
+    spin(executor, lambda: len(states) >= sim.published["dva/damper_state"]
+         and len(blocks) >= sim.published["wing/displacement"], timeout=5.0)
     spin(executor, lambda: any("flight" in t and ("completed" in t or "diverged" in t)
                                for t in texts), timeout=5.0)
-    return sim, states, texts
+    return sim, states, texts, blocks
 
 
 def supervisor(ros_context, **params):
@@ -89,7 +91,7 @@ def test_switching_diverges_later_than_the_best_constant_c2(executor, spin, ros_
                                                             tmp_path):
     # The burst detector is set out of the way: this compares the laws, not the supervisor.
     law = supervisor(ros_context, peak_limit=10.0)
-    sim, states, texts = fly(executor, spin, ros_context, tmp_path, law, RAMP, 4.0)
+    sim, states, texts, _ = fly(executor, spin, ros_context, tmp_path, law, RAMP, 4.0)
     assert sim.finished.result() == "diverged"
     switched_at = diverged_at(sim, texts)
     armed = [s for s in states if s.mode == DamperState.MODE_SWITCHING]
@@ -104,10 +106,39 @@ def test_switching_diverges_later_than_the_best_constant_c2(executor, spin, ros_
     fixed = FixedController(context=ros_context, parameter_overrides=[
         Parameter("use_sim_time", value=True), Parameter("damping", value=SAFE_C2),
         Parameter("rate", value=20.0)])
-    sim, states, texts = fly(executor, spin, ros_context, tmp_path, fixed, RAMP, 4.0)
+    sim, states, texts, _ = fly(executor, spin, ros_context, tmp_path, fixed, RAMP, 4.0)
     assert sim.finished.result() == "diverged"
     assert all(s.mode == DamperState.MODE_CONSTANT for s in states)
     assert switched_at > diverged_at(sim, texts) + 0.01
+
+
+def test_the_graph_flight_is_the_in_process_flight(executor, spin, ros_context, tmp_path):
+    # The first block flies before any command (on the start-up c2); from the second on the
+    # flight holds for the first command, and every command arms the law with the same safe
+    # c2: the graph flies what the runtime flies in process with a "switching" command before
+    # each later block.
+    import numpy as np
+
+    from aero_dva.control.switching_io import with_switching
+    from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
+
+    law = supervisor(ros_context, peak_limit=10.0)
+    sim, states, _, blocks = fly(executor, spin, ros_context, tmp_path, law, RAMP, 1.0)
+    assert sim.finished.result() == "completed"
+    assert states[0].mode == DamperState.MODE_CONSTANT
+    assert all(s.mode == DamperState.MODE_SWITCHING for s in states[1:])
+    graph = np.concatenate([np.array(b.leading_edge) for b in blocks])
+    config = load_runtime_config({"scenario": str(tmp_path / "scenario.yaml"),
+                                  "damper_time_constant": 0.01, "damper_timeout": 0.3})
+    runtime = FlightRuntime(with_switching(config, GAINS))
+    local = []
+    while not runtime.done:
+        if local:
+            runtime.command(SAFE_C2, "switching")
+        local.append(runtime.step().displacements[2])
+    local = np.concatenate(local)
+    assert graph.size == local.size == 1000
+    np.testing.assert_allclose(graph, local, rtol=1e-9, atol=1e-12 * np.abs(local).max())
 
 
 def test_invalid_gains_in_the_simulator_hold_the_safe_c2_and_say_so(executor, spin,
@@ -115,7 +146,7 @@ def test_invalid_gains_in_the_simulator_hold_the_safe_c2_and_say_so(executor, sp
     bad = tmp_path / "gains.json"
     bad.write_text('{"format": "dva_switching_gains", "version": 1, "gain": [1, 2]}')
     law = supervisor(ros_context)
-    sim, states, texts = fly(executor, spin, ros_context, tmp_path, law, HOLD, 0.5,
+    sim, states, texts, _ = fly(executor, spin, ros_context, tmp_path, law, HOLD, 0.5,
                              gains=str(bad))
     assert sim.finished.result() == "completed"
     assert states[-1].mode == DamperState.MODE_SWITCHING_REFUSED
@@ -129,7 +160,7 @@ def test_invalid_gains_in_the_supervisor_never_arm(executor, spin, ros_context, 
     bad.write_text("not json")
     law = supervisor(ros_context, gains_file=str(bad))
     assert law.reason.startswith("invalid switching gains")
-    sim, states, texts = fly(executor, spin, ros_context, tmp_path, law, HOLD, 0.5)
+    sim, states, texts, _ = fly(executor, spin, ros_context, tmp_path, law, HOLD, 0.5)
     assert all(s.mode == DamperState.MODE_CONSTANT for s in states)
     assert states[-1].source == "switching_fallback"
     assert states[-1].applied_damping == pytest.approx(SAFE_C2, rel=1e-6)
@@ -139,7 +170,7 @@ def test_invalid_gains_in_the_supervisor_never_arm(executor, spin, ros_context, 
 def test_a_burst_disarms_the_law_and_says_so(executor, spin, ros_context, tmp_path):
     # The default peak limit (13 mm): on the ramp the law bursts near its practical boundary.
     law = supervisor(ros_context, rearm_after=100.0)
-    sim, states, texts = fly(executor, spin, ros_context, tmp_path, law, RAMP, 4.0)
+    sim, states, texts, _ = fly(executor, spin, ros_context, tmp_path, law, RAMP, 4.0)
     assert law.fallbacks and law.fallbacks[0].startswith("burst detector")
     modes = [s.mode for s in states]
     first_fallback = next(i for i, s in enumerate(states) if s.source == "switching_fallback")
@@ -151,7 +182,7 @@ def test_a_burst_disarms_the_law_and_says_so(executor, spin, ros_context, tmp_pa
 
 def test_stale_commands_end_the_law_on_the_fallback_c2(executor, spin, ros_context, tmp_path):
     law = supervisor(ros_context)
-    sim, states, texts = fly(
+    sim, states, texts, _ = fly(
         executor, spin, ros_context, tmp_path, law, HOLD, 2.0,
         stop=lambda s: sum(x.mode == DamperState.MODE_SWITCHING for x in s) >= 3)
     assert sim.finished.result() == "completed"
