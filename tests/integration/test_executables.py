@@ -22,6 +22,7 @@ NODES = {
     ("dva_controller", "fixed_controller"): [],
     ("dva_controller", "spectrum"): [],
     ("dva_controller", "airspeed_controller"): [],
+    ("dva_controller", "switching_controller"): [],
 }
 
 

@@ -56,6 +56,9 @@ __all__ = ["DAMPER_COLUMNS", "BatchRecorder", "load_definitions", "recorded_topi
 #: the ``dva_msgs/DamperState`` fields of the same names.
 DAMPER_COLUMNS = ("time", "commanded_damping", "applied_damping", "min_damping",
                   "max_damping", "command_age", "status")
+#: ``dva/damper_state`` fields of the switching law, taken from the damper columns when given,
+#: else those of a held c2 (mode constant, no switching).
+DAMPER_LAW_COLUMNS = {"mode": 0, "switching_rate": 0.0}
 # Rows of the sample arrays -> sample fields of the messages (the wing model's output order).
 _SAMPLE_ROWS = {ch.ACCELERATION: ACCELERATION_NAMES, ch.DISPLACEMENT: DISPLACEMENT_NAMES,
                 ch.EXCITATION: ("aileron_force",)}
@@ -113,7 +116,7 @@ def _filled_fields(channel: ch.Channel) -> set[str]:
         return stamp | {"sample_rate", "first_sample_index", *_SAMPLE_ROWS[channel]}
     if channel == ch.FLIGHT_CONDITION:
         return stamp | {"airspeed", "air_density"}
-    return stamp | set(DAMPER_COLUMNS[1:])
+    return stamp | set(DAMPER_COLUMNS[1:]) | set(DAMPER_LAW_COLUMNS)
 
 
 @dataclass(frozen=True, eq=False)  # identity hash: cached per (n, source, channels)
@@ -156,10 +159,11 @@ def _group_layout(n: int, source: str | None, channels: tuple[ch.Channel, ...],
 def _snapshot_values(snapshots: Sequence) -> dict[str, np.ndarray]:
     """DamperSnapshots -> the :data:`DAMPER_COLUMNS` as (k,) arrays."""
     rows = [(s.time, s.commanded_damping, s.applied_damping, s.min_damping, s.max_damping,
-             s.command_age, int(s.status)) for s in snapshots]
-    table = np.array(rows, dtype=np.float64).reshape(-1, len(DAMPER_COLUMNS))
-    _check_status(table[:, -1])
-    return dict(zip(DAMPER_COLUMNS, table.T))
+             s.command_age, int(s.status), int(s.mode), s.switching_rate) for s in snapshots]
+    names = DAMPER_COLUMNS + tuple(DAMPER_LAW_COLUMNS)
+    table = np.array(rows, dtype=np.float64).reshape(-1, len(names))
+    _check_status(table[:, len(DAMPER_COLUMNS) - 1])
+    return dict(zip(names, table.T))
 
 
 def _check_status(status: np.ndarray) -> None:
@@ -395,6 +399,8 @@ class BatchRecorder:
             rows[f"{key}:header.stamp.sec"], rows[f"{key}:header.stamp.nanosec"] = sec, nsec
             for name in DAMPER_COLUMNS[1:]:
                 rows[f"{key}:{name}"] = damper[name]
+            for name, held in DAMPER_LAW_COLUMNS.items():
+                rows[f"{key}:{name}"] = damper.get(name, held)
         self._bag.add_messages(
             memoryview(raw), np.tile(group.sizes, count), np.tile(np.array(ids), count),
             np.repeat(ns_end.astype(np.uint64), len(channels)))

@@ -28,7 +28,7 @@ from aero_dva.safe_files import check_file_header, parse_json
 from aero_dva.text_input import read_text_input
 
 __all__ = ["FILE_FORMAT", "FILE_VERSION", "UNITS", "SwitchingGains", "SwitchingGainsError",
-           "gains_from_dict", "gains_to_dict", "load_gains", "save_gains"]
+           "gains_from_dict", "gains_to_dict", "load_gains", "save_gains", "with_switching"]
 
 FILE_FORMAT = "dva_switching_gains"
 FILE_VERSION = 1
@@ -149,3 +149,45 @@ def load_gains(path) -> SwitchingGains:
     data = parse_json(text, f"switching gains {str(path)!r}", SwitchingGainsError,
                       nonfinite=True)  # each field is checked by name
     return gains_from_dict(data, repr(str(path)))
+
+
+def with_switching(config, path: str, wing: str | None = None):
+    """A flight's ``config`` (:class:`~aero_dva.flight.flight_runtime.RuntimeConfig`) with the
+    switching law's gains from ``path`` for the damper's own controller, or with the reason
+    the law cannot run: no file, an invalid one (:class:`SwitchingGainsError`'s text), one made
+    for another wing (its fingerprint; ``wing`` the flight's wing file, None the package's),
+    or a flight whose absorber is not the wing file's. Not fatal: the damper then holds the
+    commands' constant c2 and says why when the law is asked for."""
+    import dataclasses
+
+    from aero_dva.wing.wing_io import load_wing, wing_fingerprint
+
+    def problem(text):
+        return dataclasses.replace(config, switching=None, switching_problem=text)
+
+    if not path:
+        return problem("no switching gains file (parameter switching_gains)")
+    try:
+        gains = load_gains(path)
+    except SwitchingGainsError as exc:
+        return problem(f"invalid switching gains: {exc}")
+    wing_file = load_wing(wing or None)
+    design, absorber = wing_file.maxwell_design, config.absorber
+    if absorber is None or (absorber.mass, absorber.stiffness, absorber.series_stiffness,
+                            absorber.position) != (design.mass, design.stiffness,
+                                                   design.series_stiffness, design.position):
+        return problem("the switching gains are for the wing file's own Maxwell absorber")
+    fingerprint = wing_fingerprint(wing_file)
+    if gains.wing_fingerprint != fingerprint:
+        return problem(f"switching gains {str(path)!r} were designed for another wing "
+                       f"(fingerprint {gains.wing_fingerprint}, this wing's {fingerprint})")
+    if gains.state_names != _state_names(config):
+        return problem(f"switching gains {str(path)!r}: states {list(gains.state_names)} "
+                       "are not the flown wing's")
+    return dataclasses.replace(config, switching=gains, switching_problem=None)
+
+
+def _state_names(config) -> tuple:
+    from aero_dva.wing.model import AeroelasticModel
+
+    return AeroelasticModel(config.wing, config.absorber, config.aero).state_names

@@ -66,11 +66,11 @@ def expected_commands(controller: str, blocks: int, block_duration: float, spect
     """Commands the simulator should receive over a flight of ``blocks`` blocks: one per block
     but the last (the airspeed schedule answers every flight condition; the answer to the last
     one comes after the flight), one per spectrum (RBF network), one per period of sim time
-    (fixed), none without a controller."""
+    (fixed, and the switching law's supervisor), none without a controller."""
     if controller == "schedule":
         return max(blocks - 1, 0)
     if controller == "rbf":
         return spectra
-    if controller == "fixed":
+    if controller in ("fixed", "switching"):
         return int(blocks * block_duration * fixed_rate + 1e-9)
     return 0

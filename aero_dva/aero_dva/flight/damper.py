@@ -10,7 +10,13 @@ the simulator passes every command through :class:`DamperModel`:
 - staleness: if no command is accepted for longer than ``stale_timeout``, the target becomes
   ``fallback_damping`` until the next accepted command;
 - optional first-order lag ``tau dc/dt = target - c``, integrated exactly for a piecewise
-  constant target: ``c(t + dt) = target + (c(t) - target) exp(-dt / tau)``.
+  constant target: ``c(t + dt) = target + (c(t) - target) exp(-dt / tau)``;
+- a per-sample law slot: a command from the source ``"switching"`` asks the damper's own
+  controller to run the switching c2 law every sample (its ``damping`` is the constant c2 to
+  hold when the law cannot run). The flight runs the law
+  (:mod:`aero_dva.flight.switched_stream`) and tells the model what it did
+  (:meth:`DamperModel.record_mode`: the mode, the switching rate and the c2 the lag reached);
+  a stale command ends it like any other.
 
 Time is sim time in seconds, passed in by the caller; the model has no clock. The model's
 state maps onto ``dva_msgs/DamperState`` (see :class:`DamperSnapshot`).
@@ -28,11 +34,17 @@ __all__ = [
     "DAMPER_RANGE",
     "CommandResult",
     "DamperConfig",
+    "DamperMode",
     "DamperModel",
     "DamperSnapshot",
     "DamperStatus",
     "Rejection",
+    "SWITCHING_SOURCE",
 ]
+
+#: ``DamperCommand.source`` that asks for the per-sample switching law
+#: (``DamperCommand.SOURCE_SWITCHING``).
+SWITCHING_SOURCE = "switching"
 
 #: [N s/m] the damper's default range of c2 (the simulator's, and the controllers' clamp).
 DAMPER_RANGE = (0.0, 2500.0)
@@ -46,6 +58,14 @@ class DamperStatus(enum.IntEnum):
     FALLBACK_STALE = 2
     REJECTED = 3
     NO_COMMAND = 4
+
+
+class DamperMode(enum.IntEnum):
+    """Who sets c2, equal to ``dva_msgs/DamperState.MODE_*``."""
+
+    CONSTANT = 0  # c2 held (a command, the start-up or the fallback value)
+    SWITCHING = 1  # the switching law sets c2 every sample
+    SWITCHING_REFUSED = 2  # the law was asked for but cannot run: the command's c2 is held
 
 
 class Rejection(str, enum.Enum):
@@ -178,6 +198,10 @@ class DamperSnapshot:
         Source of the last accepted command, or "fallback" / "initial".
     rejection : Rejection or None
         Reason for the latest command's rejection, if it was rejected.
+    mode : DamperMode
+        Who set c2 over the last block.
+    switching_rate : float
+        [1/s] changes of the law's target per second over the last block (0 unless switching).
     """
 
     time: float
@@ -189,6 +213,8 @@ class DamperSnapshot:
     status: DamperStatus
     source: str
     rejection: Rejection | None
+    mode: DamperMode = DamperMode.CONSTANT
+    switching_rate: float = 0.0
 
 
 class DamperModel:
@@ -217,6 +243,24 @@ class DamperModel:
         self._accepted_source = ""
         self._accepted_saturated = False
         self._last_rejection: Rejection | None = None
+        self._mode = DamperMode.CONSTANT
+        self._switching_rate = 0.0
+
+    @property
+    def switching_asked(self) -> bool:
+        """The command in force asks for the switching law (accepted, not stale)."""
+        return (self._accepted_time is not None and not self._is_stale()
+                and self._accepted_source == SWITCHING_SOURCE)
+
+    def record_mode(self, mode: DamperMode, switching_rate: float = 0.0,
+                    applied: float | None = None) -> None:
+        """What the damper did over the block that ended at the model's time: ``mode``, the
+        law's ``switching_rate`` [1/s] and, after the law ran, the c2 its lag reached (the
+        constant path's lag goes on from there)."""
+        self._mode = DamperMode(mode)
+        self._switching_rate = float(switching_rate)
+        if applied is not None:
+            self._applied = float(applied)
 
     @property
     def time(self) -> float:
@@ -347,4 +391,6 @@ class DamperModel:
             status=status,
             source=source,
             rejection=self._last_rejection,
+            mode=self._mode,
+            switching_rate=self._switching_rate,
         )

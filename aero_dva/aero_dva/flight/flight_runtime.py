@@ -20,6 +20,7 @@ from aero_dva.flight.damper import (
     DAMPER_RANGE,
     CommandResult,
     DamperConfig,
+    DamperMode,
     DamperModel,
     DamperSnapshot,
 )
@@ -58,6 +59,12 @@ class RuntimeConfig:
     absorber : MaxwellAbsorber or None
         None flies the bare wing.
     damper : DamperConfig
+    switching : SwitchingGains or None
+        The switching law's gains file, for the damper's own controller
+        (:func:`aero_dva.control.switching_io.with_switching` sets it).
+    switching_problem : str or None
+        Why the law cannot run when asked for (no file, an invalid file, a file for another
+        wing); None when it can.
     """
 
     scenario: Scenario
@@ -65,6 +72,8 @@ class RuntimeConfig:
     aero: object
     absorber: MaxwellAbsorber | None
     damper: DamperConfig
+    switching: object = None
+    switching_problem: str | None = "no switching gains file (parameter switching_gains)"
 
 
 @dataclass(frozen=True)
@@ -170,6 +179,7 @@ class FlightRuntime:
         self._rng = np.random.default_rng(self.scenario.seed)
         self._index = 0
         self._sweep = self.scenario.airspeed.kind == "steps"
+        self._law = None  # the switching law's damper path, built when first armed
         self.applied = AppliedControl()  # blocks by the source of the c2 they were flown with
 
     @property
@@ -216,18 +226,63 @@ class FlightRuntime:
         force = self.scenario.force_std * self._rng.standard_normal(n)
         if self.scenario.force_levels:
             force *= force_scale_at(self.scenario, t)
-        out = self._sim.advance(force, airspeed, density,
-                                damping if self.config.absorber is not None else None)
+        asked = not self._sweep and self._damper.switching_asked
+        mode, rate, law_c2 = DamperMode.CONSTANT, 0.0, None
+        if asked and self.law_problem() is None:
+            law = self._switched_path()
+            if not law.armed:
+                law.arm(self._sim.state, float(damping[0]))
+            out = law.advance(self._index, force, airspeed, density)
+            diverged = bool(self._sim.diverged or not np.all(np.isfinite(out.state))
+                            or np.max(np.abs(out.displacements[2]))
+                            > self._sim.divergence_limit)
+            self._sim.continue_from(out.state, n, diverged)
+            damping, displacements, accelerations = out.damping, out.displacements, \
+                out.accelerations
+            mode, rate, law_c2 = DamperMode.SWITCHING, out.switches * self.sample_rate / n, \
+                law.damping
+        else:
+            if self._law is not None:
+                self._law.disarm()
+            if asked:
+                mode = DamperMode.SWITCHING_REFUSED
+            sim_out = self._sim.advance(force, airspeed, density,
+                                        damping if self.config.absorber is not None else None)
+            displacements, accelerations = sim_out.displacements, sim_out.accelerations
+            diverged = sim_out.diverged
         block = FlightBlock(
             first_index=self._index, t0=float(t[0]),
             t_end=(self._index + n) / self.sample_rate,  # exactly the next block's t0
             force=force, airspeed=airspeed, density=density, damping=damping,
-            displacements=out.displacements, accelerations=out.accelerations,
-            diverged=out.diverged)
+            displacements=displacements, accelerations=accelerations,
+            diverged=diverged)
         self._index += n
         if not self._sweep:
             self._damper.update(block.t_end)
+        self._damper.record_mode(mode, rate, law_c2)
         return block
+
+    def law_problem(self) -> str | None:
+        """Why the switching law cannot run in this flight, or None."""
+        if self.config.switching_problem is not None:
+            return self.config.switching_problem
+        if self.config.absorber is None:
+            return "the wing flies without absorber"
+        if not isinstance(self._sim, StreamingSimulator):
+            return "the law runs on the nominal wing only (the scenario has a hidden plant)"
+        if abs(self.config.switching.sample_rate - self.sample_rate) > 1e-9:
+            return (f"the switching gains are for {self.config.switching.sample_rate:g} Hz, the "
+                    f"flight samples at {self.sample_rate:g} Hz")
+        return None
+
+    def _switched_path(self):
+        if self._law is None:
+            from aero_dva.flight.switched_stream import SwitchedStream
+
+            self._law = SwitchedStream(self._sim.model, self.config.switching.law,
+                                       self.sample_rate, self.config.damper.time_constant,
+                                       quantum=FLIGHT_QUANTUM)
+        return self._law
 
     def describe(self) -> dict:
         """A short summary for logs."""

@@ -152,6 +152,17 @@ class StreamingSimulator:
         self._held = (np.nan, np.nan, np.nan)  # (airspeed, density, damping) in force
         self._diverged = False
 
+    def continue_from(self, state, samples: int, diverged: bool) -> None:
+        """Go on after ``samples`` samples flown outside this simulator (the switching law's
+        damper path, :mod:`aero_dva.flight.switched_stream`) that ended in ``state``;
+        ``diverged`` is sticky as here."""
+        y = real_array(state, "state", allow_inf=True)
+        if y.shape != (self.model.n_states,):
+            raise ValueError(f"state must have shape ({self.model.n_states},), got {y.shape}")
+        self._y = y[None, :].copy()
+        self._index += int(samples)
+        self._diverged = self._diverged or bool(diverged)
+
     def advance(self, force, airspeed, density, damping=None) -> SimulationBlock:
         """Simulate ``len(force)`` samples; see the module docstring.
 

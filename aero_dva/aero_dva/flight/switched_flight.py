@@ -16,13 +16,16 @@ With a lag c2 is continuous; the choice here is a table of ``levels`` c2 values 
 log c2 between c_lo and c_hi, every step precomputed, and each sample flown with the level
 nearest (in log c2) to the lag's mean over the sample: with the default 65 levels between 100
 and 2500 N s/m the c2 acting is within 2.5 % of the lagged c2, far inside the accuracy of the
-damper's model, and the flight stays a table look-up and one matrix-vector product per sample.
+damper's model. The steps of a ramp's many held airspeeds and the table's levels are
+interpolated from a few Chebyshev nodes, to rounding accuracy
+(:mod:`aero_dva.flight.smooth_tables`).
 
 The estimate comes from a fixed-gain Kalman filter of the measured signals (the absorber stroke
 and the three accelerations, with sensor noise), run on an observer model that may differ from
-the flown plant (model mismatch). Plant, filter and law are one linear map per c2 level applied
-to ``[x; x_pred; force; noise]``; airspeed and density are held every ``hold`` samples as the
-other simulators hold them (:func:`~aero_dva.flight.discrete_model.next_held`). Pure numerics.
+the flown plant (model mismatch). The loop over samples is compiled
+(:mod:`aero_dva.flight.switched_kernel`); airspeed and density are held every ``hold`` samples
+as the other simulators hold them (:func:`~aero_dva.flight.discrete_model.next_held`). Pure
+numerics.
 """
 from __future__ import annotations
 
@@ -31,8 +34,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aero_dva.flight.discrete_model import DEFAULT_HOLD, next_held
+from aero_dva.flight.discrete_model import DEFAULT_HOLD, held_values
 from aero_dva.flight.discretize import zoh
+from aero_dva.flight.smooth_tables import interpolated_maps
+from aero_dva.flight.switched_kernel import fly_maps
 from aero_dva.wing.absorbers import MaxwellAbsorber
 from aero_dva.wing.checks import positive
 from aero_dva.wing.model import AeroelasticModel
@@ -165,40 +170,54 @@ class SwitchedFlight:
         return float(np.sum(self.damper_power[:stop]) / self.sample_rate)
 
 
-def _steps(model: AeroelasticModel, conditions: np.ndarray, levels: np.ndarray, dt: float):
-    """``Ad`` (K, L, n, n), ``Bd`` (K, L, n) at the held conditions ``conditions`` (K, 2) and
-    each c2 level, and the measurement ``C`` (K, 4, n), ``D`` (K, 4), in one batch."""
-    k, nl = conditions.shape[0], levels.size
-    speeds = np.repeat(conditions[:, 0], nl)
-    rhos = np.repeat(conditions[:, 1], nl)
-    a, b = model.matrices_unchecked(speeds, rhos, np.tile(levels, k))
-    ad, bd = zoh(a, b, dt)
-    n = a.shape[-1]
-    a, b = a.reshape(k, nl, n, n)[:, 0], b.reshape(k, nl, n)[:, 0]
+def _measurement(model: AeroelasticModel, conditions: np.ndarray):
+    """``C`` (K, 4, n) and ``D`` (K, 4) of :data:`MEASURED_OUTPUTS` at ``conditions`` (K, 2);
+    c2 does not enter them (it acts only on the Maxwell deflection's own rate)."""
+    k, n = conditions.shape[0], model.n_states
+    a, b = model.matrices_unchecked(conditions[:, 0], conditions[:, 1],
+                                    np.full(k, model.absorber.damping))
     c_acc, d_acc = model.acceleration_output(a, b)
     c = np.concatenate([np.broadcast_to(model.c_displacement[3], (k, 1, n)), c_acc], axis=1)
     d = np.concatenate([np.zeros((k, 1)), d_acc], axis=1)
-    return ad.reshape(k, nl, n, n), bd.reshape(k, nl, n), c, d
+    return c, d
 
 
-def _condition_maps(plant, observer_model, law, conditions, levels, dt):
-    """Per held condition and level, ``T`` with ``[x; p; F~; h~] = T [x; p; F~; h~; f; noise]``
-    (the last two rows the state part of the next sample's (F, h)), and ``G`` (K, 2, 5) the
-    input part of (F, h): the law's F and h at sample i+1 are ``T``'s last rows plus
-    ``G @ [f; noise]`` of sample i+1."""
-    ap, bp, cp, dp = _steps(plant, conditions, levels, dt)
-    kc, nl, n = ap.shape[0], levels.size, plant.n_states
+def _steps(plant, observer_model, conditions: np.ndarray, levels: np.ndarray, dt: float):
+    """(K, L, S): per held condition and c2 level, the plant's ``[Ad | Bd]``, (when the
+    observer's model is another) the observer's ``Ad``, and the plant's input column of a
+    unit rate on the Maxwell deflection (a yield force's offset), flattened."""
+    k, nl = conditions.shape[0], levels.size
+    speeds = np.repeat(conditions[:, 0], nl)
+    rhos = np.repeat(conditions[:, 1], nl)
+    n = plant.n_states
+    a, b = plant.matrices_unchecked(speeds, rhos, np.tile(levels, k))
+    inputs = np.zeros(b.shape + (2,))
+    inputs[..., 0] = b
+    inputs[..., maxwell_index(plant), 1] = 1.0
+    ad, gamma = zoh(a, inputs, dt)
+    # [Ad | Bd] row by row, then Ao, then the deflection-rate column: the compiled loop's
+    # layout.
+    parts = [np.concatenate([ad, gamma[..., :1]], axis=-1).reshape(k, nl, -1)]
+    if observer_model is not plant:
+        a, b = observer_model.matrices_unchecked(speeds, rhos, np.tile(levels, k))
+        parts.append(zoh(a, b, dt)[0].reshape(k, nl, -1))
+    parts.append(gamma[..., 1].reshape(k, nl, n))
+    return np.concatenate(parts, axis=-1)
+
+
+def _condition_maps(plant, observer_model, law, conditions):
+    """Per held condition (K, 2), the filtered estimate ``e = est @ [x; p; f; noise]`` (K, m,
+    n+m+5; None without observer) and the law's ``(F, h) = g_state @ [x; p] + g_in @ [f;
+    noise]``: g_state (K, 2, n+m), g_in (K, 2, 5)."""
+    kc, n = conditions.shape[0], plant.n_states
     nv = 1 + len(MEASURED_OUTPUTS)
     if law.observer is None:
-        m = 0
-        est = np.zeros((kc, n, n + nv))
-        est[:, :, :n] = np.eye(n)
-        fh_model, fh_state = plant, est
-        ao = None
+        fh_model, m, est = plant, 0, None
+        fh_state = np.zeros((kc, n, n + nv))
+        fh_state[:, :, :n] = np.eye(n)
     else:
-        same = observer_model is plant
-        ao, _, co, _ = (ap, bp, cp, dp) if same else _steps(observer_model, conditions,
-                                                             levels, dt)
+        cp, dp = _measurement(plant, conditions)
+        co = cp if observer_model is plant else _measurement(observer_model, conditions)[0]
         m = observer_model.n_states
         obs = law.observer
         # Filtered estimate e = p + M (y - C_o p), y = C_p x + D_p f + noise, as a map of v.
@@ -208,24 +227,15 @@ def _condition_maps(plant, observer_model, law, conditions, levels, dt):
         est[:, :, n + m] = dp @ obs.T
         est[:, :, n + m + 1:] = obs
         fh_model, fh_state = observer_model, est
-    width = n + m
-    fh = np.zeros((kc, 2, width + nv))
+    fh = np.zeros((kc, 2, n + m + nv))
     if law.force_gain is None:
         fh[:, 0] = fh_model.absorber.series_stiffness * fh_state[:, maxwell_index(fh_model)]
     else:
         fh[:, 0] = law.force_gain @ fh_state
     fh[:, 1] = law.gain @ fh_state
-    # The (F, h) of the next sample from the next state: their state part rides along.
-    step = np.zeros((kc, nl, width, width + 2 + nv))
-    step[:, :, :n, :n] = ap
-    step[:, :, :n, width + 2] = bp
-    if ao is not None:
-        step[:, :, n:, :width] = ao @ est[:, None, :, :width]
-        step[:, :, n:, width + 2:] = ao @ est[:, None, :, width:]
-    t = np.zeros((kc, nl, width + 2, width + 2 + nv))
-    t[..., :width, :] = step
-    t[..., width:, :] = fh[:, None, :, :width] @ step
-    return t, fh[:, :, width:], fh[:, :, :width]
+    if est is None:
+        est = np.zeros((kc, 0, n + nv))
+    return est, fh[:, :, n + m:], fh[:, :, :n + m]
 
 
 def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, force, *,
@@ -233,7 +243,8 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
                  time_constant: float = 0.01, noise=None, levels: int = DEFAULT_LEVELS,
                  hold: int = DEFAULT_HOLD, quantum: float = BATCH_QUANTUM,
                  initial_damping: float | None = None,
-                 force_limit: float = math.inf, update_every: int = 1) -> SwitchedFlight:
+                 force_limit: float = math.inf, update_every: int = 1,
+                 yield_force: float = 0.0) -> SwitchedFlight:
     """Fly ``plant`` with the switching law armed (module docstring).
 
     Parameters
@@ -262,6 +273,12 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
     update_every : int
         [samples] between the law's decisions (1: every sample); a slower loop holds each
         decision, made on the last sample of a block, over the next block.
+    yield_force : float
+        [N] a Bingham damper's yield force (0: none, the damper force is c2 times its
+        velocity): locked while the spring force is at most it, else the force is c2 times
+        the velocity plus the yield force (:func:`~aero_dva.flight.switched_kernel.fly_maps`;
+        the lock and the sign are held over each sample). The law and its observer still
+        assume the linear damper.
 
     Returns
     -------
@@ -296,7 +313,6 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
         raise ValueError(f"hold must be an integer >= 1, got {hold}")
     table = c2_levels(law.c_lo, law.c_hi, tau, levels)
     n = plant.n_states
-    width = n + (0 if law.observer is None else observer_model.n_states)
     nv = 1 + len(MEASURED_OUTPUTS)
     inputs = np.zeros((nf, nsamp, nv))
     inputs[:, :, 0] = force
@@ -307,18 +323,14 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
                              f"({nf}, {nsamp}, {nv - 1}), got {noise.shape}")
         inputs[:, :, 1:] = noise
     # The held condition of each hold period, then every map they need in one batch.
-    periods = range(0, nsamp, hold)
-    held = [(math.nan, math.nan)]
-    for start in periods:
-        held.append(next_held((float(speeds[start]), float(rhos[start])), held[-1],
-                              (quantum, quantum)))
-    keys = list(dict.fromkeys(held[1:]))
-    index = {key: j for j, key in enumerate(keys)}
-    maps = _condition_maps(plant, observer_model, law, np.array(keys), table, dt)
-    period_map = np.array([index[h] for h in held[1:]])
-    # The (F, h) of each sample from its inputs (force, noise), all samples at once.
-    of_sample = np.repeat(period_map, hold)[:nsamp]
-    fh_in = np.einsum("sij,fsj->fsi", maps[1][of_sample], inputs)
+    starts = np.arange(0, nsamp, hold)
+    raw = np.stack([speeds[starts], rhos[starts]], axis=-1)[None]
+    held = held_values(raw, np.full((1, 2), np.nan), quantum)[0]
+    keys, period_map = np.unique(held, axis=0, return_inverse=True)
+    steps, index, weight = interpolated_maps(
+        lambda cond, lev: _steps(plant, observer_model, cond, lev, dt), keys, table,
+        plant.absorber.series_stiffness)
+    est, g_in, g_state = _condition_maps(plant, observer_model, law, keys)
     c_start = law.c_hi if initial_damping is None else min(
         max(float(initial_damping), law.c_lo), law.c_hi)
     if not float(force_limit) > 0:
@@ -327,15 +339,27 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
         raise ValueError(f"update_every must be an integer >= 1, got {update_every}")
     lag = _Damper(tau, dt, law.c_lo, law.c_hi, table.size, c_start, float(force_limit),
                   plant.absorber.series_stiffness, maxwell_index(plant), int(update_every))
-    run = _loop_one if nf == 1 else _loop_batch
-    states, level, targets = run(maps, period_map, periods, hold, inputs, fh_in, width, lag)
-    states = states[..., :n]
+    yield_force = float(yield_force)
+    if not (math.isfinite(yield_force) and yield_force >= 0.0):
+        raise ValueError(f"yield_force must be finite and >= 0 N, got {yield_force}")
+    locked = (_steps(plant, plant, keys, np.array([np.inf]), dt)[:, 0, :n * (n + 1)]
+              if yield_force > 0 else np.zeros((1, n * (n + 1))))
+    sample_map = np.repeat(period_map.astype(np.int64).ravel(), hold)[:nsamp]
+    states, level, targets = fly_maps(
+        steps, index, weight, est, g_in, g_state, sample_map, inputs, n, tau, lag.decay,
+        lag.mean_factor, lag.c_lo, lag.c_hi, lag.per_level, lag.force_limit, lag.k2,
+        lag.deflection, lag.every, 0, np.zeros((nf, n + est.shape[1])), np.full(nf, c_start),
+        np.full(nf, c_start >= math.sqrt(law.c_lo * law.c_hi)), np.zeros(nf), yield_force,
+        np.ascontiguousarray(locked), table)
     le = states @ plant.c_displacement[2]
     stroke = states @ plant.c_displacement[3]
     damping = table[level]
-    spring_force = plant.absorber.series_stiffness * states[..., maxwell_index(plant)]
+    spring_force = np.abs(plant.absorber.series_stiffness * states[..., maxwell_index(plant)])
+    # F v_damper: F^2 / c2 for the linear damper; F (|F| - yield) / c2 while a Bingham
+    # damper flows, 0 while it is locked
+    flowing = np.maximum(spring_force - yield_force, 0.0)
     out = SwitchedFlight(leading_edge=le, stroke=stroke, damping=damping, target=targets,
-                         damper_power=spring_force**2 / damping, sample_rate=1.0 / dt)
+                         damper_power=spring_force * flowing / damping, sample_rate=1.0 / dt)
     if single:
         return SwitchedFlight(*(getattr(out, f)[0] for f in (
             "leading_edge", "stroke", "damping", "target", "damper_power")), 1.0 / dt)
@@ -370,93 +394,3 @@ class _Damper:
     @property
     def per_level(self) -> float:
         return (math.log(self.c_hi) - math.log(self.c_lo)) / (self.n_levels - 1)
-
-
-def _loop_one(maps, period_map, periods, hold, inputs, fh_in, width, lag):
-    """One flight: Python floats for the law, one matrix-vector product per sample into
-    preallocated row views (a memoryview reads the (F, h) parts without numpy scalars)."""
-    t_all, _, g_state = maps
-    nsamp = inputs.shape[1]
-    z = np.zeros((nsamp + 1, width + 2 + inputs.shape[2]))
-    z[:nsamp, width + 2:] = inputs[0]
-    z[0, width:width + 2] = g_state[period_map[0]] @ z[0, :width]
-    level = np.empty(nsamp, dtype=np.int64)
-    targets = np.empty(nsamp, dtype=bool)
-    fh_list = fh_in[0].tolist()
-    rows = list(z)
-    heads = list(z[:, :width + 2])
-    view = memoryview(z)
-    f_col, h_col = width, width + 1
-    dot, log = np.dot, math.log
-    tau, decay, mean_factor = lag.tau, lag.decay, lag.mean_factor
-    c_hi, c_lo, c = lag.c_hi, lag.c_lo, lag.c_start
-    log_lo, per_level = math.log(lag.c_lo), lag.per_level
-    relief, force_limit = math.isfinite(lag.force_limit), lag.force_limit
-    k2, d_col, every = lag.k2, lag.deflection, lag.every
-    target_hi = c >= math.sqrt(c_lo * c_hi)
-    prev_fh = 0.0
-    for p, start in enumerate(periods):
-        steps = list(t_all[period_map[p]])
-        if p and period_map[p] != period_map[p - 1]:  # (F, h) with the new condition's maps
-            z[start, width:width + 2] = g_state[period_map[p]] @ z[start, :width]
-        for i in range(start, min(start + hold, nsamp)):
-            if i and i % every == 0:
-                target_hi = prev_fh > 0.0  # the decision of sample i-1 acts from i on
-            f_in, h_in = fh_list[i]
-            prev_fh = (view[i, f_col] + f_in) * (view[i, h_col] + h_in)
-            if tau > 0:
-                target = c_hi if target_hi else c_lo
-                mean = target + (c - target) * mean_factor
-                c = target + (c - target) * decay
-                k = int((log(mean) - log_lo) / per_level + 0.5)
-            else:
-                k = 1 if target_hi else 0
-            if relief and abs(view[i, d_col]) * k2 > force_limit:
-                k = 0
-            level[i] = k
-            targets[i] = target_hi
-            dot(steps[k], rows[i], heads[i + 1])
-    return z[None, :nsamp, :width], level[None], targets[None]
-
-
-def _loop_batch(maps, period_map, periods, hold, inputs, fh_in, width, lag):
-    """Many flights: the same loop vectorised across flights."""
-    t_all, _, g_state = maps
-    nf, nsamp, nv = inputs.shape
-    state = np.zeros((nf, width + 2 + nv))
-    state[:, width:width + 2] = state[:, :width] @ g_state[period_map[0]].T
-    record = np.empty((nsamp, nf, width))
-    level = np.empty((nsamp, nf), dtype=np.int64)
-    targets = np.empty((nsamp, nf), dtype=bool)
-    decay, mean_factor = lag.decay, lag.mean_factor
-    log_lo, per_level = math.log(lag.c_lo), lag.per_level
-    c = np.full(nf, lag.c_start)
-    relief = math.isfinite(lag.force_limit)
-    target_hi = np.full(nf, lag.c_start >= math.sqrt(lag.c_lo * lag.c_hi))
-    prev_fh = np.zeros(nf)
-    inputs_t = np.ascontiguousarray(inputs.transpose(1, 0, 2))
-    fh_t = np.ascontiguousarray(fh_in.transpose(1, 0, 2))
-    for p, start in enumerate(periods):
-        steps = t_all[period_map[p]]
-        if p and period_map[p] != period_map[p - 1]:
-            state[:, width:width + 2] = state[:, :width] @ g_state[period_map[p]].T
-        for i in range(start, min(start + hold, nsamp)):
-            if i and i % lag.every == 0:
-                target_hi = prev_fh > 0.0
-            state[:, width + 2:] = inputs_t[i]
-            fh = state[:, width:width + 2] + fh_t[i]
-            prev_fh = fh[:, 0] * fh[:, 1]
-            if lag.tau > 0:
-                target = np.where(target_hi, lag.c_hi, lag.c_lo)
-                mean = target + (c - target) * mean_factor
-                c = target + (c - target) * decay
-                k = ((np.log(mean) - log_lo) / per_level + 0.5).astype(np.int64)
-            else:
-                k = target_hi.astype(np.int64)
-            if relief:
-                k = np.where(np.abs(state[:, lag.deflection]) * lag.k2 > lag.force_limit, 0, k)
-            level[i] = k
-            targets[i] = target_hi
-            record[i] = state[:, :width]
-            state[:, :width + 2] = np.matmul(steps[k], state[:, :, None])[:, :, 0]
-    return record.transpose(1, 0, 2), level.T, targets.T

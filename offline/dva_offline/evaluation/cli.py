@@ -43,8 +43,13 @@ def register(subparsers) -> None:
                    help=f"excitation seeds per case (default {DEFAULT_SEEDS}; --graph: 10)")
     p.add_argument("--first-seed", type=int, default=1, help="first excitation seed (1)")
     p.add_argument("--controllers", default=None,
-                   help="subset of fixed,schedule,rbf,oracle (default all; fixed is always "
-                        "flown, the reference); --graph: of none,fixed,schedule,rbf")
+                   help="subset of fixed,schedule,rbf,oracle,switching (default all but "
+                        "switching; fixed is always flown, the reference); --graph: of "
+                        "none,fixed,schedule,rbf. switching: the per-sample law against the "
+                        "best constant c2 in the constant-density cases (its own flights)")
+    p.add_argument("--gains", metavar="FILE", default=None,
+                   help="switching gains JSON for --controllers switching (default: the "
+                        "package's)")
     p.add_argument("--cases", default=None,
                    help="subset of rho0,x0.9,x1.1,slow,1Hz,2f (default all)")
     p.add_argument("--rms-range", metavar="LOW:HIGH", default=DEFAULT_RMS_RANGE,
@@ -148,9 +153,22 @@ def _paired(args) -> int:
     if seeds_n < 1 or args.first_seed < 0:
         raise ValueError(f"--seeds must be >= 1 and --first-seed >= 0, got {seeds_n}, "
                          f"{args.first_seed}")
+    wanted = [c.strip() for c in (args.controllers or "").split(",") if c.strip()]
+    switching = "switching" in wanted
+    if switching:  # its own flights (dva_offline/evaluation/switching_section.py)
+        wanted.remove("switching")
+        args.controllers = ",".join(wanted) or "fixed"
     controllers = _choose("--controllers", args.controllers, EVALUATION_CONTROLLERS)
     controllers = tuple(c for c in EVALUATION_CONTROLLERS if c in controllers or c == "fixed")
     case_names = _choose("--cases", args.cases, CASE_NAMES)
+    if switching:
+        from dva_offline.evaluation.switching_section import SWITCHING_CASES
+
+        wrong = [c for c in case_names if c not in SWITCHING_CASES]
+        if wrong:
+            raise ValueError(f"--controllers switching flies the constant-density cases "
+                             f"{','.join(SWITCHING_CASES)} only, not {','.join(wrong)} "
+                             "(choose them with --cases)")
     rms_low, rms_high = _rms_range(args.rms_range)
     seeds = list(range(args.first_seed, args.first_seed + seeds_n))
     scenario_path = Path(args.scenario) if args.scenario else \
@@ -219,8 +237,16 @@ def _paired(args) -> int:
         "resumed_jobs": len(done),
         "results": [_row_json(r) for r in rows], "boundaries": boundaries,
     }
+    if switching:
+        from dva_offline.cli_tools import json_safe
+        from dva_offline.evaluation.switching_section import switching_section
+
+        log("flying the switching law against the best constant c2")
+        payload["switching"] = json_safe(switching_section(case_names, seeds, args.gains))
     files = write_paired_results(out, payload, records)
     payload["files"] = {**files, **plot_paired(out, payload, kept, u_cr)}
+    if switching:  # after the paired tables and plots, which are the other controllers'
+        payload["controllers"].append("switching")
     payload["wall_time_s"] = time.monotonic() - started
     (out / "results.json").write_text(json.dumps(payload, allow_nan=False))
     if args.json:
@@ -229,6 +255,10 @@ def _paired(args) -> int:
         from dva_offline.evaluation.paired_io import markdown_results
 
         print(markdown_results(payload))
+        if switching:
+            from dva_offline.evaluation.switching_section import markdown
+
+            print(markdown(payload["switching"]))
         print(f"results: {out / 'results.md'} ({len(records)} flights in {flight_time:.0f} s)")
     return 0
 

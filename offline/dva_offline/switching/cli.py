@@ -87,6 +87,9 @@ def register(subparsers) -> None:
     e.add_argument("--force-limits", default="400,250",
                    help="relief-valve force limits [N] of the switched damper: above it c2 "
                         "drops to c_lo (default 400,250)")
+    e.add_argument("--yield-forces", default="",
+                   help="Bingham yield forces [N] of both dampers: locked below it, c2 times "
+                        "the velocity plus it above (default none)")
     e.add_argument("--blocks", default="20,50",
                    help="law decisions held over blocks of these many ms, as a slower loop "
                         "would (default 20,50)")
@@ -230,6 +233,8 @@ def _evaluate(args) -> int:
                  for m in _floats("--mismatches", args.mismatches, True)]
     settings += [Setting(f"force limit {v:g} N", lag, args.noise, force_limit=v)
                  for v in _floats("--force-limits", args.force_limits, True)]
+    settings += [Setting(f"yield force {v:g} N", lag, args.noise, yield_force=v)
+                 for v in _floats("--yield-forces", args.yield_forces, True)]
     for ms in _floats("--blocks", args.blocks, True):
         if ms < 1 or ms != int(ms):
             raise ValueError(f"--blocks must be whole numbers of ms >= 1, got {args.blocks}")
@@ -237,8 +242,9 @@ def _evaluate(args) -> int:
                                 update_every=int(ms)))
     if not args.no_wagner:
         settings.append(Setting("wagner plant", lag, args.noise, aero="wagner"))
-    if any(s.time_constant < 0 or s.noise < 0 or not s.force_limit > 0 for s in settings):
-        raise ValueError("lags and noises must be >= 0, force limits > 0")
+    if any(s.time_constant < 0 or s.noise < 0 or not s.force_limit > 0 or s.yield_force < 0
+           for s in settings):
+        raise ValueError("lags, noises and yield forces must be >= 0, force limits > 0")
     rows = []
     for s in settings:
         row = evaluate_setting(model, gains, s, seeds, u_cr, c2, sensor_rms)

@@ -99,6 +99,7 @@ class Setting:
     case: str = "rho0"  # density case, :data:`DENSITY_CASES`
     force_limit: float = math.inf  # [N] relief valve of the switched damper (not the fixed's)
     update_every: int = 1  # [samples] between the law's decisions
+    yield_force: float = 0.0  # [N] Bingham yield force of both dampers (the same hardware)
 
     def density(self, rho0: float, n: int) -> np.ndarray:
         """[kg/m^3] per sample: f rho0 (1 + mu sin 2 pi f_rho t) (eq. 7.2)."""
@@ -141,11 +142,12 @@ def evaluate_setting(model: AeroelasticModel, gains: SwitchingGains, setting: Se
     noise = _noise(seeds, u.size, setting.noise * sensor_rms)
     rho = setting.density(gains.density, u.size)
     fixed = fly_switched(plant, fixed_law(plant, fixed_c2), u, rho, force, time_constant=0.0,
-                         initial_damping=fixed_c2)
+                         initial_damping=fixed_c2, yield_force=setting.yield_force)
     switched = fly_switched(plant, law, u, rho, force, observer_model=observer_model,
                             time_constant=setting.time_constant, noise=noise,
                             force_limit=setting.force_limit,
-                            update_every=setting.update_every)
+                            update_every=setting.update_every,
+                            yield_force=setting.yield_force)
     n_base = int(0.1 * u.size)
     limit = PEAK_FACTOR * float(np.median(np.sqrt(np.mean(fixed.leading_edge[:, :n_base] ** 2,
                                                           axis=1))))
@@ -160,11 +162,12 @@ def evaluate_setting(model: AeroelasticModel, gains: SwitchingGains, setting: Se
     noise = _noise(seeds, n, setting.noise * sensor_rms)
     rho = setting.density(gains.density, n)
     fixed_c = fly_switched(plant, fixed_law(plant, fixed_c2), ratio * u_cr, rho, force,
-                           time_constant=0.0, initial_damping=fixed_c2)
+                           time_constant=0.0, initial_damping=fixed_c2,
+                           yield_force=setting.yield_force)
     sw_c = fly_switched(plant, law, ratio * u_cr, rho, force, observer_model=observer_model,
                         time_constant=setting.time_constant, noise=noise,
                         force_limit=setting.force_limit,
-                        update_every=setting.update_every)
+                        update_every=setting.update_every, yield_force=setting.yield_force)
     # A fixed damper that flutters at this airspeed has no RMS to compare with: such seeds
     # (the last 2 s above 10x the RMS of the 2 s after the transient) are left out.
     bounded_f = (np.sqrt(np.mean(fixed_c.leading_edge[:, -2 * skip:] ** 2, axis=1))

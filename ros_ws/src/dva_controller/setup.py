@@ -27,6 +27,7 @@ setup(
             "spectrum = dva_controller.spectrum_node:main",
             "airspeed_controller = dva_controller.airspeed_controller_node:main",
             "rbf_controller = dva_controller.rbf_controller_node:main",
+            "switching_controller = dva_controller.switching_controller_node:main",
         ],
     },
 )

@@ -21,12 +21,14 @@ import sys
 import time
 from pathlib import Path
 
-CONTROLLERS = ("fixed", "schedule", "rbf", "none")
+CONTROLLERS = ("fixed", "schedule", "rbf", "switching", "none")
 # Default bound [s sim] on how far the flight may run ahead of the newest command's input:
 # one 50 ms block for the per-block schedule, the 20 Hz period for the fixed controller, one
 # 0.1 s spectrum hop plus a block for the RBF network.
-DEFAULT_COMMAND_LAG = {"schedule": 0.05, "fixed": 0.1, "rbf": 0.15, "none": 0.0}
-FIXED_RATE = 20.0  # [Hz sim] of the fixed controller's commands
+DEFAULT_COMMAND_LAG = {"schedule": 0.05, "fixed": 0.1, "rbf": 0.15, "switching": 0.1,
+                       "none": 0.0}
+FIXED_RATE = 20.0  # [Hz sim] of the fixed controller's commands (and the switching supervisor's)
+SWITCHING_LAG = 0.01  # [s] the damper's lag with --controller switching (the gains' design)
 SPECTRUM_WINDOW = 2.0  # [s] the spectrum node's default window: the RBF network's first input
 # Subscribers (besides the recorder) each of the simulator's topics needs before the first
 # block, per controller: the schedule reads the flight condition, the spectrum node the
@@ -105,8 +107,22 @@ def simulator_command(args, others: list[str]) -> list[str]:
                  first_input_time=SPECTRUM_WINDOW if args.controller == "rbf" else 0.0,
                  first_command_timeout=args.wait_timeout,
                  command_wait_timeout=args.command_wait_timeout,
-                 damper_timeout=1e9 if args.controller == "none" else args.damper_timeout),
+                 damper_timeout=1e9 if args.controller == "none" else args.damper_timeout,
+                 **switching_params(args)),
     ]
+
+
+def switching_params(args) -> dict:
+    """The simulator's damper-path parameters for ``--controller switching``: the gains file
+    (the package's by default) and the damper's lag (10 ms by default, as designed)."""
+    lag = getattr(args, "damper_time_constant", None)
+    if args.controller != "switching":
+        return {} if lag is None else {"damper_time_constant": lag}
+    from aero_dva.data_files import data_file
+
+    return {"switching_gains": getattr(args, "gains", None) or str(
+        data_file("switching_gains.json")),
+            "damper_time_constant": SWITCHING_LAG if lag is None else lag}
 
 
 def die_with_parent() -> None:
@@ -215,7 +231,9 @@ def applied_control(args, final: dict, bag: Path) -> dict:
     block_duration = float(final.get("block_duration_s", 0.0))
     out = {key: int(final.get(key, 0)) for key in (
         "blocks", "blocks_controlled", "blocks_startup", "blocks_fallback",
-        "commands_received", "commands_accepted", "controller_wait_timeouts")}
+        "commands_received", "commands_accepted", "controller_wait_timeouts",
+        "blocks_switching")}
+    out["switching_rate_mean"] = float(final.get("switching_rate_mean", 0.0))
     out.update(
         commands_expected=expected_commands(args.controller, blocks, block_duration,
                                             counts.get(SPECTRUM.absolute(), 0), FIXED_RATE),
@@ -248,6 +266,9 @@ def _format(summary: dict) -> str:
             else "none within the flight"),
         f"leading-edge RMS     {number('leading_edge_rms', '.3e')} m (before divergence)",
         f"mean applied c2      {number('mean_damping', '.0f')} N s/m",
+        *([f"switching law        {summary.get('blocks_switching', 0)} blocks, "
+           f"{number('switching_rate_mean', '.1f')} switches/s (mean over them)"]
+          if summary["controller"] == "switching" else []),
         f"c2 applied from      the controller in {summary['blocks_controlled']} of "
         f"{summary['blocks']} blocks, start-up {summary['blocks_startup']}, fallback "
         f"{summary['blocks_fallback']}",
@@ -272,9 +293,16 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--controller", choices=CONTROLLERS, default="fixed",
                         help="who commands c2 (default: fixed)")
     parser.add_argument("--damping", type=float, default=None,
-                        help="c2 [N s/m] for --controller fixed (default: the node's default)")
+                        help="c2 [N s/m] for --controller fixed, the safe constant c2 for "
+                             "--controller switching (default: the node's default)")
     parser.add_argument("--schedule", default=None, help="airspeed schedule JSON (schedule)")
     parser.add_argument("--network", default=None, help="RBF network .npz (rbf)")
+    parser.add_argument("--gains", default=None,
+                        help="switching gains JSON (switching; default: the package's "
+                             "switching_gains.json)")
+    parser.add_argument("--damper-time-constant", type=float, default=None,
+                        help="[s] the damper's first-order lag (default: 0.01 with --controller "
+                             "switching, as its gains were designed; else the simulator's 0)")
     parser.add_argument("--real-time-factor", type=float, default=20.0,
                         help="sim seconds per wall second; 0 = as fast as possible (default 20)")
     parser.add_argument("--max-command-lag", type=float, default=None,
@@ -325,6 +353,12 @@ def controller_commands(args, command_readers: int = 0, **params) -> dict[str, l
     if args.controller == "fixed":
         return {"fixed_controller": node("dva_controller", "fixed_controller",
                                          damping=args.damping, rate=FIXED_RATE, **hold)}
+    if args.controller == "switching":
+        return {"switching_controller": node("dva_controller", "switching_controller",
+                                             gains_file=getattr(args, "gains", None),
+                                             wing=getattr(args, "wing", ""),
+                                             safe_damping=args.damping,
+                                             rate=FIXED_RATE, **hold)}
     return {}
 
 
@@ -335,6 +369,21 @@ def controller_files_given(prog: str, args) -> bool:
         if args.controller == needed and not getattr(args, option):
             print(f"{prog}: error: --controller {needed} needs --{option} FILE", file=sys.stderr)
             return False
+    return True
+
+
+def switching_gains_readable(prog: str, args) -> bool:
+    """--controller switching with --gains: the file must load and check (the nodes would only
+    fall back to the safe c2); False (and the error said) when it does not."""
+    if getattr(args, "controller", None) != "switching" or not getattr(args, "gains", None):
+        return True
+    from aero_dva.control.switching_io import SwitchingGainsError, load_gains
+
+    try:
+        load_gains(args.gains)
+    except SwitchingGainsError as exc:
+        print(f"{prog}: error: {exc}", file=sys.stderr)
+        return False
     return True
 
 
@@ -358,7 +407,8 @@ def run_on_domain(prog: str, run, args) -> tuple[dict | None, int]:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    if not controller_files_given("run_flight", args):
+    if not controller_files_given("run_flight", args) or \
+            not switching_gains_readable("run_flight", args):
         return 2
     summary, code = run_on_domain("run_flight", run, args)
     if summary is None:

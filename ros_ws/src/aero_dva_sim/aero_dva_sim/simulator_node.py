@@ -4,7 +4,11 @@ Each step simulates one block of samples (exact ZOH, :class:`~aero_dva.flight.st
 StreamingSimulator`), publishes it, and advances ``/clock``; the rest of the graph runs on that sim
 time (``use_sim_time:=true``). The damper applies the latest accepted ``dva/damper_command``
 through :class:`~aero_dva.flight.damper.DamperModel` (range, lag, stale fallback, rejection of
-absurd commands). A stepped-sweep scenario applies its own c2 values and ignores commands.
+absurd commands). A command from the source ``"switching"`` arms the per-sample switching c2 law
+in the damper path (gains from the ``switching_gains`` file, checked on load): every sample of
+the block then runs the law (:mod:`aero_dva.flight.switched_stream`); dva/damper_state reports
+the mode and switching rate, and /diagnostics each change of mode with its reason. A
+stepped-sweep scenario applies its own c2 values and ignores commands.
 
 Its parameters (units, defaults, ranges) are the table ``SPEC`` below, which the node declares
 them from and ``simulator --help`` prints.
@@ -26,7 +30,8 @@ from rclpy.node import Node
 from rclpy.task import Future
 
 from aero_dva.bag import channels as ch
-from aero_dva.flight.damper import DamperStatus
+from aero_dva.control.switching_io import with_switching
+from aero_dva.flight.damper import DamperMode, DamperStatus
 from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
 from dva_msgs.msg import DamperCommand
 from dva_ros_common import conversions
@@ -75,6 +80,11 @@ SPEC = NodeSpec(
               "s", 0.0, 1.0e12),
         Param("damper_time_constant", 0.0, "first-order lag of the damper (0: ideal, the "
               "study's)", "s", 0.0, 3600.0),
+        Param("switching_gains", "", "gains JSON of the per-sample switching c2 law (dva "
+              "switching design), run in the damper path every sample while the commands' "
+              "source is \"switching\"; an invalid file or one for another wing leaves the "
+              "damper on the commands' c2, and says so", default_text="none: the law cannot "
+              "run"),
         Param("real_time_factor", 20.0, "sim seconds per wall second (0: as fast as possible)",
               "", 0.0, 1.0e6),
         Param("wait_for_subscribers", 0, "start the flight when every data topic has this many "
@@ -114,7 +124,9 @@ class Simulator(Node):
 
     def __init__(self, **kwargs) -> None:
         super().__init__(SPEC.name, **kwargs)
-        config = load_runtime_config(self._declare_parameters())
+        params = self._declare_parameters()
+        config = with_switching(load_runtime_config(params), params["switching_gains"],
+                                params["wing"])
         self.runtime = FlightRuntime(config)
         self.finished = Future()
         self._rtf = float(self.get_parameter("real_time_factor").value)
@@ -157,6 +169,9 @@ class Simulator(Node):
         self._started_wall: float | None = None
         self._waiting_since = time.monotonic()
         self._last_status = None
+        self._last_mode = DamperMode.CONSTANT
+        self.switching_blocks = 0  # blocks flown with the switching law
+        self._switching_rates: list[float] = []
         # The step timer runs only while the flight does. Before the start and while the flight
         # waits for the controller, a slow timer polls instead: spinning at the step rate (10 kHz
         # as fast as possible) would take CPU from the very nodes the simulator waits for. The
@@ -326,12 +341,30 @@ class Simulator(Node):
         return math.isfinite(due) and due >= self.runtime.time + self.runtime.block_duration
 
     def _check_damper_status(self) -> None:
-        status = self.runtime.damper_snapshot().status
+        snapshot = self.runtime.damper_snapshot()
+        status = snapshot.status
         if status != self._last_status and status in (DamperStatus.FALLBACK_STALE,):
+            ended = (" (the switching law is disarmed)" if self._last_mode == DamperMode.SWITCHING
+                     else "")
             self._diagnose("warn", "no damper command within "
                            f"{self.runtime.config.damper.stale_timeout:g} s: fallback c2 = "
-                           f"{self.runtime.damper_snapshot().applied_damping:g} N s/m applied", {})
+                           f"{snapshot.applied_damping:g} N s/m applied{ended}", {})
         self._last_status = status
+        if snapshot.mode != self._last_mode:
+            if snapshot.mode == DamperMode.SWITCHING:
+                self._diagnose("ok", "switching law armed in the damper path", {})
+            elif snapshot.mode == DamperMode.SWITCHING_REFUSED:
+                self._diagnose("warn", "switching law refused: "
+                               f"{self.runtime.law_problem()}; holding the commanded c2 = "
+                               f"{snapshot.applied_damping:g} N s/m", {})
+            elif status != DamperStatus.FALLBACK_STALE:
+                self._diagnose("ok", "switching law disarmed: c2 = "
+                               f"{snapshot.applied_damping:g} N s/m from '{snapshot.source}'",
+                               {})
+        if snapshot.mode == DamperMode.SWITCHING:
+            self.switching_blocks += 1
+            self._switching_rates.append(snapshot.switching_rate)
+        self._last_mode = snapshot.mode
 
     def _set_stepping(self, stepping: bool) -> None:
         """Step on the timer, or poll slowly until the flight may go on."""
@@ -367,6 +400,9 @@ class Simulator(Node):
                   "block_duration_s": self.runtime.block_duration,
                   "commands_received": self.commands_received,
                   "commands_accepted": len(self._latencies),
+                  "blocks_switching": self.switching_blocks,
+                  "switching_rate_mean": (float(np.mean(self._switching_rates))
+                                          if self._switching_rates else 0.0),
                   **self.runtime.applied.values()}
         values.update({f"published:{t}": n for t, n in self.published.items()})
         values.update({f"rejected:{reason}": n for reason, n in self.rejected.items()})

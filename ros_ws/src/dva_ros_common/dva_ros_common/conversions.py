@@ -150,6 +150,8 @@ def damper_state(snapshot) -> DamperState:
         command_age=float(snapshot.command_age),
         status=int(snapshot.status),
         source=snapshot.source,
+        mode=int(snapshot.mode),
+        switching_rate=float(snapshot.switching_rate),
     )
     msg.header.stamp = _stamp(snapshot.time)
     return msg

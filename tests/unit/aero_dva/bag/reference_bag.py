@@ -55,7 +55,8 @@ def block_messages(block, state, rate: float, displacement: bool = True) -> list
             header=header(state.time), commanded_damping=float(state.commanded_damping),
             applied_damping=float(state.applied_damping), min_damping=float(state.min_damping),
             max_damping=float(state.max_damping), command_age=float(state.command_age),
-            status=int(state.status), source=state.source)))
+            status=int(state.status), source=state.source, mode=int(state.mode),
+            switching_rate=float(state.switching_rate))))
     return out
 
 

@@ -90,12 +90,13 @@ def test_flight_condition_and_clock(frame):
 
 
 @pytest.mark.parametrize("source", ["", "initial", "fallback", "rbf_network", "sweep",
-                                    "airspeed_schedule", "x" * 33, "ünï"])
+                                    "airspeed_schedule", "switching", "x" * 33, "ünï"])
 @pytest.mark.parametrize("status", [0, 1, 2, 3, 4, 255])
 def test_damper_state_with_nan_and_inf(source, status):
     layout = cdr_layout(ch.DAMPER_STATE.type_name, strings={"source": source})
     values = {"commanded_damping": math.nan, "applied_damping": 500.0, "min_damping": 0.0,
-              "max_damping": 2500.0, "command_age": math.inf, "status": status}
+              "max_damping": 2500.0, "command_age": math.inf, "status": status,
+              "mode": status % 3, "switching_rate": 40.5}
     got = fill(layout, {**time_fields(3.05), **values})
     assert got == oracle(ch.DAMPER_STATE.type_name, header=header(3.05), source=source,
                          **values)

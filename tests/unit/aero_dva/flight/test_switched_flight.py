@@ -2,6 +2,7 @@
 its observer and lag."""
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -31,11 +32,13 @@ def wing():
     return cfg, AeroelasticModel(cfg.wing, cfg.absorber, cfg.aero)
 
 
-def reference_flight(model, law, speed, rho, force, noise, tau, dt=1e-3):
+def reference_flight(model, law, speed, rho, force, noise, tau, dt=1e-3, observer_model=None,
+                     yield_force=0.0):
     """The law written out sample by sample with scipy's expm: continuous lag, c2 rounded to
     the table in log c2, filtered estimate from the measurements, decision acting one sample
     later."""
     n = model.n_states
+    obs_model = model if observer_model is None else observer_model
     table = c2_levels(law.c_lo, law.c_hi, tau)
     idx = maxwell_index(model)
     k2 = model.absorber.series_stiffness
@@ -55,34 +58,55 @@ def reference_flight(model, law, speed, rho, force, noise, tau, dt=1e-3):
         a, b = model.matrices(speed, rho, level)
         cm, dm = measurement_matrices(model, speed, rho, level)
         y = cm @ x + dm * f + noise[i]
-        est = x if law.observer is None else pred + law.observer @ (y - cm @ pred)
+        cm_obs = measurement_matrices(obs_model, speed, rho, level)[0]
+        est = x if law.observer is None else pred + law.observer @ (y - cm_obs @ pred)
         decision = (k2 * est[idx]) * (law.gain @ est) > 0
-        aug = np.zeros((n + 1, n + 1))
-        aug[:n, :n], aug[:n, n] = a * dt, b * dt
+        # A Bingham damper: locked (c2 = inf) at most at the yield force, else the linear
+        # damper plus the yield force's offset on the deflection rate
+        spring = k2 * x[idx]
+        offset = 0.0
+        if yield_force and abs(spring) <= yield_force:
+            a, b = model.matrices(speed, rho, math.inf)
+        elif yield_force:
+            offset = yield_force / level * math.copysign(1.0, spring)
+        aug = np.zeros((n + 2, n + 2))
+        aug[:n, :n], aug[:n, n], aug[idx, n + 1] = a * dt, b * dt, dt
         e = linalg.expm(aug)
         les.append(model.c_displacement[2] @ x)
         damping.append(level)
-        x = e[:n, :n] @ x + e[:n, n] * f
-        pred = e[:n, :n] @ est
+        x = e[:n, :n] @ x + e[:n, n] * f + e[:n, n + 1] * offset
+        aug[:n, :n] = obs_model.matrices(speed, rho, level)[0] * dt
+        pred = linalg.expm(aug)[:n, :n] @ est
     return np.array(les), np.array(damping)
 
 
-@pytest.mark.parametrize("tau, with_observer", [(0.0, False), (0.01, True)])
-def test_matches_a_plain_sample_by_sample_loop(wing, tau, with_observer):
+@pytest.mark.parametrize("tau, with_observer, mismatch, yield_force",
+                         [(0.0, False, False, 0.0), (0.01, True, False, 0.0),
+                          (0.01, True, True, 0.0), (0.01, True, False, 30.0)])
+def test_matches_a_plain_sample_by_sample_loop(wing, tau, with_observer, mismatch, yield_force):
     cfg, model = wing
+    observer_model = model
+    if mismatch:  # the flown plant 5 % stiffer in plunge than the observer's model
+        observer_model = model
+        model = AeroelasticModel(dataclasses.replace(
+            cfg.wing, plunge_stiffness=1.05 * cfg.wing.plunge_stiffness), cfg.absorber, cfg.aero)
     speed, rho = 1.15 * U_CR, cfg.air_density
-    gain = law_gain(model, speed, rho, C_LO, C_HI)
-    scale = measured_rms(model, U_CR, rho, 624.7, 1000.0, 1000.0)
-    observer = kalman_filter_gain(model, speed, rho, 500.0, 1000.0, 1000.0, 0.05 * scale) \
+    gain = law_gain(observer_model, speed, rho, C_LO, C_HI)
+    scale = measured_rms(observer_model, U_CR, rho, 624.7, 1000.0, 1000.0)
+    observer = kalman_filter_gain(observer_model, speed, rho, 500.0, 1000.0, 1000.0,
+                                  0.05 * scale) \
         if with_observer else None
     law = SwitchingLaw(gain, C_LO, C_HI, observer)
     rng = np.random.default_rng(3)
     force = rng.normal(0, 1000.0, 400)
     noise = rng.normal(0, 1.0, (400, 4)) * 0.05 * scale
     flight = fly_switched(model, law, speed, rho, force, time_constant=tau,
-                          noise=noise if with_observer else None)
+                          noise=noise if with_observer else None,
+                          observer_model=observer_model if mismatch else None,
+                          yield_force=yield_force)
     le, damping = reference_flight(model, law, speed, rho, force,
-                                   noise if with_observer else np.zeros((400, 4)), tau)
+                                   noise if with_observer else np.zeros((400, 4)), tau,
+                                   observer_model=observer_model, yield_force=yield_force)
     np.testing.assert_allclose(flight.damping, damping, rtol=1e-12)
     np.testing.assert_allclose(flight.leading_edge, le, rtol=1e-7,
                                atol=1e-9 * np.max(np.abs(le)))
@@ -202,3 +226,42 @@ def test_a_slower_loop_changes_its_target_only_at_block_starts(wing):
         assert changes.size > 5 and np.all(changes % 20 == 0)
     with pytest.raises(ValueError, match="update_every"):
         fly_switched(model, law, 110.0, 1.2, force, update_every=0)
+
+
+def test_interpolated_steps_match_the_exact_steps_of_every_condition_and_level(wing):
+    # A ramp's held airspeeds and the 65-level table, interpolated from Chebyshev nodes in
+    # airspeed and in k2 / c2, against the exact ZOH steps at a sample of conditions.
+    from aero_dva.flight.smooth_tables import SPEED_NODES, interpolated_maps
+    from aero_dva.flight.switched_flight import _steps
+
+    cfg, model = wing
+    stiffer = dataclasses.replace(cfg.wing, plunge_stiffness=1.05 * cfg.wing.plunge_stiffness)
+    other = AeroelasticModel(stiffer, cfg.absorber, cfg.aero)
+    table = c2_levels(C_LO, C_HI, 0.01)
+    speeds = np.linspace(80.0, 140.0, 301)
+    keys = np.column_stack([speeds, np.full(speeds.size, 1.2)])
+    for observer_model in (model, other):
+        def build(cond, lev, observer_model=observer_model):
+            return _steps(model, observer_model, cond, lev, 1e-3)
+        base, index, weight = interpolated_maps(build, keys, table,
+                                                model.absorber.series_stiffness)
+        assert base.shape[0] == SPEED_NODES  # built at the nodes, not at 301 airspeeds
+        check = np.arange(0, 301, 37)
+        exact = build(keys[check], table)
+        formed = np.einsum("qj,qjls->qls", weight[check], base[index[check]])
+        assert np.abs(formed - exact).max() <= 1e-12 * np.abs(exact).max()
+
+
+def test_a_yield_force_above_every_force_locks_the_damper(wing):
+    # A Bingham damper that never yields is a locked damper: the wing flies as with c2 = inf.
+    from aero_dva.flight.streaming_simulator import StreamingSimulator
+
+    cfg, model = wing
+    force = np.random.default_rng(8).normal(0, 1000.0, 2000)
+    law = SwitchingLaw(law_gain(model, 100.0, 1.2, C_LO, C_HI), C_LO, C_HI)
+    flight = fly_switched(model, law, 100.0, 1.2, force, yield_force=1e9)
+    sim = StreamingSimulator(cfg.wing, cfg.absorber, quantum=2e-3)
+    locked = sim.advance(force, 100.0, 1.2, math.inf).displacements[2]
+    np.testing.assert_allclose(flight.leading_edge, locked, rtol=1e-6,
+                               atol=1e-9 * np.abs(locked).max())
+    assert np.all(flight.damper_power == 0.0)  # a locked damper dissipates nothing

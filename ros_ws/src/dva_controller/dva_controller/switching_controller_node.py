@@ -1,0 +1,155 @@
+"""``switching_controller``: supervises the switching c2 law that the damper runs every sample.
+
+The law needs its loop at the damper's sample rate (1 kHz), far faster than the graph's 50 ms
+blocks, so it runs inside the simulator's damper path; this node only supervises it. Each
+command period it arms the law (a ``"switching"`` command carrying the safe constant c2 the
+damper holds if the law cannot run) or holds the safe c2 itself (``"switching_fallback"``):
+on an invalid gains file (checked through aero_dva.control.switching_io, and made for the
+wing), or for ``rearm_after`` seconds after a burst (a leading-edge displacement beyond
+``peak_limit``). Each fallback is logged and published on /diagnostics with its reason. If this
+node falls silent, the damper's stale-command timeout applies its fallback c2 and ends the law.
+The simulator needs the same gains file (its parameter ``switching_gains``).
+
+Its parameters (units, defaults, ranges) are the table ``SPEC`` below, which the node declares
+them from and ``switching_controller --help`` prints.
+"""
+from __future__ import annotations
+
+import sys
+
+from rclpy.node import Node
+
+from aero_dva.bag import channels as ch
+from aero_dva.control.switching_supervisor import SwitchingSupervisor
+from dva_controller.shared_params import MAX_DAMPING
+from dva_msgs.msg import DamperCommand, DamperState, DisplacementBlock
+from dva_ros_common import conversions
+from dva_ros_common.held_publisher import HOLD_PARAM, HeldPublisher
+from dva_ros_common.node_params import NodeSpec, Param, declare_parameters
+from dva_ros_common.node_tools import run_node
+
+SPEC = NodeSpec(
+    name="switching_controller",
+    package="dva_controller",
+    summary="Supervise the per-sample switching c2 law that runs in the damper's own "
+            "controller (the simulator's damper path): arm it, or hold a safe constant c2 on an "
+            "invalid gains file or after a burst (leading edge beyond peak_limit), and say why. "
+            "When this node falls silent the damper's stale-command fallback ends the law.",
+    params=(
+        Param("gains_file", "", "switching gains JSON (dva switching design)",
+              default_text="the package's switching_gains.json"),
+        Param("wing", "", "wing YAML the gains must be made for",
+              default_text="the package's chapter-6 wing"),
+        Param("safe_damping", 624.7, "constant c2 held when the law is not armed (the best "
+              "constant c2 of the chapter-6 wing)", "N s/m", 0.0, MAX_DAMPING),
+        Param("peak_limit", 0.013, "leading-edge displacement that counts as a burst (20x the "
+              "fixed damper's RMS at 0.8 U_cr, docs/switching.md)", "m", 1.0e-9, 1.0e3),
+        Param("rearm_after", 2.0, "sim time after a burst's last sample before the law is "
+              "armed again", "s", 0.0, 1.0e12),
+        Param("rate", 20.0, "command rate, in ROS time (sim time with use_sim_time)", "Hz",
+              0.01, 1000.0),
+        HOLD_PARAM,
+    ),
+    topics="""
+publishes dva/damper_command (dva_msgs/DamperCommand, source "switching" or
+  "switching_fallback"), /diagnostics (each fallback and its reason)
+subscribes wing/displacement (burst detector), dva/damper_state (whether the damper runs the law)
+""",
+)
+
+
+def gains_problem(path: str, wing: str) -> str | None:
+    """Why the gains file cannot be used for ``wing``, or None."""
+    from aero_dva.control.switching_io import SwitchingGainsError, load_gains
+    from aero_dva.data_files import data_file
+    from aero_dva.wing.wing_io import load_wing, wing_fingerprint
+
+    path = path or str(data_file("switching_gains.json"))
+    try:
+        gains = load_gains(path)
+    except SwitchingGainsError as exc:
+        return f"invalid switching gains: {exc}"
+    fingerprint = wing_fingerprint(load_wing(wing or None))
+    if gains.wing_fingerprint != fingerprint:
+        return (f"switching gains {path!r} were designed for another wing (fingerprint "
+                f"{gains.wing_fingerprint}, this wing's {fingerprint})")
+    return None
+
+
+class SwitchingController(Node):
+    """Arm the damper's switching law, or hold the safe c2 and say why."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__(SPEC.name, **kwargs)
+        values = declare_parameters(self, SPEC)
+        self.supervisor = SwitchingSupervisor(
+            float(values["safe_damping"]), float(values["peak_limit"]),
+            float(values["rearm_after"]), gains_problem(values["gains_file"], values["wing"]))
+        self.reason: str | None = None  # why the law is not armed now (None: armed)
+        self.fallbacks: list[str] = []  # every reason said, in order
+        self.damper_mode: int | None = None  # the damper's mode in its last state
+        self._publisher = HeldPublisher(
+            self, self.create_publisher(DamperCommand, ch.DAMPER_COMMAND.name, 10),
+            values["hold_until_subscribers"])
+        self._diag = self.create_publisher(conversions.message_class(ch.DIAGNOSTICS.type_name),
+                                           ch.DIAGNOSTICS.name, 10)
+        self.create_subscription(DisplacementBlock, ch.DISPLACEMENT.name, self._on_block, 50)
+        self.create_subscription(DamperState, ch.DAMPER_STATE.name, self._on_state, 50)
+        self.create_timer(1.0 / float(values["rate"]), self._publish)
+        self._said(self.supervisor.command(0.0).reason, 0.0)
+        self.get_logger().info(
+            f"supervising the switching law: safe c2 {self.supervisor.safe_damping:g} N s/m, "
+            f"peak limit {self.supervisor.peak_limit:g} m")
+
+    def _on_block(self, msg: DisplacementBlock) -> None:
+        t0 = conversions.time_to_seconds(msg.header.stamp)
+        if self.supervisor.observe(t0, msg.sample_rate, msg.leading_edge) is not None:
+            self._publish()  # a burst disarms the law at once, not at the next period
+
+    def _on_state(self, msg: DamperState) -> None:
+        if msg.mode != self.damper_mode and msg.mode == DamperState.MODE_SWITCHING_REFUSED:
+            self._diagnose(conversions.time_to_seconds(msg.header.stamp), "warn",
+                           "the damper refused the switching law (see the simulator's "
+                           f"diagnostics): it holds c2 = {msg.applied_damping:g} N s/m")
+        self.damper_mode = msg.mode
+
+    def _publish(self) -> None:
+        now = self.get_clock().now()
+        t = now.nanoseconds * 1e-9
+        command = self.supervisor.command(t)
+        self._said(command.reason, t)
+        self._publisher.publish(conversions.damper_command(now.to_msg(), command.damping,
+                                                           command.source))
+
+    def _said(self, reason: str | None, t: float) -> None:
+        """Log and publish each change of the reason the law is not armed."""
+        if reason == self.reason:
+            return
+        if reason is None:
+            self._diagnose(t, "ok", "switching law armed")
+        else:
+            said = (f"{reason} ({self.supervisor.last_burst})" if reason.startswith("burst")
+                    else reason)
+            self.fallbacks.append(said)
+            self._diagnose(t, "warn", f"switching law not armed: {said}; holding c2 = "
+                           f"{self.supervisor.safe_damping:g} N s/m")
+        self.reason = reason
+
+    def _diagnose(self, t: float, level: str, text: str) -> None:
+        # One call site per severity: rclpy refuses a severity change at the same call site.
+        if level == "warn":
+            self.get_logger().warning(text)
+        else:
+            self.get_logger().info(text)
+        self._diag.publish(conversions.diagnostics(
+            t, f"{SPEC.name}: law", SPEC.package, [(level, text, {
+                "safe_damping": self.supervisor.safe_damping,
+                "bursts": self.supervisor.bursts})]))
+
+
+def main(args=None) -> int:
+    return run_node(SwitchingController, SPEC, args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
