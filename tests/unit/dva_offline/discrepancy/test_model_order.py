@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from dva_offline.discrepancy import loop
-from dva_offline.discrepancy.model_order import choose_order, has_doublet, paired_excess
 from dva_offline.discrepancy.modal_domain import ModalDomain
+from dva_offline.discrepancy.model_order import choose_order, has_doublet, paired_excess
 from dva_offline.isolator.frf_data import FrfData
 
 
