@@ -38,6 +38,10 @@ def _progress():
     return bar, step
 
 
+# the covariate name of an analyzer's coherence column (gamma^2 per point)
+COHERENCE = "coherence"
+
+
 def _conditions(args):
     """Sweeps of the input file in SI units, how they were grouped, and the units used."""
     from dva_offline.discrepancy import table_io
@@ -69,9 +73,45 @@ def _conditions(args):
     return conditions, columns, grouping, info
 
 
-def _run_loop(args, domain):
+def _take_coherence(conditions, columns):
+    """Conditions without the coherence column (``--columns coherence=COL``), the covariates
+    to analyse without it, and the coherence per point (None without the column)."""
+    from dataclasses import replace
+
+    if not conditions or not all(COHERENCE in c.covariates for c in conditions):
+        return conditions, columns, None
+    coherence = np.concatenate([np.asarray(c.covariates[COHERENCE], float) for c in conditions])
+    conditions = [replace(c, covariates={k: v for k, v in c.covariates.items()
+                                         if k != COHERENCE}) for c in conditions]
+    if columns is not None:
+        columns = [n for n in columns if n != COHERENCE]
+    return conditions, columns, coherence
+
+
+def _measured_noise(args, domain, coherence):
+    """The noise the file measures itself (replicate sweeps, else coherence with --averages)
+    and what was found, for the report (:mod:`.noise_sources`)."""
+    from dva_offline.discrepancy.noise_sources import coherence_noise, replicate_noise
+
+    if args.averages is not None and args.averages < 1:
+        raise ValueError(f"--averages must be an integer >= 1, got {args.averages}")
+    notes = []
+    rep = replicate_noise(domain.observations)
+    coh = None
+    if coherence is not None:
+        coh, note = coherence_noise(coherence, args.averages)
+        notes += [note] if note else []
+    elif args.averages is not None:
+        notes.append("--averages given, but the file has no coherence column (map it with "
+                     "--columns coherence=COL)")
+    used = rep or coh
+    return used, {"replicates": None if rep is None else rep.sigma,
+                  "coherence": None if coh is None else coh.sigma, "notes": notes}
+
+
+def _run_loop(args, domain, noise=None):
     """The loop on ``domain`` with the held-out split and step limit of the loop options,
-    with a progress bar."""
+    with a progress bar (``noise``: a measured noise estimate, else second differences)."""
     from dva_offline.discrepancy import loop
     from dva_offline.discrepancy.fitting import DataError
 
@@ -80,7 +120,7 @@ def _run_loop(args, domain):
     bar, step = _progress()
     try:
         return loop.run(domain, rule=loop.DecisionRule(max_steps=args.max_steps), split=split,
-                        progress=step)
+                        progress=step, noise=noise)
     except DataError as exc:  # the data as given cannot be analysed: say which file
         raise ValueError(f"{args.file}: {exc}") from None
     finally:
@@ -103,10 +143,12 @@ def _cmd_frf(args) -> int:
                 f"--elements must be an integer >= 0 or 'auto', got {args.elements!r}"
             ) from None
     conditions, columns, grouping, info = _conditions(args)
+    conditions, columns, coherence = _take_coherence(conditions, columns)
     domain = FrfDomain(conditions, mass=args.mass, static_stiffness=args.static_stiffness,
                        elements=elements, max_elements=args.max_elements, covariates=columns,
                        modulus=args.quantity == "modulus")
-    result = _run_loop(args, domain)
+    noise, noise_info = _measured_noise(args, domain, coherence)
+    result = _run_loop(args, domain, noise)
     sel = domain.order_selection
     extra = {
         "file": str(args.file), "quantity": args.quantity, "n_points": int(domain.omega.size),
@@ -123,6 +165,7 @@ def _cmd_frf(args) -> int:
                                   for n in domain.observations.covariates}}
             for c in conditions
         ],
+        "noise_estimates": noise_info,
         "mass_kg": args.mass, "static_stiffness_n_per_m": args.static_stiffness,
         "elements": "auto" if elements is None else elements,
         "order_selection": {
@@ -148,6 +191,8 @@ def _report(args, result, domain, grouping, extra: dict, quantity: str) -> int:
         print(json.dumps(payload))
     else:
         print(f"read {domain.omega.size} points: {grouping.describe()}")
+        print(f"noise: {result.noise.sigma:.4f} from {result.noise.method}"
+              + "".join(f"; {n}" for n in extra.get("noise_estimates", {}).get("notes", [])))
         print("\n".join(_summary_lines(result)))
     return EXIT_OK
 
@@ -179,9 +224,11 @@ def _cmd_modal(args) -> int:
     if columns is None:
         skip = set(grouping.columns) if args.group_by else set()
         columns = [n for n in conditions[0].covariates if n not in skip]
+    conditions, columns, coherence = _take_coherence(conditions, columns)
     domain = ModalDomain(conditions, modes=modes, max_modes=args.max_modes, covariates=columns,
                          quantity=args.quantity)
-    result = _run_loop(args, domain)
+    noise, noise_info = _measured_noise(args, domain, coherence)
+    result = _run_loop(args, domain, noise)
     extra = {
         "file": str(args.file), "quantity": args.quantity, "model_quantity": "receptance",
         "n_points": int(domain.omega.size),
@@ -190,9 +237,11 @@ def _cmd_modal(args) -> int:
                      "dropped": [{"condition": d, "n_points": n} for d, n in grouping.dropped],
                      "covariate_values": grouping.covariate_values},
         "input": info,
+        "noise_estimates": noise_info,
         "order_selection": {"refined_holdout_errors": {str(k): v for k, v in
                                                        domain.order_errors.items()},
-                            "modes": domain.baseline_order},
+                            "modes": domain.baseline_order,
+                            "rule": domain.order_choice.reason},
     }
     return _report(args, result, domain, grouping, extra, "receptance")
 
@@ -419,6 +468,9 @@ def _add_loop_arguments(p) -> None:
                    help="hold out a seeded random 1/N of the points instead")
     p.add_argument("--max-steps", type=int, default=12,
                    help="most effects the loop adds one after another (default 12)")
+    p.add_argument("--averages", type=int, default=None, metavar="N",
+                   help="number of averages of the analyzer's H1 estimate: with a coherence "
+                        "column (--columns coherence=COL) the noise is measured from it")
     p.add_argument("--plot-dir", default=None, help="write PNG plots into this directory")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
 

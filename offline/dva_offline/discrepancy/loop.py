@@ -122,6 +122,11 @@ class DecisionRule:
         lowers the baseline's held-out residual power by at least this share: the covariate
         can then explain something, and a covariate effect's share of that is reported and
         used beside the share of the excess over the noise.
+    agreeing_conditions_consistent : bool
+        With several conditions, each fitted alone (the saturated reference), when those fits
+        gain less than min_reference_gain and no candidate is significant, the verdict is
+        ``consistent``: repeated measurements agree with one model, nothing to add; the
+        evidence states the misfit the model family leaves (it need not reach the noise).
     """
 
     consistency_ratio: float = 1.25
@@ -135,6 +140,7 @@ class DecisionRule:
     max_steps: int = 12
     joint_ratio: float = 1.5
     min_reference_gain: float = 0.2
+    agreeing_conditions_consistent: bool = True
 
     def __post_init__(self) -> None:
         if not isinstance(self.max_steps, (int, np.integer)) or self.max_steps < 1:
@@ -352,8 +358,14 @@ def _best_eligible(eligible, rule):
 
 
 def decide(base: ModelFit, noise: NoiseFloor, features: ResidualFeatures,
-           scores: Sequence[CandidateScore], rule: DecisionRule) -> Verdict:
-    """Apply :class:`DecisionRule` (module docstring) to the scored candidates."""
+           scores: Sequence[CandidateScore], rule: DecisionRule,
+           reference: SaturatedReference | None = None) -> Verdict:
+    """Apply :class:`DecisionRule` (module docstring) to the scored candidates.
+
+    ``reference``: the saturated reference when it was computed for every condition; when it
+    does not count (the per-condition fits gain less than ``rule.min_reference_gain``) and
+    no candidate is significant, the conditions agree with one model: ``consistent``
+    (``rule.agreeing_conditions_consistent``), the model family's misfit stated."""
     sigma = noise.sigma
     ratio = base.error / sigma if sigma > 0 else np.inf
     white = features.whiteness
@@ -369,6 +381,14 @@ def decide(base: ModelFit, noise: NoiseFloor, features: ResidualFeatures,
     if not eligible:
         best = min(fitted, key=lambda c: c.delta_bic) if fitted else None
         tail = f"; best was {_describe(best)}" if best is not None else ""
+        if _conditions_agree(base, reference, rule):
+            return Verdict("consistent", None, "",
+                           f"{head}; the conditions agree with one model: fitted to each "
+                           f"condition alone the baseline reaches a held-out error of "
+                           f"{reference.error:.4f}, no better than {base.error:.4f} for all, "
+                           "and no candidate improves the held-out score significantly"
+                           f"{tail}; nothing added (the misfit of {ratio:.2f} x the noise "
+                           "floor is the model family's, the same in every condition)")
         return Verdict("unexplained", None, "",
                        f"{head}; no candidate improves the held-out score significantly{tail}")
     best = _best_eligible(eligible, rule)
@@ -397,6 +417,16 @@ def decide(base: ModelFit, noise: NoiseFloor, features: ResidualFeatures,
     return Verdict("explained", best.effect, best.label,
                    f"{head}; {_describe(best)}; held-out error {base.error:.4f} -> "
                    f"{best.fit.error:.4f}{warn}{tail}", caveats)
+
+
+def _conditions_agree(base: ModelFit, reference: SaturatedReference | None,
+                      rule: DecisionRule) -> bool:
+    """Whether every condition got its own fit and those fits do not lower the held-out
+    residual power by ``rule.min_reference_gain``: no covariate law of the baseline's family
+    can explain anything."""
+    return (rule.agreeing_conditions_consistent and reference is not None
+            and reference.n_fitted == reference.n_conditions
+            and reference.rss_held > (1 - rule.min_reference_gain) * base.rss_held)
 
 
 def _added_hits(c: CandidateScore) -> tuple:
@@ -543,7 +573,8 @@ def choose_step(scores, rule) -> tuple[CandidateScore | None, str]:
 
 
 def run(domain: Domain, rule: DecisionRule | None = None, split: HoldoutSplit | None = None,
-        progress: Callable[[str], None] | None = None, n_variants: int = 2) -> DiscrepancyResult:
+        progress: Callable[[str], None] | None = None, n_variants: int = 2,
+        noise: NoiseFloor | None = None) -> DiscrepancyResult:
     """Run the discrepancy loop on a domain.
 
     Parameters
@@ -556,6 +587,9 @@ def run(domain: Domain, rule: DecisionRule | None = None, split: HoldoutSplit | 
         Called with a short text before each fit (progress bars live in the CLI).
     n_variants : int
         How many of the best candidates get the domain's variants tried.
+    noise : NoiseFloor, optional
+        The noise measured by the test (replicates, coherence: :mod:`.noise_sources`); the
+        verdict then uses it at every step instead of the second-difference floor.
 
     Returns
     -------
@@ -570,8 +604,9 @@ def run(domain: Domain, rule: DecisionRule | None = None, split: HoldoutSplit | 
         progress("baseline")
     base_spec = domain.baseline(split.train)
     base = fit_model(base_spec, obs, split)
-    features = _features(obs, base)
-    noise = features.noise
+    measured = noise
+    features = _features(obs, base, None if measured is None else measured.sigma)
+    noise = measured or features.noise
     # (a domain whose groups are no test conditions of a covariate says so)
     reference = None
     if getattr(domain, "per_condition_reference", True):
@@ -582,11 +617,12 @@ def run(domain: Domain, rule: DecisionRule | None = None, split: HoldoutSplit | 
             and reference.rss_held <= (1 - rule.min_reference_gain) * base.rss_held)
     scores, specs = _candidates(domain, obs, split, base, features, noise, rule, progress,
                                 n_variants, reference if used else None)
-    verdict = decide(base, noise, features, scores, rule)
+    verdict = decide(base, noise, features, scores, rule, reference)
     steps, final = (), None
     if hasattr(domain, "augment"):
         steps, final = _iterate(domain, obs, split, base, features, noise, scores, specs, rule,
-                                progress, n_variants, reference if used else None)
+                                progress, n_variants, reference if used else None,
+                                measured is not None)
         verdict = _loop_verdict(verdict, steps, final, rule.joint_ratio,
                                 reference if used else None)
     augmented = aug_features = None
@@ -604,7 +640,7 @@ def run(domain: Domain, rule: DecisionRule | None = None, split: HoldoutSplit | 
 
 
 def _iterate(domain, obs, split, base, features, noise, scores, specs, rule, progress,
-             n_variants, reference=None):
+             n_variants, reference=None, measured=False):
     """Add effects one at a time (:func:`choose_step`) until the residual is consistent with
     the noise, nothing in the library explains the rest, or ``rule.max_steps`` is reached."""
     steps = []
@@ -637,8 +673,9 @@ def _iterate(domain, obs, split, base, features, noise, scores, specs, rule, pro
         # The noise floor is a property of the data; its second-difference estimate can only
         # be inflated by model error that is not smooth at the sampling (sparse sweeps), so
         # each step keeps the lowest estimate so far.
+        # (a noise measured by replicates or coherence stays as it is)
         fresh = _features(obs, base).noise
-        if fresh.sigma < noise.sigma:
+        if fresh.sigma < noise.sigma and not measured:
             noise = fresh
         features = _features(obs, base, noise.sigma)
     final = LoopOutcome(status, reason, base.name, base.error, noise.sigma,

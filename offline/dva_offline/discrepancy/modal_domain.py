@@ -7,11 +7,12 @@ driving-point or transfer FRF of a lightly, proportionally damped structure), in
 
 (U: modes above the band, L: modes below it / rigid-body mass line). Mobility and accelerance
 data are converted to receptance on input (H_rec = H_mob / (j w) = -H_acc / w^2): the relative
-residual of every point is the same in each form. N comes from the same order rule as the
-isolator baseline (:class:`~dva_offline.discrepancy.frf_domain.FrfDomain`): 1..N_max modes
-started at the strongest peaks of |H|, each refined on 3/4 of the training points and scored
-on the other 1/4; the smallest N within 0.15 sigma_hat^2 of the best, preferring a white
-residual.
+residual of every point is the same in each form. N: 1..N_max modes started at the
+strongest peaks of |H| (frequencies and damping refined by variable projection), each fitted
+on 3/4 of the training points and scored on the other 1/4; the smallest N whose held-out
+error is not significantly above the best one's in a paired test, a doublet only when it
+beats the next smaller order significantly, a white residual preferred
+(:mod:`~dva_offline.discrepancy.model_order`).
 
 Candidate library (each reduces to the baseline at a null value; added effects stack, the
 loop's later steps build on the model with the effects found so far):
@@ -35,6 +36,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.optimize import least_squares
 
 from dva_offline.discrepancy.covariate_kinds import is_level
 from dva_offline.discrepancy.fitting import (
@@ -45,8 +47,9 @@ from dva_offline.discrepancy.fitting import (
     ParamSpec,
     fit_model,
 )
+from dva_offline.discrepancy.model_order import choose_order, has_doublet
 from dva_offline.discrepancy.pooling import pool_conditions
-from dva_offline.discrepancy.residual import ResidualFeatures, ljung_box, noise_floor
+from dva_offline.discrepancy.residual import ResidualFeatures, ljung_box
 from dva_offline.isolator.frf_data import FrfData
 
 MODAL_QUANTITIES = ("receptance", "mobility", "accelerance")
@@ -121,16 +124,19 @@ class ModalDomain:
         Covariates to analyse (default: every covariate whose level differs between sweeps).
     quantity : str
         What the input was (reported; the model works in receptance).
-    order_tolerance, whiteness_alpha : float
-        The order rule (as :class:`~dva_offline.discrepancy.frf_domain.FrfDomain`).
+    order_z, doublet_bandwidths, whiteness_alpha : float
+        The order rule (:func:`~dva_offline.discrepancy.model_order.choose_order`): standard
+        errors of the paired held-out excess within which an order is as good as the best,
+        the spacing (in half-power bandwidths) below which two modes are a doublet, and the
+        Ljung-Box p-value of a white residual (preferred).
     """
 
     name = "modal"
 
     def __init__(self, conditions: Sequence[FrfData], modes: int | None = None,
                  max_modes: int = 8, covariates: Sequence[str] | None = None,
-                 quantity: str = "receptance", order_tolerance: float = 0.15,
-                 whiteness_alpha: float = 1e-3) -> None:
+                 quantity: str = "receptance", order_z: float = 2.0,
+                 doublet_bandwidths: float = 3.0, whiteness_alpha: float = 1e-3) -> None:
         conditions = list(conditions)
         if not conditions or not all(isinstance(c, FrfData) for c in conditions):
             raise TypeError("conditions must be a non-empty sequence of FrfData")
@@ -144,13 +150,15 @@ class ModalDomain:
             raise ValueError(f"quantity must be one of {MODAL_QUANTITIES}, got {quantity!r}")
         self.conditions, self.modes, self.max_modes = conditions, modes, int(max_modes)
         self.quantity = quantity
-        self.order_tolerance, self.whiteness_alpha = float(order_tolerance), whiteness_alpha
+        self.order_z, self.doublet_bandwidths = float(order_z), float(doublet_bandwidths)
+        self.whiteness_alpha = whiteness_alpha
         self.omega, self.observations = pool_conditions(conditions, covariates)
         self.reference = self._reference_condition()
         self._stack: list[ModalTerm] = []
         self._n = None
         self._term_of: dict = {}
         self._order_errors = {}
+        self._order_choice = None
 
     # --- helpers ---------------------------------------------------------------------------
     def _varying(self) -> dict:
@@ -229,8 +237,9 @@ class ModalDomain:
                           scale=h_scale * w_mid**2)]
         return tuple(out)
 
-    def _start(self, freqs, zetas, points) -> np.ndarray:
-        """Modal constants and residuals by linear least squares for given (f_r, z_r)."""
+    def _linear(self, freqs, zetas, points):
+        """Modal constants and residuals by linear least squares for given (f_r, z_r), and
+        the weighted residual of that solution (real and imaginary parts stacked)."""
         w = self.omega[points]
         y = self.observations.values[points]
         u = 1.0 / np.abs(y)
@@ -239,8 +248,47 @@ class ModalDomain:
         cols += [np.ones_like(w, dtype=complex), -1.0 / w**2 + 0j]
         a = np.column_stack(cols) * u[:, None]
         rhs = y * u
-        sol, *_ = np.linalg.lstsq(np.vstack([a.real, a.imag]),
-                                  np.concatenate([rhs.real, rhs.imag]), rcond=None)
+        m = np.vstack([a.real, a.imag])
+        b = np.concatenate([rhs.real, rhs.imag])
+        # normal equations of the column-scaled system: a few columns, hundreds of rows
+        norm = np.linalg.norm(m, axis=0)
+        norm[norm == 0] = 1.0
+        ms = m / norm
+        try:
+            sol = np.linalg.solve(ms.T @ ms, ms.T @ b) / norm
+        except np.linalg.LinAlgError:
+            sol = np.linalg.lstsq(m, b, rcond=None)[0]
+        return sol, m @ sol - b
+
+    def _projected(self, freqs, zetas, points):
+        """Frequencies and damping ratios refined by variable projection: the modal constants
+        and residuals solved exactly for each (f_r, z_r), only those 2 N values iterated.
+        Started at peaks on a coarse grid of damping ratios, the full fit otherwise lands in
+        a local minimum whenever the modes are lighter or closer than the starts assume."""
+        f = self.observations.axis
+        lo = np.log(np.r_[0.5 * f.min(), 1e-4])
+        hi = np.log(np.r_[2.0 * f.max(), 0.5])
+        n = len(freqs)
+        x0 = np.log(np.ravel(np.column_stack([freqs, zetas])))
+        x0 = np.clip(x0, np.tile(lo, n) + 1e-9, np.tile(hi, n) - 1e-9)
+
+        def resid(x):
+            e = np.exp(x)
+            with np.errstate(all="ignore"):
+                r = self._linear(e[0::2], e[1::2], points)[1]
+            return np.where(np.isfinite(r), r, 1e6)
+
+        try:
+            sol = least_squares(resid, x0, bounds=(np.tile(lo, n), np.tile(hi, n)),
+                                max_nfev=15 * (n + 1), x_scale=1.0)
+        except (ValueError, np.linalg.LinAlgError):
+            return list(freqs), list(zetas)
+        e = np.exp(sol.x)
+        return list(e[0::2]), list(e[1::2])
+
+    def _start(self, freqs, zetas, points) -> np.ndarray:
+        """Modal constants and residuals by linear least squares for given (f_r, z_r)."""
+        sol = self._linear(freqs, zetas, points)[0]
         out = []
         for r, (fr, zr) in enumerate(zip(freqs, zetas)):
             out += [fr, zr, sol[r]]
@@ -251,13 +299,16 @@ class ModalDomain:
         ref = ref if ref.sum() >= 10 else points
         chosen = sorted(peaks[:n])
         starts = [self._start(chosen, [z] * n, ref) for z in (0.005, 0.02, 0.06)]
-        params = self._params(n, starts[1])
+        best = min(((self._projected(chosen, [z] * n, ref)) for z in (0.002, 0.02)),
+                   key=lambda fz: np.sum(self._linear(*fz, ref)[1] ** 2))
+        projected = self._start(*best, ref)
+        params = self._params(n, projected)
 
         def predict(v, n=n):
             return self._evaluate(v, n, [])
 
         return ModelSpec(name or f"modal(N={n})", None, params, 0, predict,
-                         tuple([starts[0], starts[2]]), batch_predict=predict)
+                         tuple(starts), batch_predict=predict)
 
     # --- Domain protocol -------------------------------------------------------------------
     def baseline(self, train: np.ndarray) -> ModelSpec:
@@ -282,16 +333,21 @@ class ModalDomain:
             fits[n] = fit_model(self._order_spec(n, peaks, train & ~inner_held), obs, inner,
                                 n_screen=3)
         errors = {n: fit.error for n, fit in fits.items()}
-        best = min(errors, key=errors.get)
-        sigma = noise_floor(fits[best].residual, obs.groups).sigma
-        limit = errors[best] ** 2 + self.order_tolerance * sigma**2
-        within = sorted(n for n, e in errors.items() if e**2 <= limit)
         counts = np.bincount(obs.groups)[np.unique(obs.groups)]
         lags = max(1, min(10, int(counts.min()) // 4))
-        white = [n for n in within if ljung_box(fits[n].residual, obs.groups, lags).p_value
-                 >= self.whiteness_alpha]
-        n = (white or within)[0]
-        self._n, self._order_errors = n, errors
+
+        def white(n):
+            return ljung_box(fits[n].residual, obs.groups, lags).p_value >= self.whiteness_alpha
+
+        def doublet(n):
+            v = np.array([e.value for e in fits[n].estimates])
+            return has_doublet(v[0:3 * n:3], v[1:3 * n:3], self.doublet_bandwidths)
+
+        choice = choose_order({n: np.abs(fit.residual[inner_held]) ** 2
+                               for n, fit in fits.items()}, self.order_z,
+                              {n: doublet(n) for n in fits}, white)
+        n = choice.order
+        self._n, self._order_errors, self._order_choice = n, errors, choice
         values = np.array([e.value for e in fits[n].estimates])
         spec = self._order_spec(n, peaks, train)
         return ModelSpec(spec.name, None, self._params(n, values), 0, spec.predict,
@@ -303,6 +359,11 @@ class ModalDomain:
         if self._n is None:
             raise ValueError("baseline() has not been called")
         return self._n
+
+    @property
+    def order_choice(self):
+        """The :class:`~dva_offline.discrepancy.model_order.OrderChoice` of the baseline."""
+        return self._order_choice
 
     @property
     def order_errors(self) -> dict:

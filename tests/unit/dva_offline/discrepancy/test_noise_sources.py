@@ -1,0 +1,102 @@
+"""Noise measured by the test itself: replicate sweeps and an analyzer's coherence, and the
+CLI saying which estimate the verdict used."""
+import json
+
+import numpy as np
+import pytest
+
+from dva_offline import cli
+from dva_offline.discrepancy.fitting import Observations
+from dva_offline.discrepancy.noise_sources import (
+    coherence_noise,
+    replicate_noise,
+    replicate_sets,
+)
+
+
+def _obs(levels, sigma, rng, lines=200):
+    f = np.linspace(10.0, 100.0, lines)
+    h = 1.0 / (1 - (f / 50.0) ** 2 + 0.05j * f / 50.0)
+    ys, gs, cs = [], [], []
+    for g, level in enumerate(levels):
+        e = rng.standard_normal(lines) + 1j * rng.standard_normal(lines)
+        ys.append(h * (1 + sigma / np.sqrt(2) * e))
+        gs.append(np.full(lines, g))
+        cs.append(np.full(lines, level))
+    y = np.concatenate(ys)
+    return Observations(y, 1 / np.abs(y), np.tile(f, len(levels)), np.concatenate(gs),
+                        {"temperature_c": np.concatenate(cs)})
+
+
+def test_replicates_give_the_noise_of_one_sweep():
+    rng = np.random.default_rng(3)
+    obs = _obs([20.0, 20.0, 20.0, 20.0, 40.0, 40.0], 0.02, rng)
+    assert replicate_sets(obs) == [[0, 1, 2, 3], [4, 5]]
+    est = replicate_noise(obs)
+    assert est.sigma == pytest.approx(0.02, rel=0.1)
+    assert est.method.startswith("replicates")
+
+
+def test_sweeps_at_different_levels_are_no_replicates():
+    obs = _obs([20.0, 30.0, 40.0], 0.02, np.random.default_rng(4))
+    assert replicate_sets(obs) == [] and replicate_noise(obs) is None
+
+
+def test_coherence_needs_the_number_of_averages():
+    g2 = np.full(50, 0.9)
+    est, note = coherence_noise(g2, 10)
+    assert est.sigma == pytest.approx(np.sqrt(0.1 / 0.9 / 10)) and note == ""
+    est, note = coherence_noise(g2, None)
+    assert est is None and "averages" in note
+    est, note = coherence_noise(np.full(5, 1.5), 10)
+    assert est is None and "not usable" in note
+
+
+def _write(path, rows, header):
+    path.write_text(header + "\n" + "\n".join(",".join(f"{v:.10g}" for v in r) for r in rows))
+
+
+def _one_mode_rows(rng, sigma, sets, extra=None):
+    f = np.linspace(20.0, 80.0, 61)
+    w = 2 * np.pi * f
+    h = 1.0 / ((2 * np.pi * 50) ** 2 - w**2 + 2j * 0.03 * 2 * np.pi * 50 * w)
+    rows = []
+    for s, level in sets:
+        e = rng.standard_normal(f.size) + 1j * rng.standard_normal(f.size)
+        y = h * (1 + sigma / np.sqrt(2) * e)
+        for i in range(f.size):
+            rows.append([f[i], y[i].real, y[i].imag, level, s] + ([extra] if extra else []))
+    return rows
+
+
+def test_cli_uses_replicates_and_says_so(tmp_path, capsys):
+    path = tmp_path / "rep.csv"
+    _write(path, _one_mode_rows(np.random.default_rng(6), 0.01,
+                                [(1, 5.0), (2, 5.0), (3, 5.0)]),
+           "frequency_hz,real,imag,force_n,sweep")
+    assert cli.main(["discrepancy", "modal", str(path), "--quantity", "receptance", "--group-by",
+                     "sweep", "--max-steps", "1", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["noise_floor"]["method"].startswith("replicates")
+    assert out["noise_estimates"]["replicates"] == pytest.approx(0.01, rel=0.25)
+    assert out["verdict"]["status"] == "consistent"
+
+
+def test_cli_coherence_column_with_and_without_averages(tmp_path, capsys):
+    path = tmp_path / "coh.csv"
+    _write(path, _one_mode_rows(np.random.default_rng(7), 0.01, [(1, 5.0), (2, 10.0)],
+                                extra=0.95),
+           "frequency_hz,real,imag,force_n,sweep,Coh")
+    args = ["discrepancy", "modal", str(path), "--quantity", "receptance", "--group-by", "sweep",
+            "--columns", "coherence=Coh", "--max-steps", "1", "--json"]
+    assert cli.main([*args, "--averages", "20"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["noise_floor"]["method"].startswith("coherence")
+    assert out["noise_floor"]["sigma"] == pytest.approx(np.sqrt(0.05 / 0.95 / 20))
+    assert "coherence" not in json.dumps(out["candidates"])  # not analysed as a covariate
+    assert cli.main(args) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["noise_floor"]["method"].startswith("1.4826 MAD")
+    assert any("averages" in n for n in out["noise_estimates"]["notes"])
+    assert cli.main([*args, "--averages", "0"]) == 2
+    assert "--averages" in capsys.readouterr().err
