@@ -83,7 +83,8 @@ def main() -> None:
                                 (ref.accelerations, new.accelerations)))
         times = {"previous": [], "first": [], "repeated": []}
         for _ in range(args.repeats):
-            times["previous"].append(best(lambda d=damping: one(0, d, reference_simulate_flights), 1))
+            times["previous"].append(
+                best(lambda d=damping: one(0, d, reference_simulate_flights), 1))
             times["first"].append(best(lambda d=damping: first(d), 1))
             times["repeated"].append(best(lambda d=damping: one(0, d), 1))
         t = {k: min(v) for k, v in times.items()}
