@@ -17,11 +17,13 @@ from aero_dva.bag.indexed_read import IndexedReadError, indexed_messages
 from aero_dva.bag.reader import (
     RECOVER_HINT,
     BagReadError,
+    MessageTypeError,
     bag_files,
     bag_topics,
     deserialize,
     read_messages,
 )
+from aero_dva.bag.schemas import normalize_type_name
 from aero_dva.wing.model import ACCELERATION_NAMES, DISPLACEMENT_NAMES
 
 #: Topics a flight log reads, relative to the simulator's namespace (``/diagnostics`` global).
@@ -78,11 +80,14 @@ def _stamp(msg) -> float:
 
 
 def load_flight_log(bag: str | Path, namespace: str = "", *,
-                    allow_truncated: bool = False) -> FlightLog:
+                    allow_truncated: bool = False, indexed: bool = True) -> FlightLog:
     """Read the flight topics of ``bag`` (optionally under ``namespace``).
 
     ``allow_truncated`` reads what a cut, unclosed or damaged bag still holds (with a
     RuntimeWarning); otherwise such a bag is refused with a message naming ``dva bag recover``.
+    A closed bag is read through its chunk indexes, whole batches of messages at a time
+    (:func:`read_flight_rows`); ``indexed=False`` decodes message by message (the previous
+    route, kept as a baseline; the same arrays).
 
     Raises
     ------
@@ -92,7 +97,8 @@ def load_flight_log(bag: str | Path, namespace: str = "", *,
     """
     present, wanted = flight_topics(bag, namespace, allow_truncated)
     diagnostics = flight_diagnostics(bag, present, allow_truncated)
-    rows = None if allow_truncated else read_flight_rows(bag, wanted, SAMPLE_ROWS)
+    rows = read_flight_rows(bag, wanted, SAMPLE_ROWS) if indexed and not allow_truncated \
+        else None
     if rows is not None:
         n = rows.samples
         displacements = _stack(rows, ch.DISPLACEMENT, n)
@@ -216,6 +222,12 @@ def read_flight_rows(bag, wanted: dict, rows: dict) -> FlightRows | None:
     channel), from the bag files' chunk and message indexes; None if a file has none (read
     it with :func:`load_flight_log`). Same values as :func:`load_flight_log`; only the chosen
     rows are held in memory."""
+    present = bag_topics(bag)
+    for topic, channel in wanted.items():  # as read_messages checks expected types
+        actual, expected = present[topic].type_name, normalize_type_name(channel.type_name)
+        if actual != expected:
+            raise MessageTypeError(f"topic {topic!r} in bag {str(bag)!r} carries {actual!r}, "
+                                   f"expected {expected!r}")
     iterators = []
     for file in bag_files(bag):
         it = indexed_messages(file, wanted)
