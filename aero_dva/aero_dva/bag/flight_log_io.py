@@ -235,6 +235,7 @@ def read_flight_rows(bag, wanted: dict, rows: dict) -> FlightRows | None:
             return None
         iterators.append(it)
     parts: dict = {c: [] for c in wanted.values()}  # channel -> [(file, position, fields)]
+    growing = {c: {name: [np.full(0, np.nan)] for name in names} for c, names in rows.items()}
     try:
         for number, it in enumerate(iterators):
             for m in it:
@@ -251,8 +252,10 @@ def read_flight_rows(bag, wanted: dict, rows: dict) -> FlightRows | None:
                     out = _decode_each(m, fields, channel in SAMPLE_ROWS)
                 if channel in SAMPLE_ROWS:
                     out["_end"] = out["first_sample_index"] + _width(out, bag, m.topic)
-                    for name in set(out) - set(rows.get(channel, ())) - {
-                            "sample_rate", "first_sample_index", "_end"}:
+                    index = out["first_sample_index"].astype(np.int64)
+                    for name in rows.get(channel, ()):  # into the rows now: no copy held
+                        _put(growing[channel][name], index, out.pop(name))
+                    for name in set(out) - {"sample_rate", "first_sample_index", "_end"}:
                         del out[name]  # read for the blocks' lengths only
                 parts[channel].append((number, m.position, out))
     except IndexedReadError as exc:
@@ -270,22 +273,38 @@ def read_flight_rows(bag, wanted: dict, rows: dict) -> FlightRows | None:
     for channel, names in rows.items():
         filled[channel] = {}
         for name in names:
-            target = np.full(n, np.nan)
-            for _, _, out in sorted(parts.get(channel, []), key=lambda p: (p[0], p[1][0])):
-                values = out.pop(name)
-                index = out["first_sample_index"].astype(np.int64)
-                if isinstance(values, list):  # blocks of several lengths, one by one
-                    for i, v in zip(index.tolist(), values):
-                        target[i:i + v.size] = v
-                else:
-                    target[index[:, None] + np.arange(values.shape[1])] = values
-            filled[channel][name] = target
-    time = np.arange(n) / rate
-    airspeed, density = _held_columns(time, parts.get(ch.FLIGHT_CONDITION, []),
+            target = growing[channel][name]
+            _grow(target, n)
+            filled[channel][name] = target[0][:n]  # a view: no copy of the rows
+    airspeed, density = _held_columns(n, rate, parts.pop(ch.FLIGHT_CONDITION, []),
                                       ("airspeed", "air_density"))
-    (applied,) = _held_columns(time, parts.get(ch.DAMPER_STATE, []), ("applied_damping",))
+    (applied,) = _held_columns(n, rate, parts.pop(ch.DAMPER_STATE, []), ("applied_damping",))
     return FlightRows(sample_rate=rate, samples=n, airspeed=airspeed, density=density,
                       applied_damping=applied, rows=filled)
+
+
+def _grow(holder: list, size: int) -> None:
+    """Make ``holder[0]`` (a NaN-padded row) hold at least ``size`` samples, by a quarter
+    more than needed at a time (each copy is freed at once, so the memory stays about the
+    row's size)."""
+    row = holder[0]
+    if row.size >= size:
+        return
+    bigger = np.full(max(size, row.size + row.size // 4), np.nan)
+    bigger[:row.size] = row
+    holder[0] = bigger
+
+
+def _put(holder: list, index: np.ndarray, values) -> None:
+    """Blocks of samples ``values`` at their first sample ``index`` into a growing row."""
+    if isinstance(values, list):  # blocks of several lengths, one by one
+        _grow(holder, max((i + v.size for i, v in zip(index.tolist(), values)), default=0))
+        row = holder[0]
+        for i, v in zip(index.tolist(), values):
+            row[i:i + v.size] = v
+    elif values.size:
+        _grow(holder, int(index.max()) + values.shape[1])
+        holder[0][index[:, None] + np.arange(values.shape[1])] = values
 
 
 def _width(out: dict, bag, topic: str) -> np.ndarray:
@@ -319,10 +338,15 @@ def _decode_each(m, fields, sample: bool) -> dict:
     return out
 
 
-def _held_columns(time: np.ndarray, parts: list, names: tuple) -> list[np.ndarray]:
-    """:func:`_held` of decoded batches: stamps in file order, then sorted (stable)."""
+_HOLD_BLOCK = 1 << 20
+"""Samples held per pass of :func:`_held_columns` (bounds its temporary arrays)."""
+
+
+def _held_columns(n: int, rate: float, parts: list, names: tuple) -> list[np.ndarray]:
+    """:func:`_held` of decoded batches onto the ``n`` sample times: stamps in file order,
+    then sorted (stable)."""
     if not parts:
-        return [np.full(time.shape, np.nan) for _ in names]
+        return [np.full(n, np.nan) for _ in names]
     parts = sorted(parts, key=lambda p: (p[0], p[1][0]))
     position = np.concatenate([np.c_[np.full(p[1].size, p[0]), p[1]] for p in parts])
     order = np.lexsort((position[:, 1], position[:, 0]))  # file order
@@ -331,13 +355,17 @@ def _held_columns(time: np.ndarray, parts: list, names: tuple) -> list[np.ndarra
     stamps = sec.astype(float) + 1e-9 * nsec.astype(float)
     by_stamp = np.argsort(stamps, kind="stable")
     stamps = stamps[by_stamp]
-    index = np.searchsorted(stamps, time + 1e-9, side="right") - 1
-    out = []
-    for name in names:
-        values = np.concatenate([p[2][name] for p in parts])[order][by_stamp].astype(float)
-        held = values[np.clip(index, 0, None)]
-        held[index < 0] = np.nan
-        out.append(held)
+    values = [np.concatenate([p[2][name] for p in parts])[order][by_stamp].astype(float)
+              for name in names]
+    out = [np.empty(n) for _ in names]
+    for a in range(0, n, _HOLD_BLOCK):
+        b = min(a + _HOLD_BLOCK, n)
+        index = np.searchsorted(stamps, np.arange(a, b) / rate + 1e-9, side="right") - 1
+        before = index < 0
+        np.maximum(index, 0, out=index)
+        for held, column in zip(out, values):
+            np.take(column, index, out=held[a:b])
+            held[a:b][before] = np.nan
     return out
 
 

@@ -83,77 +83,86 @@ def indexed_messages(file: Path, topics: Iterable[str]) -> Iterator[MessageMatri
 
 
 def _iterate(file: Path, chunk_indexes, meta) -> Iterator[MessageMatrix]:
-    raw = np.memmap(file, dtype=np.uint8, mode="r")
-    for index in chunk_indexes:
-        present = [cid for cid in meta if cid in index.message_index_offsets]
-        if not present:
-            continue
-        records = _chunk_records(raw, index, file)
-        for cid in present:
-            offsets = _index_offsets(raw, index.message_index_offsets[cid], file)
-            if offsets.size == 0:
+    # Plain reads, chunk by chunk (a memory map would keep the whole file resident).
+    with open(file, "rb") as stream:
+        for index in chunk_indexes:
+            present = [cid for cid in meta if cid in index.message_index_offsets]
+            if not present:
                 continue
-            if offsets.max() + _RECORD_HEAD + _MESSAGE_HEAD > records.size:
-                raise IndexedReadError(f"{file}: a message index points past its chunk")
-            head = _gather(records, offsets, _RECORD_HEAD + 2)
-            lengths = head[:, 1:9].copy().view("<u8")[:, 0]
-            ids = head[:, 9:11].copy().view("<u2")[:, 0]
-            if np.any(head[:, 0] != _MESSAGE_OP) or np.any(ids != cid) or np.any(
-                    lengths < _MESSAGE_HEAD) or np.any(offsets + _RECORD_HEAD + lengths
-                                                       > records.size):
-                raise IndexedReadError(f"{file}: a message index does not point at "
-                                       f"messages of its channel")
-            sizes = lengths - _MESSAGE_HEAD
-            topic, type_name, text = meta[cid]
-            for size in np.unique(sizes):
-                at = offsets[sizes == size]
-                starts = (at + _RECORD_HEAD + _MESSAGE_HEAD).astype(np.intp)
-                yield MessageMatrix(topic, type_name, text,
-                                    _gather(records, starts, int(size)),
-                                    (index.chunk_start_offset << 32) + at)
+            records = _chunk_records(stream, index, file)
+            first = min(index.message_index_offsets.values())
+            stream.seek(first)
+            indexes = np.frombuffer(stream.read(index.message_index_length), dtype=np.uint8)
+            for cid in present:
+                offsets = _index_offsets(indexes, index.message_index_offsets[cid] - first,
+                                         file)
+                yield from _cut(records, offsets, index, cid, meta[cid], file)
 
 
-def _chunk_records(raw: np.memmap, index, file: Path) -> np.ndarray:
+def _cut(records, offsets, index, cid, meta, file) -> Iterator[MessageMatrix]:
+    """The messages at ``offsets`` of the decompressed chunk ``records``, by length."""
+    if offsets.size == 0:
+        return
+    if offsets.max() + _RECORD_HEAD + _MESSAGE_HEAD > records.size:
+        raise IndexedReadError(f"{file}: a message index points past its chunk")
+    head = _gather(records, offsets, _RECORD_HEAD + 2)
+    lengths = head[:, 1:9].copy().view("<u8")[:, 0]
+    ids = head[:, 9:11].copy().view("<u2")[:, 0]
+    if np.any(head[:, 0] != _MESSAGE_OP) or np.any(ids != cid) or np.any(
+            lengths < _MESSAGE_HEAD) or np.any(offsets + _RECORD_HEAD + lengths
+                                               > records.size):
+        raise IndexedReadError(f"{file}: a message index does not point at messages of "
+                               "its channel")
+    sizes = lengths - _MESSAGE_HEAD
+    topic, type_name, text = meta
+    for size in np.unique(sizes):
+        at = offsets[sizes == size]
+        starts = (at + _RECORD_HEAD + _MESSAGE_HEAD).astype(np.intp)
+        yield MessageMatrix(topic, type_name, text, _gather(records, starts, int(size)),
+                            (index.chunk_start_offset << 32) + at)
+
+
+def _chunk_records(stream, index, file: Path) -> np.ndarray:
     """The decompressed records of a chunk, CRC checked."""
     at = index.chunk_start_offset
-    if at + _RECORD_HEAD > raw.size or raw[at] != _CHUNK_OP:
-        raise IndexedReadError(f"{file}: no chunk at offset {at}")
-    body = at + _RECORD_HEAD
-    _, _, size, crc, name_len = struct.unpack_from("<QQQII", raw, body)
-    pos = body + 32
-    compression = bytes(raw[pos:pos + name_len]).decode("ascii", "replace")
+    stream.seek(at)
+    raw = stream.read(index.chunk_length)
+    if len(raw) != index.chunk_length or raw[0] != _CHUNK_OP:
+        raise IndexedReadError(f"{file}: no whole chunk at offset {at}")
+    _, _, size, crc, name_len = struct.unpack_from("<QQQII", raw, _RECORD_HEAD)
+    pos = _RECORD_HEAD + 32
+    compression = raw[pos:pos + name_len].decode("ascii", "replace")
     pos += name_len
     (stored,) = struct.unpack_from("<Q", raw, pos)
     pos += 8
-    if pos + stored > raw.size:
-        raise IndexedReadError(f"{file}: the chunk at offset {at} runs past the file")
-    data = raw[pos:pos + stored]
+    if pos + stored > len(raw):
+        raise IndexedReadError(f"{file}: the chunk at offset {at} runs past its record")
+    data = memoryview(raw)[pos:pos + stored]
     if compression == "zstd":
         import zstandard
 
-        data = np.frombuffer(zstandard.ZstdDecompressor().decompress(
-            bytes(data), max_output_size=size), dtype=np.uint8)
+        data = zstandard.ZstdDecompressor().decompress(data, max_output_size=size)
     elif compression == "lz4":
         import lz4.frame
 
-        data = np.frombuffer(lz4.frame.decompress(bytes(data)), dtype=np.uint8)
+        data = lz4.frame.decompress(data)
     elif compression:
         raise IndexedReadError(f"{file}: chunk compression {compression!r} is not known")
-    if data.size != size:
-        raise IndexedReadError(f"{file}: the chunk at offset {at} holds {data.size} bytes, "
+    if len(data) != size:
+        raise IndexedReadError(f"{file}: the chunk at offset {at} holds {len(data)} bytes, "
                                f"its header says {size}")
     if crc and zlib.crc32(data) != crc:
         raise IndexedReadError(f"{file}: the chunk at offset {at} fails its CRC")
-    return np.asarray(data)
+    return np.frombuffer(data, dtype=np.uint8)
 
 
-def _index_offsets(raw: np.memmap, at: int, file: Path) -> np.ndarray:
-    """Record offsets (file order) of a message index record."""
-    if at + _RECORD_HEAD + 6 > raw.size or raw[at] != _INDEX_OP:
-        raise IndexedReadError(f"{file}: no message index at offset {at}")
-    (length,) = struct.unpack_from("<I", raw, at + _RECORD_HEAD + 2)
+def _index_offsets(block: np.ndarray, at: int, file: Path) -> np.ndarray:
+    """Record offsets (file order) of the message index record at ``at`` in ``block``."""
+    if at < 0 or at + _RECORD_HEAD + 6 > block.size or block[at] != _INDEX_OP:
+        raise IndexedReadError(f"{file}: no message index where the summary says")
+    (length,) = struct.unpack_from("<I", block, at + _RECORD_HEAD + 2)
     start = at + _RECORD_HEAD + 6
-    if length % 16 or start + length > raw.size:
-        raise IndexedReadError(f"{file}: a damaged message index at offset {at}")
-    pairs = np.frombuffer(raw[start:start + length].tobytes(), dtype="<u8").reshape(-1, 2)
+    if length % 16 or start + length > block.size:
+        raise IndexedReadError(f"{file}: a damaged message index")
+    pairs = block[start:start + length].view("<u8").reshape(-1, 2)
     return np.sort(pairs[:, 1]).astype(np.int64)

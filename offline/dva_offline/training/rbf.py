@@ -229,9 +229,9 @@ def find_dwells(airspeed, applied_damping, density=None) -> Dwells:
         raise TrainingDataError("the log has no applied c2 (topic /dva/damper_state missing or "
                                 "empty): dwells cannot be found")
     # NaN != NaN would cut at every sample; compare with NaN mapped to a sentinel.
-    keys = [np.where(np.isnan(x), -1.0, x) for x in (u, c, rho)]
     changed = np.zeros(u.size - 1, dtype=bool)
-    for key in keys:
+    for x in (u, c, rho):  # one key at a time: a sweep's arrays are large
+        key = np.where(np.isnan(x), -1.0, x)
         changed |= np.diff(key) != 0
     cuts = np.flatnonzero(changed) + 1
     start = np.concatenate([[0], cuts]).astype(int)
