@@ -398,6 +398,9 @@ class BatchStepper:
         raw = np.stack([u[::self.hold], rho[::self.hold], c[::self.hold]], axis=-1)[None]
         rows = held_values(raw, np.full((1, 3), np.nan), self.quantum)
         if rows.shape[1] <= self.cache.max_size:
+            runs = 1 + int(np.count_nonzero(np.any(rows[0, 1:] != rows[0, :-1], axis=1)))
+            if self.cache.size + runs > self.cache.max_size:
+                self.cache.clear()  # conditions kept from earlier calls make room
             self.cache.lookup(rows[0], level)
         return rows
 
