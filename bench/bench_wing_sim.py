@@ -8,7 +8,11 @@ on a shared, busy machine the wall clock mostly measures the other processes.
 
 Prints (best of ``--repeats``):
 - the study's flight (30 s ramp 0.8 -> 1.2 U_cr at 1 kHz, Maxwell DVA) with c2 held (ch. 6) and
-  with a c2 schedule (ch. 7): wall time and real-time factor for one flight (target >= 1000x);
+  with a c2 schedule (ch. 7), this revision against the previous route
+  (``reference_simulate_flights``), timed alternately in this run: a first flight (no
+  condition discretised yet) and a repeated one (the conditions kept from the previous call,
+  as for the seeds of an evaluation case); real-time factors (targets >= 10 000x held,
+  >= 5 000x schedule), ratios and the largest difference relative to each channel's peak;
 - a batch of flights vs a loop of single flights: flights per second and their ratio
   (target >= 10x);
 - a constant-airspeed flight vs scipy.signal.dlsim on the same discretised system;
@@ -22,7 +26,11 @@ import time
 import numpy as np
 from scipy.signal import cont2discrete, dlsim
 
-from aero_dva.flight.batch_simulator import simulate_flights
+from aero_dva.flight.batch_simulator import (
+    forget_conditions,
+    reference_simulate_flights,
+    simulate_flights,
+)
 from aero_dva.flight.divergence import ramp_airspeed
 from aero_dva.flight.streaming_simulator import StreamingSimulator
 from aero_dva.wing.flutter import flutter_speed
@@ -59,16 +67,33 @@ def main() -> None:
     rng = np.random.default_rng(0)
     force = 1000.0 * rng.standard_normal((args.flights, u.size))
 
-    def one(i=0, damping=c2):
-        return simulate_flights(wing, dva, force=force[i], airspeed=u, density=rho,
-                                damping=damping)
+    def one(i=0, damping=c2, route=simulate_flights):
+        return route(wing, dva, force=force[i], airspeed=u, density=rho, damping=damping)
 
-    t_held = best(lambda: one(0, None), args.repeats)
-    print(f"one 30 s flight, c2 held:     {t_held * 1e3:6.1f} ms = "
-          f"{duration / t_held:5.0f}x real time")
-    t_one = best(one, args.repeats)
-    print(f"one 30 s flight, c2 schedule: {t_one * 1e3:6.1f} ms = "
-          f"{duration / t_one:5.0f}x real time")
+    def first(damping):  # nothing discretised yet
+        forget_conditions()
+        return one(0, damping)
+
+    print("one 30 s flight: previous route vs this revision, timed alternately")
+    for label, damping in (("c2 held", None), ("c2 schedule", c2)):
+        ref = one(0, damping, reference_simulate_flights)
+        new = one(0, damping)
+        diff = max(float(np.max(np.abs(a - b) / np.max(np.abs(a), axis=-1, keepdims=True)))
+                   for a, b in ((ref.displacements, new.displacements),
+                                (ref.accelerations, new.accelerations)))
+        times = {"previous": [], "first": [], "repeated": []}
+        for _ in range(args.repeats):
+            times["previous"].append(
+                best(lambda d=damping: one(0, d, reference_simulate_flights), 1))
+            times["first"].append(best(lambda d=damping: first(d), 1))
+            times["repeated"].append(best(lambda d=damping: one(0, d), 1))
+        t = {k: min(v) for k, v in times.items()}
+        print(f"  {label:12s} previous {t['previous'] * 1e3:6.2f} ms = "
+              f"{duration / t['previous']:6.0f}x real time")
+        for k in ("first", "repeated"):
+            print(f"  {label:12s} {k:8s} {t[k] * 1e3:6.2f} ms = {duration / t[k]:6.0f}x real time"
+                  f"  -> {t['previous'] / t[k]:4.1f}x the previous")
+        print(f"  {label:12s} largest difference / channel peak: {diff:.1e}")
 
     def loop():
         for i in range(args.flights):

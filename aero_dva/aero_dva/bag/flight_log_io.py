@@ -12,7 +12,18 @@ from pathlib import Path
 import numpy as np
 
 from aero_dva.bag import channels as ch
-from aero_dva.bag.reader import BagReadError, bag_topics, read_messages
+from aero_dva.bag.batch_decode import decode_batch
+from aero_dva.bag.indexed_read import IndexedReadError, indexed_messages
+from aero_dva.bag.reader import (
+    RECOVER_HINT,
+    BagReadError,
+    MessageTypeError,
+    bag_files,
+    bag_topics,
+    deserialize,
+    read_messages,
+)
+from aero_dva.bag.schemas import normalize_type_name
 from aero_dva.wing.model import ACCELERATION_NAMES, DISPLACEMENT_NAMES
 
 #: Topics a flight log reads, relative to the simulator's namespace (``/diagnostics`` global).
@@ -69,11 +80,14 @@ def _stamp(msg) -> float:
 
 
 def load_flight_log(bag: str | Path, namespace: str = "", *,
-                    allow_truncated: bool = False) -> FlightLog:
+                    allow_truncated: bool = False, indexed: bool = True) -> FlightLog:
     """Read the flight topics of ``bag`` (optionally under ``namespace``).
 
     ``allow_truncated`` reads what a cut, unclosed or damaged bag still holds (with a
     RuntimeWarning); otherwise such a bag is refused with a message naming ``dva bag recover``.
+    A closed bag is read through its chunk indexes, whole batches of messages at a time
+    (:func:`read_flight_rows`); ``indexed=False`` decodes message by message (the previous
+    route, kept as a baseline; the same arrays).
 
     Raises
     ------
@@ -81,16 +95,23 @@ def load_flight_log(bag: str | Path, namespace: str = "", *,
         Unreadable bag, a required topic (displacement, flight condition) missing, a topic of
         the wrong type, or a sample rate that changes within the flight.
     """
-    topics = {c.absolute(namespace): c for c in FLIGHT_TOPICS}
-    present = bag_topics(bag, allow_truncated=allow_truncated)
-    for channel in REQUIRED:
-        if channel.absolute(namespace) not in present:
-            raise BagReadError(f"{bag}: no topic {channel.absolute(namespace)} (the flight's "
-                               f"{channel.name.rsplit('/', 1)[-1]}); topics: {sorted(present)}")
-    wanted = {name: c for name, c in topics.items() if name in present}
+    present, wanted = flight_topics(bag, namespace, allow_truncated)
+    diagnostics = flight_diagnostics(bag, present, allow_truncated)
+    rows = read_flight_rows(bag, wanted, SAMPLE_ROWS) if indexed and not allow_truncated \
+        else None
+    if rows is not None:
+        n = rows.samples
+        displacements = _stack(rows, ch.DISPLACEMENT, n)
+        return FlightLog(
+            sample_rate=rows.sample_rate, time=np.arange(n) / rows.sample_rate,
+            airspeed=rows.airspeed, density=rows.density, displacements=displacements,
+            accelerations=_stack(rows, ch.ACCELERATION, n),
+            force=_stack(rows, ch.EXCITATION, n)[0], applied_damping=rows.applied_damping,
+            missing_samples=int(np.isnan(displacements[0]).sum()),
+            diagnostics=diagnostics)
     blocks: dict = {c: [] for c in SAMPLE_ROWS}  # sample topic -> [(first index, rows)]
     rates = set()
-    conditions, damper, diagnostics = [], [], []
+    conditions, damper = [], []
     for record in read_messages(bag, wanted, log_time_order=False,
                                 allow_truncated=allow_truncated,
                                 expected_types={t: c.type_name for t, c in wanted.items()}):
@@ -106,14 +127,6 @@ def load_flight_log(bag: str | Path, namespace: str = "", *,
             conditions.append((_stamp(msg), msg.airspeed, msg.air_density))
         elif channel == ch.DAMPER_STATE:
             damper.append((_stamp(msg), msg.applied_damping))
-    if ch.DIAGNOSTICS.name in present:  # global name, shared by every node
-        for record in read_messages(bag, [ch.DIAGNOSTICS.name], allow_truncated=allow_truncated,
-                                    expected_types={ch.DIAGNOSTICS.name:
-                                                    ch.DIAGNOSTICS.type_name}):
-            diagnostics.extend(
-                {"name": st.name, "message": st.message, "level": _level(st.level),
-                 "values": {kv.key: kv.value for kv in st.values}}
-                for st in record.message.status)
     if len(rates) != 1:
         raise BagReadError(f"{bag}: sample rate must be one value over the flight, got {rates}")
     rate = rates.pop()
@@ -134,8 +147,226 @@ def load_flight_log(bag: str | Path, namespace: str = "", *,
         displacements=displacements, accelerations=arrays[ch.ACCELERATION],
         force=arrays[ch.EXCITATION][0], applied_damping=applied,
         missing_samples=int(np.isnan(displacements[0]).sum()),
-        diagnostics=tuple(diagnostics),
+        diagnostics=diagnostics,
     )
+
+
+def flight_topics(bag, namespace: str, allow_truncated: bool) -> tuple[dict, dict]:
+    """The bag's topics and the flight topics to read (name -> channel); BagReadError if a
+    required one is missing."""
+    topics = {c.absolute(namespace): c for c in FLIGHT_TOPICS}
+    present = bag_topics(bag, allow_truncated=allow_truncated)
+    for channel in REQUIRED:
+        if channel.absolute(namespace) not in present:
+            raise BagReadError(f"{bag}: no topic {channel.absolute(namespace)} (the flight's "
+                               f"{channel.name.rsplit('/', 1)[-1]}); topics: {sorted(present)}")
+    return present, {name: c for name, c in topics.items() if name in present}
+
+
+def flight_diagnostics(bag, present, allow_truncated: bool = False) -> tuple[dict, ...]:
+    """The /diagnostics statuses of ``bag`` (``present``: its topics), as
+    :attr:`FlightLog.diagnostics`."""
+    out = []
+    if ch.DIAGNOSTICS.name in present:  # global name, shared by every node
+        for record in read_messages(bag, [ch.DIAGNOSTICS.name], allow_truncated=allow_truncated,
+                                    expected_types={ch.DIAGNOSTICS.name:
+                                                    ch.DIAGNOSTICS.type_name}):
+            out.extend(
+                {"name": st.name, "message": st.message, "level": _level(st.level),
+                 "values": {kv.key: kv.value for kv in st.values}}
+                for st in record.message.status)
+    return tuple(out)
+
+
+def _stack(rows: FlightRows, channel, n: int) -> np.ndarray:
+    names = SAMPLE_ROWS[channel]
+    out = np.full((len(names), n), np.nan)
+    for i, name in enumerate(names):
+        if name in rows.rows.get(channel, {}):
+            out[i] = rows.rows[channel].pop(name)  # the copy frees the block's memory
+    return out
+
+
+# -- the indexed route: whole batches of messages decoded at once ---------------------------
+
+@dataclass(frozen=True)
+class FlightRows:
+    """Chosen sample rows of a flight with its held condition (:func:`read_flight_rows`).
+
+    Attributes
+    ----------
+    sample_rate : float
+        [Hz]
+    samples : int
+        Samples of the flight (every sample any topic holds).
+    airspeed, density, applied_damping : (n,) as :class:`FlightLog`
+    rows : dict
+        Sample channel -> {row name: (n,) array}, NaN where no block holds the sample.
+    """
+
+    sample_rate: float
+    samples: int
+    airspeed: np.ndarray
+    density: np.ndarray
+    applied_damping: np.ndarray
+    rows: dict
+
+
+_STAMP = ("header.stamp.sec", "header.stamp.nanosec")
+_SCALARS = {ch.FLIGHT_CONDITION: _STAMP + ("airspeed", "air_density"),
+            ch.DAMPER_STATE: _STAMP + ("applied_damping",)}
+
+
+def read_flight_rows(bag, wanted: dict, rows: dict) -> FlightRows | None:
+    """The ``rows`` (sample channel -> row names) of the flight topics ``wanted`` (name ->
+    channel), from the bag files' chunk and message indexes; None if a file has none (read
+    it with :func:`load_flight_log`). Same values as :func:`load_flight_log`; only the chosen
+    rows are held in memory."""
+    present = bag_topics(bag)
+    for topic, channel in wanted.items():  # as read_messages checks expected types
+        actual, expected = present[topic].type_name, normalize_type_name(channel.type_name)
+        if actual != expected:
+            raise MessageTypeError(f"topic {topic!r} in bag {str(bag)!r} carries {actual!r}, "
+                                   f"expected {expected!r}")
+    iterators = []
+    for file in bag_files(bag):
+        it = indexed_messages(file, wanted)
+        if it is None:
+            return None
+        iterators.append(it)
+    parts: dict = {c: [] for c in wanted.values()}  # channel -> [(file, position, fields)]
+    growing = {c: {name: [np.full(0, np.nan)] for name in names} for c, names in rows.items()}
+    try:
+        for number, it in enumerate(iterators):
+            for m in it:
+                channel = wanted[m.topic]
+                if channel in SAMPLE_ROWS:  # at least one row: the blocks' lengths
+                    fields = ("sample_rate", "first_sample_index",
+                              *(rows.get(channel) or SAMPLE_ROWS[channel][:1]))
+                else:
+                    fields = _SCALARS.get(channel)
+                    if fields is None:
+                        continue
+                out = decode_batch(m.data, m.type_name, m.schema_text, fields)
+                if out is None:
+                    out = _decode_each(m, fields, channel in SAMPLE_ROWS)
+                if channel in SAMPLE_ROWS:
+                    out["_end"] = out["first_sample_index"] + _width(out, bag, m.topic)
+                    index = out["first_sample_index"].astype(np.int64)
+                    for name in rows.get(channel, ()):  # into the rows now: no copy held
+                        _put(growing[channel][name], index, out.pop(name))
+                    for name in set(out) - {"sample_rate", "first_sample_index", "_end"}:
+                        del out[name]  # read for the blocks' lengths only
+                parts[channel].append((number, m.position, out))
+    except IndexedReadError as exc:
+        raise BagReadError(f"{exc}; " + RECOVER_HINT.format(bag=bag)) from None
+    rates = {float(r) for c in SAMPLE_ROWS for _, _, out in parts.get(c, [])
+             for r in np.unique(out["sample_rate"])}
+    if len(rates) != 1:
+        raise BagReadError(f"{bag}: sample rate must be one value over the flight, got {rates}")
+    if not parts.get(ch.DISPLACEMENT):
+        raise BagReadError(f"{bag}: no displacement block to read")
+    n = max(int(np.max(out["_end"])) for c in SAMPLE_ROWS for _, _, out in parts.get(c, [])
+            if len(out["_end"]))
+    rate = rates.pop()
+    filled = {}
+    for channel, names in rows.items():
+        filled[channel] = {}
+        for name in names:
+            target = growing[channel][name]
+            _grow(target, n)
+            filled[channel][name] = target[0][:n]  # a view: no copy of the rows
+    airspeed, density = _held_columns(n, rate, parts.pop(ch.FLIGHT_CONDITION, []),
+                                      ("airspeed", "air_density"))
+    (applied,) = _held_columns(n, rate, parts.pop(ch.DAMPER_STATE, []), ("applied_damping",))
+    return FlightRows(sample_rate=rate, samples=n, airspeed=airspeed, density=density,
+                      applied_damping=applied, rows=filled)
+
+
+def _grow(holder: list, size: int) -> None:
+    """Make ``holder[0]`` (a NaN-padded row) hold at least ``size`` samples, by a quarter
+    more than needed at a time (each copy is freed at once, so the memory stays about the
+    row's size)."""
+    row = holder[0]
+    if row.size >= size:
+        return
+    bigger = np.full(max(size, row.size + row.size // 4), np.nan)
+    bigger[:row.size] = row
+    holder[0] = bigger
+
+
+def _put(holder: list, index: np.ndarray, values) -> None:
+    """Blocks of samples ``values`` at their first sample ``index`` into a growing row."""
+    if isinstance(values, list):  # blocks of several lengths, one by one
+        _grow(holder, max((i + v.size for i, v in zip(index.tolist(), values)), default=0))
+        row = holder[0]
+        for i, v in zip(index.tolist(), values):
+            row[i:i + v.size] = v
+    elif values.size:
+        _grow(holder, int(index.max()) + values.shape[1])
+        holder[0][index[:, None] + np.arange(values.shape[1])] = values
+
+
+def _width(out: dict, bag, topic: str) -> np.ndarray:
+    """Samples per block of a decoded batch of sample blocks; BagReadError if a block's rows
+    differ in length."""
+    widths = [np.array([v.size for v in values]) if isinstance(values, list)
+              else np.full(len(out["sample_rate"]), values.shape[1])
+              for name, values in out.items()
+              if name not in ("sample_rate", "first_sample_index")]
+    for w in widths[1:]:
+        bad = np.flatnonzero(w != widths[0])
+        if bad.size:
+            raise BagReadError(f"{bag}: a message on {topic} has arrays of different lengths "
+                               f"{[int(widths[0][bad[0]]), int(w[bad[0]])]}")
+    return widths[0]
+
+
+def _decode_each(m, fields, sample: bool) -> dict:
+    """The fields of a message matrix one message at a time (blocks may differ in length)."""
+    msgs = [deserialize(bytes(row), m.type_name, m.schema_text) for row in m.data]
+    out = {}
+    for f in fields:
+        values = []
+        for msg in msgs:
+            v = msg
+            for name in f.split("."):
+                v = getattr(v, name)
+            values.append(v)
+        out[f] = values if sample and f not in ("sample_rate", "first_sample_index") \
+            else np.array(values)
+    return out
+
+
+_HOLD_BLOCK = 1 << 20
+"""Samples held per pass of :func:`_held_columns` (bounds its temporary arrays)."""
+
+
+def _held_columns(n: int, rate: float, parts: list, names: tuple) -> list[np.ndarray]:
+    """:func:`_held` of decoded batches onto the ``n`` sample times: stamps in file order,
+    then sorted (stable)."""
+    if not parts:
+        return [np.full(n, np.nan) for _ in names]
+    parts = sorted(parts, key=lambda p: (p[0], p[1][0]))
+    position = np.concatenate([np.c_[np.full(p[1].size, p[0]), p[1]] for p in parts])
+    order = np.lexsort((position[:, 1], position[:, 0]))  # file order
+    sec = np.concatenate([p[2]["header.stamp.sec"] for p in parts])[order]
+    nsec = np.concatenate([p[2]["header.stamp.nanosec"] for p in parts])[order]
+    stamps = sec.astype(float) + 1e-9 * nsec.astype(float)
+    by_stamp = np.argsort(stamps, kind="stable")
+    stamps = stamps[by_stamp]
+    values = [np.concatenate([p[2][name] for p in parts])[order][by_stamp].astype(float)
+              for name in names]
+    out = [np.empty(n) for _ in names]
+    for a in range(0, n, _HOLD_BLOCK):
+        b = min(a + _HOLD_BLOCK, n)
+        index = np.searchsorted(stamps, np.arange(a, b) / rate + 1e-9, side="right") - 1
+        before = index < 0
+        np.maximum(index, 0, out=index)
+        for held, column in zip(out, values):
+            np.take(column, index, out=held[a:b])
+            held[a:b][before] = np.nan
+    return out
 
 
 def _level(level) -> int:

@@ -4,15 +4,19 @@
 periods (only a short loop over hold periods stays sequential), on the sampled wing of
 :class:`~aero_dva.flight.discrete_model.DiscreteWing` with its parameter hold. When all flights
 share one schedule, the held conditions of the whole flight are found first and discretised in
-one vectorised call (:meth:`BatchStepper.prefetch`); then the states at the period boundaries
-are carried across periods, and the outputs follow either by stepping all periods' samples in
-parallel (few flights) or by one period map per hold period applied to all flights (eight or
-more, :data:`BATCH_COLUMNS`). :class:`BatchStepper` also serves the streaming simulator's long
-calls. Pure numerics.
+one vectorised call (:meth:`BatchStepper.prefetch`) and kept between calls for the same model
+(repeated flights of a schedule skip the matrix exponentials); then the states at the period
+boundaries are carried across periods (one banded solve per flight for few flights,
+:mod:`~aero_dva.flight.period_carry`; a two-level carry for eight or more,
+:data:`BATCH_COLUMNS`), and the outputs follow by one period map per run of periods with one
+held condition. :class:`BatchStepper` also serves the streaming simulator's long calls.
+:func:`reference_simulate_flights` is the previous route, kept as a baseline. Pure numerics.
 """
 
 from __future__ import annotations
 
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,10 +28,12 @@ from aero_dva.flight.discrete_model import (
     DiscreteWing,
     held_values,
 )
+from aero_dva.flight.period_carry import period_starts
 from aero_dva.wing.checks import real_array
 from aero_dva.wing.model import AeroelasticModel
 
-__all__ = ["BATCH_COLUMNS", "BatchStepper", "FlightTraces", "simulate_flights"]
+__all__ = ["BATCH_COLUMNS", "BatchStepper", "FlightTraces", "forget_conditions",
+           "reference_simulate_flights", "simulate_flights"]
 
 @dataclass(frozen=True)
 class FlightTraces:
@@ -282,22 +288,56 @@ def _period_outputs(period, keys, x, out):
 
 
 BATCH_COLUMNS = 8
-"""From this many flights sharing one schedule on, whole hold periods are computed as one matrix
-product each (:func:`_period_outputs`); fewer flights step the samples of all periods in
-parallel, which needs no per-condition period map."""
+"""From this many flights sharing one schedule on, the period starts come from the two-level
+carry (:func:`_carry`, its products serve all flights at once) and the outputs from
+:func:`_period_outputs`; fewer flights take one banded solve per flight (:func:`_run_few`)."""
 
 
-def _run_full(cache, y, rows, u, out):
+def _run_outputs(period, keys, x, out):
+    """Outputs of every hold period, one matrix product per run of periods with one key.
+
+    As :func:`_period_outputs` (``out[f, b] = period[keys[b]] @ x[f, b]``), for keys that
+    come in runs (a held condition lasts several periods): each run's outputs are written in
+    place, and no period map is gathered.
+    """
+    cuts = np.flatnonzero(keys[1:] != keys[:-1]) + 1
+    bounds = [0, *cuts.tolist(), len(keys)]
+    for a, b, key in zip(bounds[:-1], bounds[1:], keys[bounds[:-1]].tolist()):
+        np.matmul(x[:, a:b], period[key].T, out=out[:, a:b])
+
+
+def _run_few(cache, y, k, u, out):
+    """Full hold periods of fewer than :data:`BATCH_COLUMNS` flights sharing the cached
+    conditions ``k`` (B,): y (F, n), u (F, B, h), outputs into ``out`` (F, B, h, p); returns
+    the final state.
+
+    The forced response at the end of each period from rest for all periods at once, the
+    period starts by one banded solve, then the outputs run by run.
+    """
+    f, nb, h = u.shape
+    arr = cache.arr
+    g = np.einsum("bnj,fbj->bnf", arr["ctrb"][k], u)
+    starts = period_starts(arr["phih"][k], g, y.T)  # (B + 1, n, F)
+    x = np.concatenate([starts[:-1].transpose(2, 0, 1), u], axis=2)
+    _run_outputs(arr["period"], k, x, out.reshape(f, nb, -1))
+    return starts[-1].T
+
+
+def _run_full(cache, y, rows, u, out, reference=False):
     """Full hold periods: y (F, n), parameter rows (F, B, 3), u (F, B, h).
 
     Writes displacements and accelerations into ``out`` (F, B, h, p); returns the final
     state. The forced response at the end of each period from rest is computed for all periods
-    at once, then the states at the period boundaries (:func:`_carry`), then the outputs of all
-    periods at once. Flights that share one parameter schedule share the matrices.
+    at once, then the states at the period boundaries, then the outputs of all periods at once.
+    Flights that share one parameter schedule share the matrices; fewer than
+    :data:`BATCH_COLUMNS` of them take :func:`_run_few` unless ``reference`` (the previous
+    route: :func:`_carry`, then stepping the periods' samples in parallel).
     """
     f, nb, h = u.shape
     arr = cache.arr
     shared = f == 1 or bool(np.all(rows == rows[:1]))
+    if shared and f < BATCH_COLUMNS and not reference:
+        return _run_few(cache, y, cache.lookup(rows[0], "period"), u, out)
     if shared:
         k = cache.lookup(rows[0], "carry")
         level = "period" if f >= BATCH_COLUMNS or 8 * len(np.unique(k)) <= nb else "carry"
@@ -340,10 +380,12 @@ class BatchStepper:
     """Steps many flights of one :class:`DiscreteWing` (F, N) at once, in calls of any length:
     the batch simulator's machinery, also taken by the streaming simulator's long calls."""
 
-    def __init__(self, wing: DiscreteWing):
+    def __init__(self, wing: DiscreteWing, cache: _DiscreteCache | None = None,
+                 reference: bool = False):
         self.wing = wing
         self.hold, self.quantum = wing.hold, wing.quantum
-        self.cache = _DiscreteCache(wing)
+        self.cache = _DiscreteCache(wing) if cache is None else cache
+        self.reference = reference
 
     def prefetch(self, u, rho, c, level):
         """Held conditions of a whole flight from sample 0, discretised in one batch.
@@ -356,6 +398,9 @@ class BatchStepper:
         raw = np.stack([u[::self.hold], rho[::self.hold], c[::self.hold]], axis=-1)[None]
         rows = held_values(raw, np.full((1, 3), np.nan), self.quantum)
         if rows.shape[1] <= self.cache.max_size:
+            runs = 1 + int(np.count_nonzero(np.any(rows[0, 1:] != rows[0, :-1], axis=1)))
+            if self.cache.size + runs > self.cache.max_size:
+                self.cache.clear()  # conditions kept from earlier calls make room
             self.cache.lookup(rows[0], level)
         return rows
 
@@ -388,7 +433,7 @@ class BatchStepper:
             pb = np.broadcast_to(rows[:, :n_full], (f, n_full, 3))
             fb = force[:, sl].reshape(f, n_full, h)
             y = _run_full(self.cache, y, pb, fb,
-                          out[:, sl].reshape(f, n_full, h, N_OUTPUTS))
+                          out[:, sl].reshape(f, n_full, h, N_OUTPUTS), self.reference)
             applied[:, sl] = np.repeat(rows[:nf, :n_full], h, axis=1)
             done = n_full
         else:
@@ -407,6 +452,39 @@ class BatchStepper:
         keys = np.broadcast_to(keys, (f,)) if keys.size == 1 else keys
         applied[:, a:b] = params[: applied.shape[0], None, :]
         return _run_partial(self.cache, y, keys, force[:, a:b], out[:, a:b])
+
+
+_SHARED_MODELS = 2
+"""Models whose discretised conditions :func:`simulate_flights` keeps between calls."""
+_SHARED_CONDITIONS = 2048
+"""A model's kept conditions (~13 kB each) are dropped after a call that left more."""
+_shared: OrderedDict = OrderedDict()
+_shared_lock = threading.Lock()
+
+
+def _shared_cache(dw: DiscreteWing):
+    """The discretised conditions of ``dw``'s model kept between calls, and its lock.
+
+    Flights of one wing repeat their conditions (the seeds of an evaluation case, the repeats
+    of a benchmark); a condition's matrices depend only on the model, the sample rate, the hold
+    and the condition itself, which is the key here and in the cache.
+    """
+    m = dw.model
+    key = (m.wing, m.absorber, m.aero, dw.sample_rate, dw.hold)
+    with _shared_lock:
+        entry = _shared.get(key)
+        if entry is None:
+            entry = _shared[key] = (_DiscreteCache(dw), threading.Lock())
+            while len(_shared) > _SHARED_MODELS:
+                _shared.popitem(last=False)
+        _shared.move_to_end(key)
+        return entry
+
+
+def forget_conditions() -> None:
+    """Drop the discretised conditions :func:`simulate_flights` keeps between calls."""
+    with _shared_lock:
+        _shared.clear()
 
 
 def simulate_flights(wing, absorber=None, *, force, airspeed, density, damping=None,
@@ -435,10 +513,46 @@ def simulate_flights(wing, absorber=None, *, force, airspeed, density, damping=N
     Returns
     -------
     FlightTraces
+
+    The discretised conditions are kept between calls for the same model (a few models),
+    so repeated flights of one schedule skip the matrix exponentials.
     """
+    return _simulate(wing, absorber, aero, force, airspeed, density, damping, sample_rate,
+                     x0, hold, quantum, chunk, reference=False)
+
+
+def reference_simulate_flights(wing, absorber=None, *, force, airspeed, density,
+                               damping=None, sample_rate: float = 1000.0, aero=None, x0=None,
+                               hold: int = DEFAULT_HOLD, quantum: float = 2e-3,
+                               chunk: int | None = None) -> FlightTraces:
+    """:func:`simulate_flights` by the previous route: a fresh cache per call, the period
+    starts by the two-level carry and the outputs by gathered period maps or by stepping.
+    Kept as the baseline of ``bench/bench_wing_sim.py`` and of the equality tests."""
+    return _simulate(wing, absorber, aero, force, airspeed, density, damping, sample_rate,
+                     x0, hold, quantum, chunk, reference=True)
+
+
+def _simulate(wing, absorber, aero, force, airspeed, density, damping, sample_rate, x0, hold,
+              quantum, chunk, reference):
     model = AeroelasticModel(wing, absorber, aero)
     dw = DiscreteWing(model, sample_rate, hold=hold, quantum=quantum)
-    eng = BatchStepper(dw)
+    if reference:
+        return _simulate_with(BatchStepper(dw, reference=True), force, airspeed, density,
+                              damping, x0, chunk)
+    cache, lock = _shared_cache(dw)
+    if not lock.acquire(blocking=False):  # in use by another thread: a private cache
+        return _simulate_with(BatchStepper(dw), force, airspeed, density, damping, x0, chunk)
+    try:
+        return _simulate_with(BatchStepper(dw, cache), force, airspeed, density, damping,
+                              x0, chunk)
+    finally:
+        if cache.size > _SHARED_CONDITIONS:
+            cache.clear()
+        lock.release()
+
+
+def _simulate_with(eng, force, airspeed, density, damping, x0, chunk) -> FlightTraces:
+    dw, model = eng.wing, eng.wing.model
     f = real_array(force, "force")
     if f.ndim == 1:
         f = f[None, :]
@@ -453,7 +567,8 @@ def simulate_flights(wing, absorber=None, *, force, airspeed, density, damping=N
     shared = all(np.ndim(v) <= 1 for v in (airspeed, density, damping))
     rows = None
     if shared and total >= 4 * eng.hold:
-        rows = eng.prefetch(u[0], rho[0], c[0], "period" if nf >= BATCH_COLUMNS else "carry")
+        maps = nf >= BATCH_COLUMNS or not eng.reference
+        rows = eng.prefetch(u[0], rho[0], c[0], "period" if maps else "carry")
     # sample-major: each hold period's outputs are contiguous
     out = np.empty((nf, total, N_OUTPUTS))
     applied = np.empty((1 if shared else nf, total, 3))

@@ -45,7 +45,7 @@ from aero_dva.control.rbf_network import (
 )
 from aero_dva.control.spectrum import DEFAULT_FREQUENCIES, scaled_spectrum
 from aero_dva.flight.scenario import AirspeedProfile, Scenario, sweep_duration
-from aero_dva.wing.model import ACCELERATION_NAMES, LEADING_EDGE
+from aero_dva.wing.model import ACCELERATION_NAMES, DISPLACEMENT_NAMES, LEADING_EDGE
 from dva_offline.training.defaults import DEFAULT_SPREADS, MAX_CANDIDATES, MIN_ACTIVATION
 
 __all__ = [
@@ -62,6 +62,7 @@ __all__ = [
     "TrainingOutcome",
     "adapt_sweep",
     "build_dataset",
+    "build_dataset_from_rows",
     "condition_predictability",
     "find_dwells",
     "network_c2_per_condition",
@@ -228,9 +229,9 @@ def find_dwells(airspeed, applied_damping, density=None) -> Dwells:
         raise TrainingDataError("the log has no applied c2 (topic /dva/damper_state missing or "
                                 "empty): dwells cannot be found")
     # NaN != NaN would cut at every sample; compare with NaN mapped to a sentinel.
-    keys = [np.where(np.isnan(x), -1.0, x) for x in (u, c, rho)]
     changed = np.zeros(u.size - 1, dtype=bool)
-    for key in keys:
+    for x in (u, c, rho):  # one key at a time: a sweep's arrays are large
+        key = np.where(np.isnan(x), -1.0, x)
         changed |= np.diff(key) != 0
     cuts = np.flatnonzero(changed) + 1
     start = np.concatenate([[0], cuts]).astype(int)
@@ -281,7 +282,7 @@ class TrainingData:
 
 
 def build_dataset(log, window: float = 2.0, channels: Sequence[str] = CHANNELS,
-                  frequencies=DEFAULT_FREQUENCIES) -> TrainingData:
+                  frequencies=DEFAULT_FREQUENCIES, *, spectra_batch: int = 256) -> TrainingData:
     """Windows of a recorded sweep -> network inputs and measured RMS.
 
     Parameters
@@ -294,6 +295,9 @@ def build_dataset(log, window: float = 2.0, channels: Sequence[str] = CHANNELS,
         Acceleration channels of the spectra (default plunge, pitch).
     frequencies : array_like
         [Hz] spectrum frequencies (default 5..20 Hz).
+    spectra_batch : int
+        Windows whose spectra are computed in one product (1: one window at a time, the
+        previous route; the spectra agree to rounding).
 
     Raises
     ------
@@ -303,16 +307,61 @@ def build_dataset(log, window: float = 2.0, channels: Sequence[str] = CHANNELS,
     unknown = [ch for ch in channels if ch not in ACCELERATION_CHANNELS]
     if unknown or not channels:
         raise ValueError(f"channels must be among {ACCELERATION_CHANNELS}, got {list(channels)}")
-    rows = [ACCELERATION_CHANNELS.index(ch) for ch in channels]
-    rate = float(log.sample_rate)
+    rows = [log.accelerations[ACCELERATION_CHANNELS.index(ch)] for ch in channels]
+    return _dataset(float(log.sample_rate), log.airspeed, log.density, log.applied_damping,
+                    rows, log.displacements[LEADING_EDGE], window, channels, frequencies,
+                    max(1, int(spectra_batch)))
+
+
+def build_dataset_from_rows(flight, window: float = 2.0, channels: Sequence[str] = CHANNELS,
+                            frequencies=DEFAULT_FREQUENCIES) -> TrainingData:
+    """:func:`build_dataset` from the rows it uses alone
+    (:func:`aero_dva.bag.flight_log_io.read_flight_rows` with the acceleration ``channels``
+    and the leading-edge displacement): the same data set, without the whole flight log in
+    memory."""
+    from aero_dva.bag import channels as topics
+
+    unknown = [ch for ch in channels if ch not in ACCELERATION_CHANNELS]
+    if unknown or not channels:
+        raise ValueError(f"channels must be among {ACCELERATION_CHANNELS}, got {list(channels)}")
+    acc = flight.rows[topics.ACCELERATION]
+    rows = [acc[ch] for ch in channels]
+    leading_edge = flight.rows[topics.DISPLACEMENT][DISPLACEMENT_NAMES[LEADING_EDGE]]
+    return _dataset(flight.sample_rate, flight.airspeed, flight.density, flight.applied_damping,
+                    rows, leading_edge, window, channels, frequencies)
+
+
+def _dataset(rate, airspeed, density, damping, acceleration_rows, leading_edge, window,
+             channels, frequencies, spectra_batch: int = 256) -> TrainingData:
     n_win = int(round(window * rate))
     if not window > 0 or abs(n_win - window * rate) > 1e-6 * max(1.0, window * rate):
         raise ValueError(f"window * sample_rate must be a whole number of samples, got "
                          f"{window} s * {rate} Hz")
-    dwells = find_dwells(log.airspeed, log.applied_damping, log.density)
+    dwells = find_dwells(airspeed, damping, density)
     names, units = spectrum_input_names(channels, frequencies)
     skipped = {"short": 0, "gap": 0, "no_airspeed": 0}
     inputs, speeds, rhos, c2s, rms, starts = [], [], [], [], [], []
+    pending = []  # windows whose spectra are computed together
+
+    def flush():
+        k = len(acceleration_rows)
+        if not pending:
+            return
+        magnitudes = scaled_spectrum(np.concatenate([w[0] for w in pending]), rate,
+                                     frequencies).magnitudes
+        for i, (_, u, rho, c, r, lo) in enumerate(pending):
+            m = magnitudes[i * k:(i + 1) * k]
+            if not np.all(np.isfinite(m)):
+                skipped["gap"] += 1
+                continue
+            inputs.append(spectrum_input_vector(m, c))
+            speeds.append(u)
+            rhos.append(rho)
+            c2s.append(c)
+            rms.append(r)
+            starts.append(lo)
+        pending.clear()
+
     for a, b, u, rho, c in zip(dwells.start, dwells.stop, dwells.airspeed, dwells.density,
                                dwells.damping):
         if np.isnan(u) or np.isnan(c) or np.isnan(rho):
@@ -322,21 +371,15 @@ def build_dataset(log, window: float = 2.0, channels: Sequence[str] = CHANNELS,
             skipped["short"] += 1
             continue
         lo = b - n_win
-        acc = log.accelerations[rows, lo:b]
-        disp = log.displacements[LEADING_EDGE, lo:b]
+        acc = np.stack([row[lo:b] for row in acceleration_rows])
+        disp = leading_edge[lo:b]
         if not (np.all(np.isfinite(acc)) and np.all(np.isfinite(disp))):
             skipped["gap"] += 1
             continue
-        spectrum = scaled_spectrum(acc, rate, frequencies)
-        if not np.all(np.isfinite(spectrum.magnitudes)):
-            skipped["gap"] += 1
-            continue
-        inputs.append(spectrum_input_vector(spectrum.magnitudes, c))
-        speeds.append(u)
-        rhos.append(rho)
-        c2s.append(c)
-        rms.append(float(np.sqrt(np.mean(disp ** 2))))
-        starts.append(lo)
+        pending.append((acc, u, rho, c, float(np.sqrt(np.mean(disp ** 2))), lo))
+        if len(pending) >= spectra_batch:
+            flush()
+    flush()
     if not inputs:
         raise TrainingDataError(
             f"no usable {window:g} s window in the log: {dwells.start.size} dwell(s) found "

@@ -89,6 +89,7 @@ def _check_topics(bag) -> None:
 
 
 def _bag_value(log, key: str) -> str | None:
+    """A value of the bag's /diagnostics (``log``: anything with ``diagnostics``)."""
     for status in log.diagnostics:
         value = status["values"].get(key)
         if value is not None:
@@ -127,11 +128,37 @@ def _labelling_wing(args, bag: Path, log):
     return AeroelasticModel(cfg.wing, cfg.absorber, cfg.aero), str(path.resolve()), u_cr
 
 
+class _Diagnostics:
+    def __init__(self, diagnostics):
+        self.diagnostics = diagnostics
+
+
+def _read_windows(bag: Path, window: float):
+    """(something with the bag's ``diagnostics``, the data set): from the rows the data set
+    uses alone when the bag has chunk indexes (a closed bag), else from the whole log."""
+    from aero_dva.bag.flight_log_io import (
+        flight_diagnostics,
+        flight_topics,
+        load_flight_log,
+        read_flight_rows,
+    )
+    from aero_dva.wing.model import DISPLACEMENT_NAMES, LEADING_EDGE
+    from dva_offline.training.rbf import CHANNELS, build_dataset, build_dataset_from_rows
+
+    present, wanted = flight_topics(bag, "", False)
+    rows = read_flight_rows(bag, wanted, {ch.ACCELERATION: CHANNELS,
+                                          ch.DISPLACEMENT: (DISPLACEMENT_NAMES[LEADING_EDGE],)})
+    if rows is None:
+        log = load_flight_log(bag)
+        return log, build_dataset(log, window=window)
+    data = build_dataset_from_rows(rows, window=window)
+    return _Diagnostics(flight_diagnostics(bag, present)), data
+
+
 def _rbf(args) -> int:
-    from aero_dva.bag.flight_log_io import load_flight_log
     from aero_dva.control.rbf_io import save_rbf_network
     from dva_offline.training.labels import label_exact, label_min_rms
-    from dva_offline.training.rbf import DEFAULT_SPREADS, build_dataset, train_network
+    from dva_offline.training.rbf import DEFAULT_SPREADS, train_network
 
     if args.spreads:
         try:
@@ -151,8 +178,7 @@ def _rbf(args) -> int:
     started = time.monotonic()
     bag = Path(args.bag)
     _check_topics(bag)
-    log = load_flight_log(bag)
-    data = build_dataset(log, window=args.window)
+    log, data = _read_windows(bag, args.window)
     wing, u_cr = None, _bag_value(log, "critical_airspeed_no_dva")
     dropped = 0
     u_cr = float(u_cr) if u_cr is not None else None

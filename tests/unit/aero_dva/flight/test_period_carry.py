@@ -1,0 +1,72 @@
+"""The banded period carry and the few-flight route of the batch simulator against the
+previous route (``reference_simulate_flights``) and a plain recurrence."""
+import numpy as np
+import pytest
+
+from aero_dva.flight.batch_simulator import (
+    _carry,
+    forget_conditions,
+    reference_simulate_flights,
+    simulate_flights,
+)
+from aero_dva.flight.period_carry import period_starts
+from aero_dva.wing.wing_io import load_wing
+
+CFG = load_wing()
+WING, DVA, RHO = CFG.wing, CFG.maxwell_design, CFG.air_density  # U_cr about 112 m/s
+
+
+def _peak_relative(got, ref):
+    return float(np.max(np.abs(got - ref) / np.max(np.abs(ref), axis=-1, keepdims=True)))
+
+
+@pytest.mark.parametrize("flights", [1, 3])
+def test_period_starts_equal_the_recurrence(flights):
+    rng = np.random.default_rng(2)
+    nb, n = 300, 7
+    p = 0.3 * rng.standard_normal((nb, n, n))
+    g = rng.standard_normal((nb, n, flights))
+    y = rng.standard_normal((n, flights))
+    got = period_starts(p, g, y)
+    s = y.copy()
+    ref = [s]
+    for b in range(nb):
+        s = p[b] @ s + g[b]
+        ref.append(s)
+    np.testing.assert_allclose(got, np.array(ref), rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(got, _carry(p, g, y), rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("scheduled", [False, True])
+def test_one_flight_equals_the_previous_route(scheduled):
+    # A ramp into flutter (it diverges, amplifying rounding): equal to 1e-9 of each channel's
+    # peak, the first flight (nothing discretised) and a repeated one (conditions kept).
+    rng = np.random.default_rng(3)
+    n = 6000
+    u = np.linspace(90.0, 135.0, n)
+    c = np.interp(u, [90.0, 135.0], [1200.0, 300.0]) if scheduled else None
+    force = 1000.0 * rng.standard_normal((2, n))
+    ref = reference_simulate_flights(WING, DVA, force=force, airspeed=u, density=RHO,
+                                     damping=c)
+    forget_conditions()
+    for _ in range(2):
+        got = simulate_flights(WING, DVA, force=force, airspeed=u, density=RHO, damping=c)
+        for name in ("displacements", "accelerations"):
+            assert _peak_relative(getattr(got, name), getattr(ref, name)) < 1e-9, name
+        assert _peak_relative(got.final_state, ref.final_state) < 1e-9
+        np.testing.assert_array_equal(got.damping, ref.damping)
+        np.testing.assert_array_equal(got.airspeed, ref.airspeed)
+    assert np.abs(ref.displacements[:, 2, -500:]).max() > 10 * np.abs(
+        ref.displacements[:, 2, :500]).max()  # it did diverge
+
+
+def test_kept_conditions_do_not_leak_between_models():
+    # The same schedule on a stiffer absorber must not reuse the first model's matrices.
+    n = 800
+    force = np.random.default_rng(4).standard_normal(n)
+    other = DVA.replace(stiffness=1.5 * DVA.stiffness)
+    for absorber in (DVA, other, DVA):
+        got = simulate_flights(WING, absorber, force=force, airspeed=70.0, density=RHO)
+        ref = reference_simulate_flights(WING, absorber, force=force, airspeed=70.0,
+                                         density=RHO)
+        assert _peak_relative(got.accelerations, ref.accelerations) < 1e-9
