@@ -6,6 +6,7 @@ cd "$(dirname "${BASH_SOURCE[0]}")"
 bash scripts/setup.sh
 # shellcheck disable=SC1091
 source scripts/env.sh
-# Two worker processes (pytest-xdist), one test file per worker at a time, so module fixtures
-# run once; DVA_TEST_WORKERS=0 runs every test in this process.
-exec python -m pytest -n "${DVA_TEST_WORKERS:-2}" --dist loadfile "$@"
+# Two worker processes (pytest-xdist); an idle worker takes tests from the other's queue
+# (worksteal), so a slow file does not leave one core idle at the end (a module fixture may
+# then run on both workers). DVA_TEST_WORKERS=0 runs every test in this process.
+exec python -m pytest -n "${DVA_TEST_WORKERS:-2}" --dist worksteal "$@"

@@ -3,20 +3,20 @@
 Randomised cases (seeds 100, 101, ...; the loop gets only the data, mass and static
 stiffness, plus ``elements=1`` for the missing-element case):
 
-* each library effect, N_EFFECT cases: named in >= 90 % AND held-out error at most halved
-  (with 12 cases: at most one miss), and never another effect's name;
+* each library effect, N_EFFECT cases: named AND held-out error at most halved in all but at
+  most one, and never another effect's name;
 * clean data, N_CLEAN cases (half single sweeps, half three-temperature or three-level sets):
-  ``consistent`` in >= 90 %, never ``explained``;
+  ``consistent`` in all but at most one, never ``explained``;
 * each effect outside the library, N_OUTSIDE cases: never ``explained`` (a weak partial
   attribution is reported only as evidence of an ``unexplained`` verdict), except that a
   cubic spring measured at three levels may be named ``amplitude_dependence`` (what it is at
   those levels; issue 23).
 
 The multi-covariate data sets are the amplitude/temperature effects, the Duffing case and half
-of the clean cases (test_discrepancy_frf.py adds one with two covariates). The rates on 40
-fresh seeds per effect are measured by bench/bench_discrepancy_acceptance.py. Marked slow
-(205 s on the shared 2-core machine at a load of about 2); test_discrepancy_frf.py runs a
-small sample by default.
+of the clean cases (test_discrepancy_frf.py adds one with two covariates). This is a fixed
+sample the suite can afford; the rates (>= 90 % named and halved, >= 90 % clean consistent) are
+measured on 40 fresh seeds per effect by bench/bench_discrepancy_acceptance.py, with their
+figures in docs/discrepancy.md.
 """
 import numpy as np
 import pytest
@@ -25,9 +25,9 @@ from dva_offline.discrepancy import loop, synthetic
 from dva_offline.discrepancy.frf_domain import FrfDomain
 from dva_offline.isolator.frf_data import split_conditions
 
-N_EFFECT = 12
-N_CLEAN = 12
-N_OUTSIDE = 8
+N_EFFECT = 6
+N_CLEAN = 6
+N_OUTSIDE = 4
 SEED0 = 100
 
 
@@ -54,7 +54,7 @@ def test_library_effect_named_and_error_halved(effect):
         halved = named and res.augmented.error <= 0.5 * res.baseline.error
         outcomes.append((named and halved, res.verdict.status, res.verdict.effect))
     hits = sum(o[0] for o in outcomes)
-    assert hits >= 0.9 * N_EFFECT, outcomes
+    assert hits >= N_EFFECT - 1, outcomes
     # never a confident wrong name
     assert all(o[2] in (None, effect) for o in outcomes), outcomes
 
@@ -64,7 +64,7 @@ def test_clean_data_consistent():
     covariates = (None, "temperature_c", None, "excitation_n")
     statuses = [run(None, seed, covariates[i % 4]).verdict.status
                 for i, seed in enumerate(range(SEED0, SEED0 + N_CLEAN))]
-    assert statuses.count("consistent") >= 0.9 * N_CLEAN, statuses
+    assert statuses.count("consistent") >= N_CLEAN - 1, statuses
     assert "explained" not in statuses, statuses
 
 

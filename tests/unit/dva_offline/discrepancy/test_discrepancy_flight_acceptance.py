@@ -4,13 +4,16 @@ Each case is a 48 s stepped flight of the reference wing recorded through the ba
 an MCAP bag (:func:`dva_offline.discrepancy.flight_synthetic.generate_flight`: random airspeeds,
 c2 values, accelerometer noise 1-4 %, one hidden plant effect of random magnitude above the
 stated thresholds), read back and analysed without any label. Seeds 200.. (the detection
-rules were developed on seeds 0-5; bench/bench_discrepancy_flight.py measures seeds 100..).
+rules were developed on seeds 0-5).
 
-Criteria (docs/discrepancy.md, domain 2), the issue's:
-- every library effect is named in >= 90 % of its cases, its held-out error at least halved,
-  and no case names another effect;
-- clean flights are "consistent" in >= 90 % and never "explained";
-- an effect outside the library (an accelerometer gain error) is never "explained".
+The criteria (docs/discrepancy.md, domain 2) are rates: every library effect named in >= 90 %
+of its cases with its held-out error at least halved, clean flights "consistent" in >= 90 %.
+Rates need many cases; bench/bench_discrepancy_flight.py measures them on seeds 100.. and
+docs/discrepancy.md gives its figures. This file keeps a fixed sample that the suite can
+afford (a 48 s flight is recorded and analysed per case): on it, every case must pass:
+- each library effect named and its error halved in each of N_CASES flights, no other name;
+- clean flights "consistent" every time, never "explained";
+- an effect outside the library (an accelerometer gain error) never "explained".
 """
 from __future__ import annotations
 
@@ -26,7 +29,7 @@ from dva_offline.discrepancy.flight_synthetic import LIBRARY_EFFECTS, generate_f
 
 pytestmark = pytest.mark.slow
 
-N_CASES = 5
+N_CASES = 3
 SEEDS = range(200, 200 + N_CASES)
 WING = load_wing(None)
 
@@ -69,6 +72,6 @@ def test_clean_flights_are_consistent(tmp_path):
 
 
 def test_effect_outside_the_library_is_not_attributed(tmp_path):
-    for seed in range(200, 204):
+    for seed in range(200, 202):
         case, res = _analyse("sensor_gain", seed, tmp_path)
         assert res.verdict.status != "explained", (case.parameters, res.verdict)
