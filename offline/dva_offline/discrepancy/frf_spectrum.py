@@ -5,8 +5,8 @@ re-selected each time the spectrum grows (a mixin of
 Once the loop has added a temperature (or other covariate) shift to a material's modulus, the
 Maxwell elements added one per step are a slow way to span the 15-25 decades of reduced
 frequency of a master curve. Offered then, as forms of ``maxwell_element``: the spectrum
-replaced by a Prony series with fixed log-spaced time constants (:mod:`.prony_spectrum`, one
-per decade; once taken, two per decade is offered next), each with every shift form: WLF,
+replaced by a Prony series with fixed log-spaced time constants (:mod:`.prony_spectrum`, two
+per decade; once taken, three per decade is offered next), each with every shift form: WLF,
 Arrhenius (temperatures) and a free shift per condition. The moduli are solved non-negative
 for each shift (variable projection): only the shift parameters are searched. The form is
 chosen by the loop's held-out score like any form of an effect, so the shift chosen at step 1
@@ -42,7 +42,7 @@ from dva_offline.discrepancy.prony_spectrum import (
     relaxation_times,
 )
 
-DENSITIES = (1.0, 2.0)  # time constants per decade: the first spectrum, then its growth
+DENSITIES = (2.0, 3.0)  # time constants per decade: the first spectrum, then its growth
 OUTER_ROUNDS = 2  # refits with the time-constant grid following the fitted shift
 
 
