@@ -196,7 +196,7 @@ class SpectrumLibrary:
                            for p, v in zip(params, values))
         cols = prony_columns(w * 10.0**shift, taus)
         moduli = nonnegative_moduli(cols, y, wt, train)
-        unit_k, unit_c = self.units["k"], self.units["c"]
+        unit_k = self.units["k"]
         active = np.nonzero(moduli[1:] > 0)[0]
         estimates = [Estimate("k_inf", unit_k, float(moduli[0]), np.nan)]
         estimates += [Estimate(f"k(tau={taus[i]:.3g} s)", unit_k, float(moduli[1 + i]), np.nan)
