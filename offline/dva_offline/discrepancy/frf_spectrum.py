@@ -14,7 +14,8 @@ on a three-element spectrum (where WLF may end on its C2 bound because the spect
 the curve) is reconsidered on a spectrum that can.
 
 Parameter count in the scores: the non-zero moduli (the others sit on their bound 0) plus the
-shift parameters, against the model of the step before (counted as at least one added).
+shift parameters, against the model of the step before (counted as at least one added); the
+effect's parameters reported with the step are the shift's.
 """
 from __future__ import annotations
 
@@ -202,12 +203,12 @@ class SpectrumLibrary:
         estimates += [Estimate(f"k(tau={taus[i]:.3g} s)", unit_k, float(moduli[1 + i]), np.nan)
                       for i in active]
         estimates += list(fit.estimates)
-        n_added = int(np.clip(len(estimates) - base_n_params, 1, len(estimates)))
+        count = int(np.clip(len(estimates) - base_n_params, 1, len(estimates)))
         self._spectrum_fits[spec.name] = dict(
             per_decade=per_decade, covariate=name, form=form.form, log_shift=shift,
             taus=taus, moduli=moduli)
         return replace(fit, name=spec.name, label=spec.label, estimates=tuple(estimates),
-                       n_added=n_added)
+                       n_added=len(form.params), count_added=count)
 
     def _augment_spectrum(self, spec) -> bool:
         """Take a Prony candidate as the model of the next step (True if ``spec`` is one)."""

@@ -273,7 +273,7 @@ class LoopOutcome:
 def score_candidate(base: ModelFit, fit: ModelFit, sigma: float) -> tuple[float, float, float]:
     """(delta_bic, p_value, explained_fraction) of a candidate fit against the baseline fit."""
     n = 2 * fit.n_held
-    p_add = fit.n_added
+    p_add = fit.n_added if fit.count_added is None else fit.count_added
     delta_bic = n * np.log(fit.rss_held / base.rss_held) + p_add * np.log(n)
     dof = 2 * fit.n_train - fit.n_params
     if p_add == 0 or dof <= 0 or fit.rss_train >= base.rss_train:
