@@ -39,6 +39,7 @@ from dva_offline.discrepancy.frf_terms import R_GAS, SIGNATURES, absolute_temper
 from dva_offline.discrepancy.prony_spectrum import (
     free_shift_values,
     nonnegative_moduli,
+    pairwise_shifts,
     prony_columns,
     relaxation_times,
 )
@@ -102,14 +103,21 @@ class SpectrumLibrary:
         dt = col - ref
         forms = []
         c2_min = float(max(-dt.min(), 0.0)) + 1.0
+        # a second start for every form: each sweep shifted onto its neighbour (the manual
+        # construction of a master curve), independent of the shift fitted before
+        labels = np.unique(groups)
+        pair_g = pairwise_shifts(np.log10(obs.axis), np.log10(np.abs(obs.values)), groups, col,
+                                 self.reference)
+        pair = pair_g[np.searchsorted(labels, groups)]
 
         def wlf(v):
             return -v[0] * v[1] * dt / (v[1] + dt)
 
         # start at the WLF law closest to the current shift (and a few others)
-        fitted = _closest(wlf, current, [np.array([b, c]) for b in (0.02, 0.05, 0.1)
-                                         for c in (max(100.0, 2 * c2_min), 300.0)],
-                          ([-1.0, c2_min], [1.0, 1e4]))
+        wlf_grid = [np.array([b, c]) for b in (0.02, 0.05, 0.1)
+                    for c in (max(100.0, 2 * c2_min), 300.0)]
+        wlf_bounds = ([-1.0, c2_min], [1.0, 1e4])
+        fitted = _closest(wlf, current, wlf_grid, wlf_bounds)
         forms.append(ShiftForm("WLF", (
             ParamSpec("b", "1/K", float(fitted[0]), -1.0, 1.0, scale=0.02,
                       at_lower="the shift slope is at its limit -1 /K",
@@ -119,7 +127,7 @@ class SpectrumLibrary:
                                f"level ({ref - c2_min + 1:.4g}): the shift diverges there",
                       at_upper="C2 -> infinity: the WLF law degenerates to a shift linear in "
                                "the covariate")),
-            wlf, (np.array([0.02, max(100.0, 2 * c2_min)]),)))
+            wlf, (_closest(wlf, pair, wlf_grid, wlf_bounds),)))
         kelvin = absolute_temperature(name, col)
         if kelvin is not None:
             t_ref = float(kelvin[groups == self.reference].mean())
@@ -132,14 +140,15 @@ class SpectrumLibrary:
             forms.append(ShiftForm("Arrhenius", (
                 ParamSpec("E_a", "J/mol", float(ea[0]), 1e3, 5e6, log=True,
                           at_lower="no measurable thermal activation (E_a -> 0)",
-                          at_upper="an activation energy above 5 MJ/mol"),), arrhenius, ()))
-        labels = [g for g in np.unique(groups) if g != self.reference]
-        means = np.array([current[groups == g].mean() for g in labels])
-        span = max(10.0, 3 * float(np.max(np.abs(means))) if means.size else 10.0)
+                          at_upper="an activation energy above 5 MJ/mol"),), arrhenius,
+                (_closest(arrhenius, pair, [np.array([1e5])], ([1e3], [5e6])),)))
+        others = labels != self.reference
+        means = np.array([current[groups == g].mean() for g in labels[others]])
+        span = max(10.0, 3 * float(np.max(np.abs(np.concatenate([means, pair_g])))))
         forms.append(ShiftForm("per condition", tuple(
             ParamSpec(f"log_aT_{g}", "-", float(m), -span, span, scale=1.0)
-            for g, m in zip(labels, means)),
-            lambda v: free_shift_values(groups, self.reference, v), ()))
+            for g, m in zip(labels[others], means)),
+            lambda v: free_shift_values(groups, self.reference, v), (pair_g[others],)))
         return forms
 
     def _spectrum_library(self, base_n_params: int) -> list:

@@ -63,3 +63,36 @@ def free_shift_values(groups: np.ndarray, reference: int, values: np.ndarray) ->
     full = np.zeros(labels.size)
     full[labels != reference] = values
     return full[np.searchsorted(labels, groups)]
+
+
+def pairwise_shifts(log_f: np.ndarray, log_mag: np.ndarray, groups: np.ndarray,
+                    levels: np.ndarray, reference: int, min_slope: float = 0.01) -> np.ndarray:
+    """log10 a_T per condition from shifting each condition onto its neighbour in level, the
+    reference condition at 0 (the classical manual construction of a master curve, as
+    pyvisco's ``get_aT`` does it: a power law per sweep, matched where the two meet).
+
+    Each sweep's log10 |E| is fitted by a line in log10 f; two neighbours are matched at the
+    modulus level halfway between where one ends and the other begins: there, the shift
+    moves the second sweep's frequency onto the first's. Slopes are held above ``min_slope``
+    (a glassy plateau is nearly flat: its shift is then large and weakly determined; this is
+    a start for the fit, not a result).
+    """
+    labels = np.unique(groups)
+    order = labels[np.argsort([levels[groups == g].mean() for g in labels])]
+    lines = {}
+    for g in labels:
+        sel = groups == g
+        slope, icpt = np.polyfit(log_f[sel], log_mag[sel], 1)
+        lines[g] = (max(float(slope), min_slope), float(icpt), log_mag[sel])
+    step = {}
+    for a, b in zip(order[:-1], order[1:]):
+        (sa, ia, ua), (sb, ib, ub) = lines[a], lines[b]
+        level = 0.5 * (min(ua.min(), ub.max()) + max(ua.min(), ub.max()))
+        step[(a, b)] = (level - ia) / sa - (level - ib) / sb  # log a_T(b) - log a_T(a)
+    shift = {reference: 0.0}
+    pos = int(np.flatnonzero(order == reference)[0])
+    for i in range(pos + 1, order.size):
+        shift[order[i]] = shift[order[i - 1]] + step[(order[i - 1], order[i])]
+    for i in range(pos - 1, -1, -1):
+        shift[order[i]] = shift[order[i + 1]] - step[(order[i], order[i + 1])]
+    return np.array([shift[g] for g in labels])
