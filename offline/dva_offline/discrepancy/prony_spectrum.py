@@ -52,7 +52,10 @@ def nonnegative_moduli(columns: np.ndarray, values: np.ndarray, weights: np.ndar
     rhs = np.concatenate([b.real, b.imag])
     norm = np.linalg.norm(m, axis=0)
     norm[norm == 0] = 1.0
-    x, _ = nnls(m / norm, rhs, maxiter=50 * m.shape[1])
+    try:
+        x, _ = nnls(m / norm, rhs, maxiter=50 * m.shape[1])
+    except RuntimeError as exc:  # its iteration limit: the candidate fails, the loop goes on
+        raise ValueError(f"non-negative least squares of the moduli: {exc}") from None
     return x / norm
 
 
