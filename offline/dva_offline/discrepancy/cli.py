@@ -174,6 +174,8 @@ def _cmd_frf(args) -> int:
             "baseline_order": domain.baseline_order,
         },
     }
+    final = result.final.fit if result.final is not None else result.baseline
+    extra["shift_factors"] = domain.shift_factors(final)  # per condition, for master curves
     return _report(args, result, domain, grouping, extra, args.quantity)
 
 
@@ -193,8 +195,18 @@ def _report(args, result, domain, grouping, extra: dict, quantity: str) -> int:
         print(f"read {domain.omega.size} points: {grouping.describe()}")
         print(f"noise: {result.noise.sigma:.4f} from {result.noise.method}"
               + "".join(f"; {n}" for n in extra.get("noise_estimates", {}).get("notes", [])))
-        print("\n".join(_summary_lines(result)))
+        print("\n".join(_summary_lines(result) + _shift_lines(extra.get("shift_factors"))))
     return EXIT_OK
+
+
+def _shift_lines(shifts) -> list[str]:
+    """The final model's shift factors per condition (to hold against a master curve's)."""
+    if not shifts:
+        return []
+    head = (f"shift factors of the final model (log10 a_T, {shifts['form']}, "
+            f"{shifts['covariate']} reference {shifts['reference_level']:.4g}):")
+    return [head] + [f"  {r['level']:10.4g}: {r['log10_aT']:8.3f}"
+                     for r in shifts["per_condition"]]
 
 
 def _cmd_modal(args) -> int:

@@ -353,6 +353,9 @@ class ModelFit:
     success: bool
     n_starts: int
     bound_hits: tuple = ()
+    # parameters added over the model before, when not ``n_added`` (a Prony spectrum: the
+    # effect's parameters are its shift's, its non-zero moduli count too)
+    count_added: int | None = None
 
     @property
     def n_params(self) -> int:

@@ -59,10 +59,12 @@ from dva_offline.discrepancy.fitting import (
     HoldoutSplit,
     ModelFit,
     ModelSpec,
+    NotApplicable,
     ParamSpec,
     fit_model,
 )
 from dva_offline.discrepancy.frf_library import FrfLibrary
+from dva_offline.discrepancy.frf_spectrum import SpectrumLibrary
 from dva_offline.discrepancy.frf_terms import (
     SIGNATURES,
     Term,
@@ -82,7 +84,7 @@ from dva_offline.isolator.maxwell_model import MaxwellModel, maxwell_element_sti
 from dva_offline.isolator.order_selection import select_model_order
 
 
-class FrfDomain(FrfLibrary):
+class FrfDomain(FrfLibrary, SpectrumLibrary):
     """Isolator FRF data for :func:`dva_offline.discrepancy.loop.run`.
 
     Parameters
@@ -140,6 +142,8 @@ class FrfDomain(FrfLibrary):
         if not 0 < whiteness_alpha < 1:
             raise ValueError(f"whiteness_alpha must be in (0, 1), got {whiteness_alpha}")
         # a modulus is a stiffness per unit geometry factor: its parameters in Pa, Pa s, Pa s^2
+        self.modulus = bool(modulus)
+        self._spectrum, self._spectrum_fits = None, {}  # the Prony spectrum (frf_spectrum)
         self.units = (dict(m="Pa s^2", k="Pa", c="Pa s") if modulus else
                       dict(m="kg", k="N/m", c="N s/m"))
         self.order_tolerance = float(order_tolerance)
@@ -407,6 +411,7 @@ class FrfDomain(FrfLibrary):
         train = np.asarray(train, dtype=bool)
         self._train = train
         self._stack, self._stack_params, self._term_of = [], [], {}
+        self._spectrum, self._spectrum_fits = None, {}
         m, k, free_m, free_k = self._mass_and_stiffness()
         wn, zeta = self._modal_estimate(m)
         self._setup = dict(m=m, k=k, free_m=free_m, free_k=free_k, n=0, k_ref=m * wn**2,
@@ -501,7 +506,10 @@ class FrfDomain(FrfLibrary):
 
     def augment(self, spec: ModelSpec, fit: ModelFit) -> None:
         """Make the chosen candidate the baseline of the next step (the loop's iteration):
-        its effect joins the stack, its fitted values start the next candidates."""
+        its effect joins the stack, its fitted values start the next candidates (a Prony
+        spectrum replaces the Maxwell elements and the shift, :mod:`.frf_spectrum`)."""
+        if self._augment_spectrum(spec):
+            return
         term, n, added = self._term_of[spec.name]
         extra = spec.n_added - len(added)
         if extra:  # the one-more-element variant: the order grows
@@ -515,6 +523,10 @@ class FrfDomain(FrfLibrary):
         self._base_residual = baseline.residual
         self._base_values = np.array([e.value for e in baseline.estimates])
         self._reference_values = None
+        spectrum = self._spectrum_library(len(baseline.estimates)) if self.modulus else []
+        if self._spectrum:  # a master curve: only the spectrum and its shift are refined
+            return [NotApplicable(e, "not offered on the Prony spectrum of a master curve")
+                    for e in ("sensor_delay", "foundation_mode")] + spectrum
         if self._varying() and not self._stack:
             # The covariate candidates' baseline is the model at the reference condition:
             # start them also from a fit to that condition's training points alone. The
@@ -529,7 +541,7 @@ class FrfDomain(FrfLibrary):
                                     [self._grid_start(ref, n, float(mm))])
             fit = fit_model(spec, self.observations, split, n_screen=4)
             self._reference_values = np.array([e.value for e in fit.estimates])
-        return self._library([self._base_values], self._setup["n"])
+        return self._library([self._base_values], self._setup["n"]) + spectrum
 
 
 def _rows(predict):
