@@ -44,7 +44,7 @@ def _write(bag, n=3000, compression="zstd"):
                                                "air_density": 1.2 - 1e-3 * b}, t_ns)
             writer.write("/dva/damper_state", {
                 "header": _stamp(t0), "applied_damping": 500.0 + 10 * b, "status": 0,
-                "source": ("fixed", "schedule", "rbf_network")[b % 3]}, t_ns)
+                "source": ("fixed", "airspeed_schedule", "rbf_network")[b % 3]}, t_ns)
             i0 += size
             b += 1
 
