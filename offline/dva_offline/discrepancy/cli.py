@@ -259,8 +259,8 @@ def _cmd_modal(args) -> int:
 
 
 def _cmd_synth_structure(args) -> int:
+    from dva_offline.cli_tools import json_safe
     from dva_offline.discrepancy import structure_synthetic, table_io
-    from dva_offline.discrepancy.report import _clean
 
     effect = None if args.effect == "none" else args.effect
     case = structure_synthetic.generate_structure(
@@ -273,7 +273,7 @@ def _cmd_synth_structure(args) -> int:
                "effect_size": case.effect_size, "covariates": list(case.covariates),
                "n_points": int(case.frequency_hz.size)}
     if args.json:
-        print(json.dumps(_clean(payload)))
+        print(json.dumps(json_safe(payload), allow_nan=False))
     else:
         print(f"wrote {payload['n_points']} points to {args.out} (modes "
               f"{', '.join(f'{f:.4g}' for f in case.modes_hz)} Hz; hidden: {case.effect})")
@@ -297,10 +297,10 @@ def _cmd_synth(args) -> int:
         "noise_sigma": case.sigma, "effect_size": case.effect_size,
         "covariates": list(case.condition_columns), "n_points": int(case.frequency_hz.size),
     }
-    from dva_offline.discrepancy.report import _clean
+    from dva_offline.cli_tools import json_safe
 
     if args.json:
-        print(json.dumps(_clean(payload)))
+        print(json.dumps(json_safe(payload), allow_nan=False))
     else:
         print(f"wrote {payload['n_points']} points to {args.out} (system {case.system}, "
               f"m = {case.mass:g} kg, k = {case.static_stiffness:.6g} N/m; hidden: "
@@ -441,10 +441,10 @@ def _cmd_synth_flight(args) -> int:
         "damper_c2": list(case.damping), "accelerometer_noise": list(case.noise),
         "outcome": case.outcome, "wall_time_s": case.wall_time,
     }
-    from dva_offline.discrepancy.report import _clean
+    from dva_offline.cli_tools import json_safe
 
     if args.json:
-        print(json.dumps(_clean(payload)))
+        print(json.dumps(json_safe(payload), allow_nan=False))
     else:
         print(f"wrote {case.path} ({case.outcome}; hidden: {case.effect} "
               f"{case.parameters})")

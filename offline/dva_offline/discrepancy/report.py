@@ -6,32 +6,14 @@ evidence}, ``augmented`` {model, error, parameters} or None, ``candidates`` [{ef
 """
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
 
+from dva_offline.cli_tools import json_safe
 from dva_offline.discrepancy.fitting import ModelFit
 from dva_offline.discrepancy.loop import CandidateScore, DiscrepancyResult
 from dva_offline.discrepancy.residual import ResidualFeatures
-
-
-def _clean(value):
-    """JSON-safe copy: numpy scalars/arrays to Python, NaN/inf to None."""
-    if isinstance(value, dict):
-        return {str(k): _clean(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_clean(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return _clean(value.tolist())
-    if isinstance(value, (np.floating, float)):
-        value = float(value)
-        return value if math.isfinite(value) else None
-    if isinstance(value, (np.integer,)):
-        return int(value)
-    if isinstance(value, np.bool_):
-        return bool(value)
-    return value
 
 
 def _params(estimates) -> list[dict]:
@@ -155,7 +137,7 @@ def result_to_dict(result: DiscrepancyResult, extra: dict | None = None) -> dict
             "bound_hits": _hits(result.final.fit),
         },
     })
-    return _clean(out)
+    return json_safe(out)
 
 
 def plot_result(result: DiscrepancyResult, observations, plot_dir, quantity: str,
