@@ -169,6 +169,10 @@ def _paired(args) -> int:
             raise ValueError(f"--controllers switching flies the constant-density cases "
                              f"{','.join(SWITCHING_CASES)} only, not {','.join(wrong)} "
                              "(choose them with --cases)")
+        if args.gains:  # a bad file ends the run here, not after the other flights
+            from aero_dva.control.switching_io import load_gains
+
+            load_gains(args.gains)
     rms_low, rms_high = _rms_range(args.rms_range)
     seeds = list(range(args.first_seed, args.first_seed + seeds_n))
     scenario_path = Path(args.scenario) if args.scenario else \

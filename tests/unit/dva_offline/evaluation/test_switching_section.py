@@ -34,3 +34,14 @@ def test_switching_refuses_the_varying_density_cases(tmp_path, capsys):
                      "rho0,1Hz", "--controllers", "fixed,switching"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "1Hz" in err[0] and "constant-density" in err[0]
+
+
+def test_a_bad_gains_file_ends_the_run_before_any_flight(tmp_path, capsys):
+    gains = tmp_path / "gains.json"
+    gains.write_text('{"format": "something else"}')
+    out = tmp_path / "ev"
+    assert cli.main(["evaluate", "--out", str(out), "--seeds", "2", "--cases", "rho0",
+                     "--controllers", "fixed,switching", "--gains", str(gains)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(gains) in err[0]
+    assert not out.exists()  # nothing flown, nothing left behind
