@@ -101,14 +101,27 @@ def run_controller_trial(mode: str, kill_after: float, work: Path, *, damping: f
             "aero_dva_sim", "simulator", scenario=str(scenario),
             real_time_factor=real_time_factor, max_command_lag=MODES[mode],
             damper_timeout=damper_timeout, exit_on_end=False,
-            wait_for_nodes=["fixed_controller", "fault_probe"])
+            # The flight starts once the probe hears the damper states, the controller hears
+            # the clock and its command publisher is matched (a node in the graph is not yet
+            # a matched endpoint: a loaded machine once flew the whole free-running flight
+            # before the controller's commands got through). Not complete in time: the
+            # simulator fails instead of flying without them.
+            wait_for_nodes=["fixed_controller", "fault_probe"],
+            wait_for_topics=["dva/damper_state:1", "/clock:1"],
+            wait_for_command_publishers=1, wait_timeout=start_timeout,
+            wait_timeout_fails=True)
 
         def applied() -> bool:
             return any(s.status == STATUS_OK and s.source == "fixed" for s in probe.states)
 
-        if not wait_until(applied, start_timeout):
-            raise TrialError(f"the controller's c2 was not applied within {start_timeout:g} s"
-                             f":\n{controller.output()}\n{simulator.output()}")
+        # (a simulator that failed, e.g. on an incomplete graph, ends the wait at once)
+        if not wait_until(lambda: applied() or simulator.proc.poll() is not None,
+                          2 * start_timeout) or not applied():
+            seen = Counter((STATUS_NAMES[s.status], s.source) for s in list(probe.states))
+            raise TrialError(f"the controller's c2 was not applied within "
+                             f"{2 * start_timeout:g} s (damper states seen by (status, "
+                             f"source): {dict(seen)}):\n{controller.output()}\n"
+                             f"{simulator.output()}")
         ok_at = next(s.wall for s in probe.states if s.status == STATUS_OK)
         wait_until(lambda: time.monotonic() >= ok_at + kill_after, kill_after + 1.0)
         killed = controller.signal(signal.SIGKILL)

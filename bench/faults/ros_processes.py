@@ -8,6 +8,7 @@ known wall time can be set against what the graph published before and after it.
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import signal
 import subprocess
@@ -47,13 +48,15 @@ def stamp_seconds(stamp) -> float:
 
 
 def ros_args(**params) -> list[str]:
-    """``--ros-args -p name:=value ...`` (lists as ``[a,b]``, booleans lower case)."""
+    """``--ros-args -p name:=value ...`` (lists as ``[a,b]``, strings in a list quoted: rcl
+    reads the value as YAML, where ``[topic:1]`` would be a mapping; booleans lower case)."""
     out = ["--ros-args"]
     for name, value in params.items():
         if isinstance(value, bool):
             text = str(value).lower()
         elif isinstance(value, (list, tuple)):
-            text = "[" + ",".join(str(v) for v in value) + "]"
+            text = "[" + ",".join(json.dumps(v) if isinstance(v, str) else str(v)
+                                  for v in value) + "]"
         else:
             text = str(value)
         out += ["-p", f"{name}:={text}"]

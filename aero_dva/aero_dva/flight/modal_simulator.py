@@ -6,8 +6,8 @@ block of samples (the :class:`~aero_dva.flight.discrete_model.DiscreteWing`'s ho
 of times per fit. Here the sampled wing of each distinct condition k is the exact ZOH in modal
 coordinates: the continuous model x' = A x + B f, y = C x + D f is diagonalised
 (A = V diag(s) V^-1, lambda = e^{s dt}), so a block is a few scalar recursions
-z[i+1] = lambda z[i] + g f[i] (one per real mode and per conjugate pair), vectorised over all
-blocks. ``A`` and ``B`` are passed in (a candidate may alter them, e.g. a drifting stiffness);
+z[i+1] = lambda z[i] + g f[i] (one per real mode and per conjugate pair), run as one compiled
+pass over the samples (:mod:`.modal_kernel`). ``A`` and ``B`` are passed in (a candidate may alter them, e.g. a drifting stiffness);
 ``C``, ``D``, the sample interval and the output names come from the discrete wing
 (:meth:`ModalBlocks.of`). Pure numerics.
 """
@@ -16,8 +16,9 @@ from __future__ import annotations
 import numpy as np
 
 from aero_dva.flight.discrete_model import DiscreteWing
+from aero_dva.flight.modal_kernel import run_modal
 
-__all__ = ["ModalBlocks", "simulate"]
+__all__ = ["ModalBlocks", "simulate", "simulate_vectorised"]
 
 
 class ModalBlocks:
@@ -84,10 +85,8 @@ def simulate(modes: ModalBlocks, condition: np.ndarray, force: np.ndarray,
              block: int | None = None) -> np.ndarray:
     """Outputs (p, n_samples) of the model from rest, block ``i`` held at ``condition[i]``.
 
-    The modal states are stepped sample by sample within the blocks, vectorised over all
-    blocks at once (twice: from rest for the block-end states, then from the true initial
-    states), and carried from block to block in physical coordinates where the condition
-    changes (a short loop over blocks).
+    One compiled pass over the samples (:func:`aero_dva.flight.modal_kernel.run_modal`);
+    :func:`simulate_vectorised` is the same recursion in NumPy, the reference.
 
     Parameters
     ----------
@@ -98,6 +97,16 @@ def simulate(modes: ModalBlocks, condition: np.ndarray, force: np.ndarray,
     block : int, optional
         [samples] block length (default: the hold of ``modes``).
     """
+    block, n, _ = _checked(modes, condition, force, block)
+    out = np.empty((modes.cm.shape[1], n))
+    if n == 0:
+        return out
+    return run_modal(modes.lam, modes.g, modes.cm, modes.d, modes.vinv, modes.v_out,
+                     np.ascontiguousarray(condition, dtype=np.int64),
+                     np.ascontiguousarray(force, dtype=float), int(block), out)
+
+
+def _checked(modes: ModalBlocks, condition, force, block) -> tuple[int, int, int]:
     block = modes.hold if block is None else block
     if block is None:
         raise ValueError("block must be given for modes without a hold")
@@ -106,6 +115,16 @@ def simulate(modes: ModalBlocks, condition: np.ndarray, force: np.ndarray,
     if condition.shape != (nb,):
         raise ValueError(f"condition must have one entry per block ({nb}), got "
                          f"{condition.shape}")
+    return block, n, nb
+
+
+def simulate_vectorised(modes: ModalBlocks, condition: np.ndarray, force: np.ndarray,
+                        block: int | None = None) -> np.ndarray:
+    """:func:`simulate` in NumPy: the modal states stepped sample by sample within the
+    blocks, vectorised over all blocks at once (twice: from rest for the block-end states,
+    then from the true initial states), and carried from block to block in physical
+    coordinates where the condition changes (a short loop over blocks)."""
+    block, n, nb = _checked(modes, condition, force, block)
     u = np.zeros(nb * block)
     u[:n] = force
     u = u.reshape(nb, block)

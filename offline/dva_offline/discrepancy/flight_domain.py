@@ -277,6 +277,7 @@ class FlightDomain:
         # the logged c2 per sample (the lag candidate filters it)
         self._c2_samples = np.nan_to_num(c2, nan=float(np.nanmean(c2)))
         self._moment_cache: dict = {}
+        self._condition_cache: dict = {}
         self._build_blocks()
 
     def _build_blocks(self):
@@ -398,12 +399,7 @@ class FlightDomain:
             padded = np.full(c2.size * BLOCK, true[-1])
             padded[:true.size] = true
             c2 = padded.reshape(-1, BLOCK).mean(1)
-        # Blocks share few conditions: discretise each distinct one once.
-        cols = [self.blk_u, self.blk_rho, c2]
-        if drift is not None:
-            cols.append(np.round(self.blk_time / DRIFT_STEP_S) * DRIFT_STEP_S)
-        keys, inverse = np.unique(np.stack(cols, axis=1), axis=0, return_inverse=True)
-        inverse = inverse.reshape(-1)
+        keys, inverse = self._conditions(c2, drift is not None, lag > 0)
         u, rho, c = keys[:, 0], keys[:, 1], keys[:, 2]
         k1 = None
         if drift is not None and drift[0] == "absorber_stiffness":
@@ -438,6 +434,23 @@ class FlightDomain:
         if not np.all(np.isfinite(seg)):  # an unstable candidate diverges: a huge residual
             seg = np.where(np.isfinite(seg), seg, 1e12)
         return seg.reshape(-1)
+
+    def _conditions(self, c2, drift: bool, lagged: bool) -> tuple[np.ndarray, np.ndarray]:
+        """The distinct conditions of the blocks (rows u, rho, c2[, drift time]) and each
+        block's index into them: blocks share few conditions, so each distinct one is
+        discretised once. Without a lag the c2 column is the logged one, so the answer is
+        the same on every call of a fit and kept."""
+        cached = None if lagged else self._condition_cache.get(drift)
+        if cached is not None:
+            return cached
+        cols = [self.blk_u, self.blk_rho, c2]
+        if drift:
+            cols.append(np.round(self.blk_time / DRIFT_STEP_S) * DRIFT_STEP_S)
+        keys, inverse = np.unique(np.stack(cols, axis=1), axis=0, return_inverse=True)
+        found = keys, inverse.reshape(-1)
+        if not lagged:
+            self._condition_cache[drift] = found
+        return found
 
     def _moment_column(self, model, aero_scale, u, rho, c) -> np.ndarray:
         """Pitch-moment input columns at the conditions (they depend on mass and density

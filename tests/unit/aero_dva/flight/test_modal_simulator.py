@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from aero_dva.flight.modal_simulator import ModalBlocks, simulate
+from aero_dva.flight.modal_simulator import ModalBlocks, simulate, simulate_vectorised
 from aero_dva.wing.model import AeroelasticModel
 from aero_dva.wing.wing_io import load_wing
 
@@ -66,3 +66,21 @@ def test_condition_per_block_is_checked():
     with pytest.raises(ValueError, match="one entry per block"):
         simulate(ModalBlocks(a, b, c, d, DT), np.zeros(2, dtype=int), np.zeros(500), 50)
 
+
+
+def test_compiled_pass_equals_the_vectorised_reference():
+    # Same recursion, other order of the sums: equal to rounding, also for an unstable
+    # condition (a candidate's fit may try one) and a partial last block.
+    rng = np.random.default_rng(5)
+    kinds, block, n = 6, 50, 4321
+    u = rng.uniform(40.0, 110.0, kinds)  # above the flutter speed for some
+    a, b = MODEL.matrices(u, np.full(kinds, 1.2), rng.uniform(100.0, 1500.0, kinds))
+    c, d = MODEL.acceleration_output(a, b)
+    modes = ModalBlocks(a, b, c[:, :3], d[:, :3], DT)
+    condition = rng.integers(0, kinds, -(-n // block))
+    force = 1000.0 * rng.standard_normal(n)
+    got = simulate(modes, condition, force, block)
+    want = simulate_vectorised(modes, condition, force, block)
+    assert got.shape == want.shape == (3, n)
+    scale = np.abs(want).max(axis=1, keepdims=True)
+    np.testing.assert_allclose(got / scale, want / scale, rtol=0, atol=1e-12)
