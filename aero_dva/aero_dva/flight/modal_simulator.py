@@ -7,9 +7,9 @@ of times per fit. Here the sampled wing of each distinct condition k is the exac
 coordinates: the continuous model x' = A x + B f, y = C x + D f is diagonalised
 (A = V diag(s) V^-1, lambda = e^{s dt}), so a block is a few scalar recursions
 z[i+1] = lambda z[i] + g f[i] (one per real mode and per conjugate pair), run as one compiled
-pass over the samples (:mod:`.modal_kernel`). ``A`` and ``B`` are passed in (a candidate may alter them, e.g. a drifting stiffness);
-``C``, ``D``, the sample interval and the output names come from the discrete wing
-(:meth:`ModalBlocks.of`). Pure numerics.
+pass over the samples (:mod:`.modal_kernel`). ``A`` and ``B`` are passed in (a candidate
+may alter them, e.g. a drifting stiffness); ``C``, ``D``, the sample interval and the output
+names come from the discrete wing (:meth:`ModalBlocks.of`). Pure numerics.
 """
 from __future__ import annotations
 
