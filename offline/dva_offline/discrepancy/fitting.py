@@ -35,7 +35,10 @@ EFFECT_VOCABULARY = {
     "unsteady_aero": "unsteady aerodynamic lag (flight domain)",
     "parameter_drift": "drift of a structural parameter (flight domain)",
 }
-STATUSES = ("consistent", "explained", "unexplained")
+# consistent: the baseline fits within the noise; no_covariate_effect: several conditions
+# agree with one model whose misfit (above the noise) is the same in each, nothing to name;
+# explained: an effect named; unexplained: a discrepancy nothing in the library explains
+STATUSES = ("consistent", "no_covariate_effect", "explained", "unexplained")
 ERROR_DEFINITION = (
     "RMS relative error on held-out points: sqrt(mean_j |H_model_j - H_j|^2 / |H_j|^2) over the "
     "held-out points j (not used in any fit); error_l2 = sqrt(sum |H_model - H|^2 / sum |H|^2) "

@@ -122,11 +122,12 @@ class DecisionRule:
         lowers the baseline's held-out residual power by at least this share: the covariate
         can then explain something, and a covariate effect's share of that is reported and
         used beside the share of the excess over the noise.
-    agreeing_conditions_consistent : bool
+    agreeing_conditions_verdict : bool
         With several conditions, each fitted alone (the saturated reference), when those fits
         gain less than min_reference_gain and no candidate is significant, the verdict is
-        ``consistent``: repeated measurements agree with one model, nothing to add; the
-        evidence states the misfit the model family leaves (it need not reach the noise).
+        ``no_covariate_effect``: the measurements agree with one model, nothing to add or
+        name; the evidence states the misfit the model family leaves, the same in every
+        condition (it is above the noise, else the verdict would be ``consistent``).
     """
 
     consistency_ratio: float = 1.25
@@ -140,7 +141,7 @@ class DecisionRule:
     max_steps: int = 12
     joint_ratio: float = 1.5
     min_reference_gain: float = 0.2
-    agreeing_conditions_consistent: bool = True
+    agreeing_conditions_verdict: bool = True
 
     def __post_init__(self) -> None:
         if not isinstance(self.max_steps, (int, np.integer)) or self.max_steps < 1:
@@ -364,8 +365,8 @@ def decide(base: ModelFit, noise: NoiseFloor, features: ResidualFeatures,
 
     ``reference``: the saturated reference when it was computed for every condition; when it
     does not count (the per-condition fits gain less than ``rule.min_reference_gain``) and
-    no candidate is significant, the conditions agree with one model: ``consistent``
-    (``rule.agreeing_conditions_consistent``), the model family's misfit stated."""
+    no candidate is significant, the conditions agree with one model: ``no_covariate_effect``
+    (``rule.agreeing_conditions_verdict``), the model family's misfit stated."""
     sigma = noise.sigma
     ratio = base.error / sigma if sigma > 0 else np.inf
     white = features.whiteness
@@ -382,7 +383,7 @@ def decide(base: ModelFit, noise: NoiseFloor, features: ResidualFeatures,
         best = min(fitted, key=lambda c: c.delta_bic) if fitted else None
         tail = f"; best was {_describe(best)}" if best is not None else ""
         if _conditions_agree(base, reference, rule):
-            return Verdict("consistent", None, "",
+            return Verdict("no_covariate_effect", None, "",
                            f"{head}; the conditions agree with one model: fitted to each "
                            f"condition alone the baseline reaches a held-out error of "
                            f"{reference.error:.4f}, no better than {base.error:.4f} for all, "
@@ -424,7 +425,7 @@ def _conditions_agree(base: ModelFit, reference: SaturatedReference | None,
     """Whether every condition got its own fit and those fits do not lower the held-out
     residual power by ``rule.min_reference_gain``: no covariate law of the baseline's family
     can explain anything."""
-    return (rule.agreeing_conditions_consistent and reference is not None
+    return (rule.agreeing_conditions_verdict and reference is not None
             and reference.n_fitted == reference.n_conditions
             and reference.rss_held > (1 - rule.min_reference_gain) * base.rss_held)
 

@@ -25,9 +25,9 @@ from dva_offline.discrepancy import loop, synthetic
 from dva_offline.discrepancy.frf_domain import FrfDomain
 from dva_offline.isolator.frf_data import split_conditions
 
-N_EFFECT = 6
-N_CLEAN = 6
-N_OUTSIDE = 4
+N_EFFECT = 4
+N_CLEAN = 4
+N_OUTSIDE = 2
 SEED0 = 100
 
 

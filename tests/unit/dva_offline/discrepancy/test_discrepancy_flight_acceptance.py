@@ -9,10 +9,11 @@ rules were developed on seeds 0-5).
 The criteria (docs/discrepancy.md, domain 2) are rates: every library effect named in >= 90 %
 of its cases with its held-out error at least halved, clean flights "consistent" in >= 90 %.
 Rates need many cases; bench/bench_discrepancy_flight.py measures them on seeds 100.. and
-docs/discrepancy.md gives its figures. This file keeps a fixed sample that the suite can
-afford (a 48 s flight is recorded and analysed per case): on it, every case must pass:
-- each library effect named and its error halved in each of N_CASES flights, no other name;
-- clean flights "consistent" every time, never "explained";
+docs/discrepancy.md gives its figures. This file keeps the smallest fixed sample that still
+exercises every effect (a 48 s flight is recorded and analysed per case; the suite's time is
+the limit): on it, every case must pass:
+- each library effect named and its error halved in its flight (N_CASES), no other name;
+- clean flights (N_CLEAN) "consistent" every time, never "explained";
 - an effect outside the library (an accelerometer gain error) never "explained".
 """
 from __future__ import annotations
@@ -29,7 +30,8 @@ from dva_offline.discrepancy.flight_synthetic import LIBRARY_EFFECTS, generate_f
 
 pytestmark = pytest.mark.slow
 
-N_CASES = 3
+N_CASES = 1
+N_CLEAN = 2
 SEEDS = range(200, 200 + N_CASES)
 WING = load_wing(None)
 
@@ -64,14 +66,13 @@ def test_hidden_effect_is_named_and_fitted(effect, tmp_path):
 
 def test_clean_flights_are_consistent(tmp_path):
     statuses = []
-    for seed in SEEDS:
+    for seed in range(200, 200 + N_CLEAN):
         _, res = _analyse(None, seed, tmp_path)
         statuses.append(res.verdict.status)
-    assert "explained" not in statuses
-    assert _enough(statuses.count("consistent")), statuses
+    assert statuses == ["consistent"] * N_CLEAN, statuses
 
 
 def test_effect_outside_the_library_is_not_attributed(tmp_path):
-    for seed in range(200, 202):
+    for seed in SEEDS:
         case, res = _analyse("sensor_gain", seed, tmp_path)
         assert res.verdict.status != "explained", (case.parameters, res.verdict)
