@@ -1,0 +1,305 @@
+"""Flights of one scenario that differ only in their seed, stepped block by block together.
+
+:class:`SeedBatchRuntime` is :class:`~aero_dva.flight.flight_runtime.FlightRuntime` for ``F``
+seeds at once: the same airspeed and density profile, each flight its own aileron force (drawn
+per block from ``default_rng(seed)``, as the runtime draws it) and its own damper, so a
+controller may command a different c2 to every flight. A block of all flights costs one pass
+of Python: the held conditions of every flight come from one cache of the
+:class:`~aero_dva.flight.discrete_model.DiscreteWing` (new ones discretised together), and each
+hold period is one product of the period map with the states and forces of every flight that
+holds that condition (one product in all when the flights share their c2).
+
+Same arithmetic as the one-flight route (the discrete wing's period maps, the parameter hold
+with the flight quantum, the damper model, divergence at half the chord), so a flight's
+samples agree with :class:`FlightRuntime`'s to rounding: products over several flights may sum
+in another order. A flight stops after the block in which it diverged, as a flown one does.
+Nominal wings only: a hidden plant, a stepped sweep or the switching law fly one at a time
+(:func:`batch_problem`). Pure numerics.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from aero_dva.flight.damper import DamperModel
+from aero_dva.flight.discrete_model import (
+    DEFAULT_HOLD,
+    FLIGHT_QUANTUM,
+    N_DISPLACEMENTS,
+    N_OUTPUTS,
+    DiscreteWing,
+)
+from aero_dva.flight.scenario import (
+    airspeed_at,
+    density_at,
+    force_scale_at,
+    resolve_airspeeds,
+    sample_times,
+)
+from aero_dva.wing.flutter import bare_critical_airspeed
+from aero_dva.wing.model import LEADING_EDGE, AeroelasticModel
+
+__all__ = ["SeedBatchBlock", "SeedBatchRuntime", "batch_problem"]
+
+
+def batch_problem(config) -> str | None:
+    """Why the flights of ``config`` (a RuntimeConfig) cannot be flown as a seed batch, or
+    None when they can."""
+    scenario = config.scenario
+    if scenario.plant is not None and scenario.plant.active:
+        return "the scenario flies a hidden plant"
+    if scenario.airspeed.kind == "steps":
+        return "the scenario is a stepped sweep (it operates the damper itself)"
+    if config.absorber is None:
+        return "the wing flies without absorber"
+    return None
+
+
+@dataclass(frozen=True)
+class SeedBatchBlock:
+    """One block of the flights still flying (time on the last axis).
+
+    Attributes
+    ----------
+    flights : (F_a,) int
+        Indices (into the runtime's seeds) of the flights in this block.
+    first_index : int
+    t0, t_end : float
+        [s] time of the first sample and of the sample after the last one.
+    airspeed, density : (n,) [m/s], [kg/m^3], the same for every flight
+    damping : (F_a,) [N s/m] each flight's c2 over the block (held by its damper)
+    force : (F_a, n) [N]
+    displacements : (F_a, 4, n); accelerations : (F_a, 3, n)
+    diverged : (F_a,) bool
+        These flights end with this block.
+    """
+
+    flights: np.ndarray
+    first_index: int
+    t0: float
+    t_end: float
+    airspeed: np.ndarray
+    density: np.ndarray
+    damping: np.ndarray
+    force: np.ndarray
+    displacements: np.ndarray
+    accelerations: np.ndarray
+    diverged: np.ndarray
+
+
+class SeedBatchRuntime:
+    """Step the flights of ``config`` with ``seeds`` block by block (see module docstring).
+
+    Parameters
+    ----------
+    config : RuntimeConfig
+        Its scenario's seed is replaced by each of ``seeds``.
+    seeds : sequence of int
+    critical_airspeed : float, optional
+        [m/s] the bare wing's U_cr (solved if not given), for relative airspeeds.
+    shared_damper : bool
+        Every flight gets the same commands (a controller that does not look at the
+        response): one damper model serves all.
+    """
+
+    def __init__(self, config, seeds: Sequence[int], critical_airspeed: float | None = None,
+                 shared_damper: bool = False):
+        problem = batch_problem(config)
+        if problem is not None:
+            raise ValueError(f"these flights cannot be flown as a seed batch: {problem}")
+        seeds = [int(s) for s in seeds]
+        if not seeds:
+            raise ValueError("seeds must not be empty")
+        self.config = config
+        self.seeds = seeds
+        self.critical_airspeed = bare_critical_airspeed(
+            config.wing, config.scenario.density, config.aero) \
+            if critical_airspeed is None else float(critical_airspeed)
+        self.scenario = resolve_airspeeds(config.scenario, self.critical_airspeed)
+        self.sample_rate = self.scenario.sample_rate
+        self.block_size = self.scenario.block_size
+        model = AeroelasticModel(config.wing, config.absorber, config.aero)
+        # As the runtime's streaming simulator: the default hold, the flight quantum.
+        self.discrete = DiscreteWing(model, self.sample_rate, hold=DEFAULT_HOLD,
+                                     quantum=FLIGHT_QUANTUM)
+        self.divergence_limit = 0.5 * config.wing.chord
+        self.shared_damper = bool(shared_damper)
+        count = 1 if shared_damper else len(seeds)
+        self._dampers = [DamperModel(config.damper, start_time=0.0) for _ in range(count)]
+        self._rngs = [np.random.default_rng(s) for s in seeds]
+        self._y = np.zeros((len(seeds), model.n_states))
+        self._held_flight = (math.nan, math.nan)  # airspeed, density in force (shared)
+        self._held_c = np.full(len(seeds), math.nan)
+        self._index = 0
+        self._checked = False
+        self._steps = _StepMaps(self.discrete)
+        self.active = np.arange(len(seeds))  # flights still flying
+
+    @property
+    def time(self) -> float:
+        """[s] sim time of the next sample."""
+        return self._index / self.sample_rate
+
+    @property
+    def done(self) -> bool:
+        return self._index >= self.scenario.n_samples or self.active.size == 0
+
+    def command(self, damping, source: str) -> None:
+        """Hand each active flight its c2 command (``damping`` (F_a,), NaN: no command); with a
+        shared damper, one command for all (a scalar)."""
+        if self.shared_damper:
+            self._dampers[0].command(float(damping), self.time, source)
+            return
+        values = np.broadcast_to(np.asarray(damping, dtype=float), self.active.shape)
+        t = self.time
+        for f, c2 in zip(self.active.tolist(), values.tolist()):
+            if not math.isnan(c2):
+                self._dampers[f].command(c2, t, source)
+
+    def _damper_values(self, t: float) -> np.ndarray:
+        if self.shared_damper:
+            return np.full(self.active.size, self._dampers[0].update(t))
+        return np.array([self._dampers[f].update(t) for f in self.active.tolist()])
+
+    def step(self) -> SeedBatchBlock:
+        """Simulate the next block of every active flight; flights that diverge in it are
+        dropped afterwards (its ``diverged``)."""
+        scenario = self.scenario
+        n = min(self.block_size, scenario.n_samples - self._index)
+        if n <= 0 or self.active.size == 0:
+            raise ValueError("the flights are over")
+        flights = self.active
+        t = sample_times(scenario, self._index, n)
+        airspeed = airspeed_at(scenario, t)
+        density = density_at(scenario, t)
+        # The damper is updated once per block: commands arrive between blocks.
+        c2 = self._damper_values(float(t[0]))
+        force = np.empty((flights.size, n))
+        for row, f in enumerate(flights.tolist()):
+            force[row] = self._rngs[f].standard_normal(n)
+        force *= scenario.force_std
+        if scenario.force_levels:
+            force *= force_scale_at(scenario, t)
+        if not self._checked:
+            self.discrete.check_sampling(float(airspeed[0]), float(density[0]), float(c2[0]))
+            self._checked = True
+        out, y = self._advance(self._y[flights], force, airspeed, density, c2)
+        self._y[flights] = y
+        disp = out[:, :N_DISPLACEMENTS]
+        diverged = ~np.isfinite(y).all(axis=1) | ~np.isfinite(disp).all(axis=(1, 2)) | \
+            (np.abs(disp[:, LEADING_EDGE]).max(axis=1) > self.divergence_limit)
+        block = SeedBatchBlock(
+            flights=flights, first_index=self._index, t0=float(t[0]),
+            t_end=(self._index + n) / self.sample_rate, airspeed=airspeed, density=density,
+            damping=c2, force=force, displacements=disp,
+            accelerations=out[:, N_DISPLACEMENTS:], diverged=diverged)
+        self._index += n
+        self.active = flights[~diverged]
+        # (The runtime also advances its damper to t_end here; a command at t_end does that
+        # itself, and the next block's update too, to the same value.)
+        return block
+
+    def _advance(self, y, force, airspeed, density, c2):
+        """Samples ``index .. index + n - 1`` of the flights ``y`` (F_a, n_states) hold period by
+        hold period; returns the outputs (F_a, p, n) and the end states."""
+        dw = self.discrete
+        total, h = force.shape[1], dw.hold
+        q = dw.quantum
+        first = min((h - self._index % h) % h, total)  # samples left in the current period
+        flights = self.active
+        held_c = self._held_c[flights]
+        held_u, held_rho = self._held_flight
+        segments = [(0, first, held_u, held_rho, held_c)] if first else []
+        for a in range(first, total, h):
+            # The parameter hold of the flight runtime, per input (next_held).
+            u, rho = float(airspeed[a]), float(density[a])
+            held_u = held_u if abs(u - held_u) <= q * abs(held_u) else u
+            held_rho = held_rho if abs(rho - held_rho) <= q * abs(held_rho) else rho
+            if self.shared_damper:  # one c2 for all: the rule on one value
+                c = float(c2[0])
+                cur = float(held_c[0])
+                held_c = np.full(flights.size, cur if abs(c - cur) <= q * abs(cur) else c)
+            else:
+                held_c = np.where(np.abs(c2 - held_c) <= q * np.abs(held_c), held_c, c2)
+            segments.append((a, min(a + h, total), held_u, held_rho, held_c))
+        self._held_flight = (held_u, held_rho)
+        self._held_c[flights] = held_c
+        out = np.empty((flights.size, N_OUTPUTS, total))
+        if self.shared_damper or all(bool((c == c[0]).all()) for *_, c in segments):
+            y = self._shared_conditions(y, force, segments, out)
+        else:
+            y = self._own_conditions(y, force, segments, out)
+        return out, y
+
+    def _shared_conditions(self, y, force, segments, out):
+        """Every flight holds one condition per segment: a full hold period is one product of
+        its period map (as the streaming simulator's) with all flights' states and forces."""
+        dw = self.discrete
+        h, ns = dw.hold, dw.n_states
+        maps = dw.conditions([(u, rho, float(c[0])) for _, _, u, rho, c in segments])
+        for (a, b, *_), cond in zip(segments, maps):
+            if b - a == h:
+                r = cond.period @ np.concatenate((y, force[:, a:b]), axis=1).T
+                y = r[:ns].T
+                out[:, :, a:b] = r[ns:].reshape(N_OUTPUTS, h, -1).transpose(2, 0, 1)
+                continue
+            for j in range(a, b):  # a partial period: sample by sample
+                r = cond.step @ np.concatenate((y, force[:, j:j + 1]), axis=1).T
+                y = r[:ns].T
+                out[:, :, j] = r[ns:].T
+        return y
+
+    def _own_conditions(self, y, force, segments, out):
+        """Each flight its own condition: the one-sample maps of all of them, stepped
+        together (a period map per flight would cost more to build than it saves)."""
+        ns = self.discrete.n_states
+        keys = [(u, rho, v) for _, _, u, rho, c in segments for v in c.tolist()]
+        index = self._steps.lookup(keys).reshape(len(segments), -1)
+        steps = self._steps.maps
+        x = np.empty((y.shape[0], ns + 1, 1))
+        for (a, b, *_), k in zip(segments, index):
+            m = steps[k]  # (F_a, n + p, n + 1)
+            for j in range(a, b):
+                x[:, :ns, 0] = y
+                x[:, ns, 0] = force[:, j]
+                r = m @ x
+                y = r[:, :ns, 0]
+                out[:, :, j] = r[:, ns:, 0]
+        return y
+
+
+class _StepMaps:
+    """One-sample maps ``[[Ad, Bd], [C, D]]`` of held conditions kept by exact key in one
+    array (gathered per flight); discretised in batches, dropped when ``max_size`` is reached."""
+
+    def __init__(self, discrete: DiscreteWing, max_size: int = 8192):
+        self.discrete, self.max_size = discrete, max_size
+        n = discrete.n_states
+        self.maps = np.empty((256, n + N_OUTPUTS, n + 1))
+        self.index: dict[tuple, int] = {}
+
+    def lookup(self, keys: list[tuple]) -> np.ndarray:
+        """Rows of :attr:`maps` of the conditions ``keys`` ((U, rho, c2) tuples)."""
+        index = self.index
+        missing = [k for k in dict.fromkeys(keys) if k not in index]
+        if missing:
+            if len(index) + len(missing) > self.max_size:
+                index.clear()
+                missing = list(dict.fromkeys(keys))
+            start = len(index)
+            if start + len(missing) > len(self.maps):
+                grown = np.empty((max(2 * len(self.maps), start + len(missing)),)
+                                 + self.maps.shape[1:])
+                grown[:start] = self.maps[:start]
+                self.maps = grown
+            m = self.discrete.discretise(np.array(missing, dtype=float))
+            n = self.discrete.n_states
+            block = self.maps[start:start + len(missing)]
+            block[:, :n, :n], block[:, :n, n] = m.ad, m.bd
+            block[:, n:, :n], block[:, n:, n] = m.c, m.d
+            for i, key in enumerate(missing, start):
+                index[key] = i
+        return np.fromiter((index[k] for k in keys), dtype=np.intp, count=len(keys))

@@ -1,0 +1,178 @@
+"""Closed-loop flights of many seeds at once: :func:`.closed_loop.fly` for a seed batch.
+
+The flights of one controller in one case differ only in their aileron force, so they are
+stepped together (:class:`~aero_dva.flight.seed_batch.SeedBatchRuntime`) and the controller's
+arithmetic runs once per block for all of them:
+
+- ``fixed``, ``schedule`` and ``oracle`` command from the block's time and flight condition
+  alone, the same for every flight: the controller of :mod:`.closed_loop` is asked once per
+  block and one damper model serves the batch;
+- ``rbf``: :class:`BatchSpectrumRBF`, the ``spectrum`` + ``rbf_controller`` arithmetic of
+  :class:`.closed_loop.SpectrumRBFControl` (eq. 7.3 windows of 2 s every 0.1 s, the network's
+  clamped c2 from each completed window, the last one acting) on every flight's window at once.
+
+:func:`fly_batch` returns one :class:`~.closed_loop.FlightOutcome` per seed, equal to what
+:func:`.closed_loop.fly` gives for that seed up to rounding (products over several flights may
+sum in another order). Other controllers (none here) and flights the batch cannot fly
+(:func:`~aero_dva.flight.seed_batch.batch_problem`) fly one at a time.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import replace
+
+import numpy as np
+
+from aero_dva.control.spectrum import DEFAULT_FREQUENCIES
+from aero_dva.flight.flight_runtime import FlightBlock
+from aero_dva.flight.seed_batch import SeedBatchRuntime, batch_problem
+from aero_dva.wing.model import LEADING_EDGE
+from dva_offline.evaluation.closed_loop import (
+    FixedControl,
+    FlightOutcome,
+    OracleControl,
+    ScheduleControl,
+    SpectrumRBFControl,
+    fly,
+)
+
+__all__ = ["BatchSpectrumRBF", "batchable", "fly_batch"]
+
+#: Controllers whose command depends on the block's time and flight condition only.
+SHARED_COMMANDS = (FixedControl, ScheduleControl, OracleControl)
+
+
+def batchable(controller) -> bool:
+    """``controller`` (of :mod:`.closed_loop`) can fly a seed batch."""
+    return isinstance(controller, (*SHARED_COMMANDS, SpectrumRBFControl))
+
+
+class BatchSpectrumRBF:
+    """:class:`~.closed_loop.SpectrumRBFControl` for the flights of a batch.
+
+    Each flight's accelerations (plunge, pitch) and applied c2 are kept whole; every completed
+    window (all flights' at once) gives eq. 7.3 spectra, the network's input (spectra, mean
+    c2 over the window), its largest hidden activation and its c2, clamped to the damper range
+    (NaN: no command, as the node publishes none).
+    """
+
+    def __init__(self, control: SpectrumRBFControl, flights: int, samples: int):
+        sliding = control.sliding
+        if sliding.window_function != "rectangular" or \
+                not np.array_equal(sliding.frequencies, DEFAULT_FREQUENCIES):
+            raise ValueError("the batch spectrum flies the controller's default window only")
+        self.network = control.network
+        self.low, self.high = control.law.damping_range
+        self.window = sliding.window_length
+        self.hop = sliding.hop_length
+        # The node's windowed DFT kernel (n, n_freq) as one real matrix [Re, Im]: one real
+        # product for every flight's window.
+        kernel = sliding._kernel
+        self.kernel = np.concatenate([kernel.real, kernel.imag], axis=1)
+        self.bins = kernel.shape[1]
+        self.acc = np.empty((flights, 2, samples))
+        self.damping = np.empty((flights, samples))
+        self.next_start = 0
+        self.peak_activation: list[list[float]] = [[] for _ in range(flights)]
+
+    def command(self, block) -> np.ndarray | None:
+        """c2 per flight of ``block`` (a SeedBatchBlock without its diverged flights), or
+        None when no window completed."""
+        a, n = block.first_index, block.force.shape[1]
+        flights = block.flights
+        self.acc[flights, :, a:a + n] = block.accelerations[:, :2]
+        self.damping[flights, a:a + n] = block.damping[:, None]
+        stop, start = a + n, None
+        while self.next_start + self.window <= stop:
+            start = self.next_start  # of the windows this block completes, the last acts
+            self.next_start += self.hop
+        if start is None:
+            return None
+        return self._answer(flights, start)
+
+    def _answer(self, flights, start: int) -> np.ndarray:
+        x = self.acc[flights, :, start:start + self.window]
+        parts = x @ self.kernel
+        amplitudes = np.hypot(parts[..., :self.bins], parts[..., self.bins:])  # (F, 2, n_freq)
+        band = amplitudes.sum(axis=-1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            magnitudes = np.where(band[..., None] > 0.0, amplitudes / band[..., None], np.nan)
+        mean_c2 = np.mean(self.damping[flights, start:start + self.window], axis=1)
+        inputs = np.concatenate([magnitudes.reshape(len(flights), -1), mean_c2[:, None]],
+                                axis=1)
+        if self.network.n_neurons:
+            activation = self.network.hidden(inputs).max(axis=1)
+        else:
+            activation = np.ones(len(flights))
+        for f, value in zip(flights.tolist(), activation.tolist()):
+            self.peak_activation[f].append(value)
+        c2 = np.asarray(self.network.predict(inputs), dtype=float)
+        return np.where(np.isfinite(c2), np.clip(c2, self.low, self.high), np.nan)
+
+
+def fly_batch(config, make_controller: Callable[[], object], seeds: Sequence[int],
+              critical_airspeed: float | None = None) -> list[FlightOutcome]:
+    """Fly ``config`` (a RuntimeConfig; its seed replaced by each of ``seeds``) with the
+    controller ``make_controller()`` gives, every seed in one batch where the controller and
+    the scenario allow it, else one :func:`.closed_loop.fly` per seed. One outcome per seed."""
+    controller = make_controller()
+    if not batchable(controller) or batch_problem(config) is not None:
+        return [fly(replace(config, scenario=replace(config.scenario, seed=int(s))),
+                    controller if i == 0 else make_controller(), critical_airspeed)
+                for i, s in enumerate(seeds)]
+    shared = isinstance(controller, SHARED_COMMANDS)
+    runtime = SeedBatchRuntime(config, seeds, critical_airspeed, shared_damper=shared)
+    f, total = len(seeds), runtime.scenario.n_samples
+    trace_u, trace_rho = np.empty(total), np.empty(total)
+    damping, leading_edge = np.empty((f, total)), np.empty((f, total))
+    samples = np.zeros(f, dtype=int)
+    diverged = np.zeros(f, dtype=bool)
+    spectra = None if shared else BatchSpectrumRBF(controller, f, total)
+    source = controller.name
+    while not runtime.done:
+        block = runtime.step()
+        a, n = block.first_index, block.force.shape[1]
+        trace_u[a:a + n], trace_rho[a:a + n] = block.airspeed, block.density
+        damping[block.flights, a:a + n] = block.damping[:, None]
+        leading_edge[block.flights, a:a + n] = block.displacements[:, LEADING_EDGE]
+        samples[block.flights] = a + n
+        diverged[block.flights[block.diverged]] = True
+        if runtime.active.size == 0:
+            break
+        if shared:
+            c2 = controller.command(_shared_view(block), runtime)
+            if c2 is not None:
+                runtime.command(c2, source)
+            continue
+        c2 = spectra.command(_without_diverged(block))
+        if c2 is not None:
+            runtime.command(c2, source)
+    outcomes = []
+    for i in range(f):
+        k = int(samples[i])
+        activation = spectra.peak_activation[i] if spectra is not None else []
+        outcomes.append(FlightOutcome(
+            diverged=bool(diverged[i]), samples=k, sample_rate=runtime.sample_rate,
+            airspeed=trace_u[:k].copy(), density=trace_rho[:k].copy(),
+            damping=damping[i, :k].copy(), leading_edge=leading_edge[i, :k].copy(),
+            peak_activation=np.asarray(activation, dtype=float)))
+    return outcomes
+
+
+def _shared_view(block) -> FlightBlock:
+    """The block as a shared controller reads it (its time and flight condition; the
+    response is the first flight's, which such a controller does not look at)."""
+    return FlightBlock(first_index=block.first_index, t0=block.t0, t_end=block.t_end,
+                       force=block.force[0], airspeed=block.airspeed, density=block.density,
+                       damping=np.full(block.airspeed.size, block.damping[0]),
+                       displacements=block.displacements[0],
+                       accelerations=block.accelerations[0], diverged=False)
+
+
+def _without_diverged(block):
+    keep = ~block.diverged
+    if keep.all():
+        return block
+    return replace(block, flights=block.flights[keep], damping=block.damping[keep],
+                   force=block.force[keep], displacements=block.displacements[keep],
+                   accelerations=block.accelerations[keep], diverged=block.diverged[keep])
