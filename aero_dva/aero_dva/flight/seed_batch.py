@@ -260,15 +260,16 @@ class SeedBatchRuntime:
         index = self._steps.lookup(keys).reshape(len(segments), -1)
         steps = self._steps.maps
         x = np.empty((y.shape[0], ns + 1, 1))
+        r = np.empty((y.shape[0], ns + N_OUTPUTS, 1))
+        x[:, :ns, 0] = y
         for (a, b, *_), k in zip(segments, index):
             m = steps[k]  # (F_a, n + p, n + 1)
             for j in range(a, b):
-                x[:, :ns, 0] = y
                 x[:, ns, 0] = force[:, j]
-                r = m @ x
-                y = r[:, :ns, 0]
+                np.matmul(m, x, out=r)
+                x[:, :ns] = r[:, :ns]
                 out[:, :, j] = r[:, ns:, 0]
-        return y
+        return x[:, :ns, 0].copy()
 
 
 class _StepMaps:

@@ -23,7 +23,6 @@ from dataclasses import replace
 
 import numpy as np
 
-from aero_dva.control.spectrum import DEFAULT_FREQUENCIES
 from aero_dva.flight.flight_runtime import FlightBlock
 from aero_dva.flight.seed_batch import SeedBatchRuntime, batch_problem
 from aero_dva.wing.model import LEADING_EDGE
@@ -54,24 +53,31 @@ class BatchSpectrumRBF:
     window (all flights' at once) gives eq. 7.3 spectra, the network's input (spectra, mean
     c2 over the window), its largest hidden activation and its c2, clamped to the damper range
     (NaN: no command, as the node publishes none).
+
+    The windows (2 s) overlap by all but a hop (0.1 s), so each hop of samples is transformed
+    once: with the rectangular window, the DFT of a window is the sum of its hops' DFTs, the
+    k-th turned by ``exp(-2 pi j f k hop / fs)``. The same spectra up to rounding.
     """
 
     def __init__(self, control: SpectrumRBFControl, flights: int, samples: int):
         sliding = control.sliding
         if sliding.window_function != "rectangular" or \
-                not np.array_equal(sliding.frequencies, DEFAULT_FREQUENCIES):
-            raise ValueError("the batch spectrum flies the controller's default window only")
+                sliding.window_length % sliding.hop_length:
+            raise ValueError("the batch spectrum needs a rectangular window of whole hops")
         self.network = control.network
         self.low, self.high = control.law.damping_range
         self.window = sliding.window_length
         self.hop = sliding.hop_length
-        # The node's windowed DFT kernel (n, n_freq) as one real matrix [Re, Im]: one real
-        # product for every flight's window.
-        kernel = sliding._kernel
+        kernel = sliding._kernel[:self.hop]  # the node's DFT kernel (scaled), one hop's rows
         self.kernel = np.concatenate([kernel.real, kernel.imag], axis=1)
         self.bins = kernel.shape[1]
+        hops = np.arange(self.window // self.hop)[:, None]
+        self.turn = np.exp(-2j * np.pi * sliding.frequencies * hops * self.hop
+                           / sliding.sample_rate)  # (hops per window, n_freq)
         self.acc = np.empty((flights, 2, samples))
         self.damping = np.empty((flights, samples))
+        self.hop_dft = np.empty((flights, 2, samples // self.hop, self.bins), dtype=complex)
+        self.hops_done = 0
         self.next_start = 0
         self.peak_activation: list[list[float]] = [[] for _ in range(flights)]
 
@@ -83,6 +89,14 @@ class BatchSpectrumRBF:
         self.acc[flights, :, a:a + n] = block.accelerations[:, :2]
         self.damping[flights, a:a + n] = block.damping[:, None]
         stop, start = a + n, None
+        complete = stop // self.hop
+        if complete > self.hops_done:  # transform the hops this block completed
+            h0, h = self.hops_done, self.hop
+            x = self.acc[flights, :, h0 * h:complete * h].reshape(len(flights), 2, -1, h)
+            parts = x @ self.kernel
+            self.hop_dft[flights, :, h0:complete] = \
+                parts[..., :self.bins] + 1j * parts[..., self.bins:]
+            self.hops_done = complete
         while self.next_start + self.window <= stop:
             start = self.next_start  # of the windows this block completes, the last acts
             self.next_start += self.hop
@@ -91,9 +105,9 @@ class BatchSpectrumRBF:
         return self._answer(flights, start)
 
     def _answer(self, flights, start: int) -> np.ndarray:
-        x = self.acc[flights, :, start:start + self.window]
-        parts = x @ self.kernel
-        amplitudes = np.hypot(parts[..., :self.bins], parts[..., self.bins:])  # (F, 2, n_freq)
+        first = start // self.hop
+        spectra = self.hop_dft[flights, :, first:first + len(self.turn)]
+        amplitudes = np.abs(np.einsum("fckb,kb->fcb", spectra, self.turn))  # (F, 2, n_freq)
         band = amplitudes.sum(axis=-1)
         with np.errstate(invalid="ignore", divide="ignore"):
             magnitudes = np.where(band[..., None] > 0.0, amplitudes / band[..., None], np.nan)
