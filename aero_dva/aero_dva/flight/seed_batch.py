@@ -42,7 +42,8 @@ from aero_dva.flight.scenario import (
 from aero_dva.wing.flutter import bare_critical_airspeed
 from aero_dva.wing.model import LEADING_EDGE, AeroelasticModel
 
-__all__ = ["SeedBatchBlock", "SeedBatchRuntime", "batch_problem"]
+__all__ = ["HeldCommandFlights", "SeedBatchBlock", "SeedBatchRuntime", "batch_problem",
+           "damper_schedule", "fly_held_commands"]
 
 
 def batch_problem(config) -> str | None:
@@ -304,3 +305,92 @@ class _StepMaps:
             for i, key in enumerate(missing, start):
                 index[key] = i
         return np.fromiter((index[k] for k in keys), dtype=np.intp, count=len(keys))
+
+
+@dataclass(frozen=True)
+class HeldCommandFlights:
+    """:func:`fly_held_commands`'s flights: each seed's trace up to the end of the block in
+    which it diverged (or the flight's end).
+
+    Attributes
+    ----------
+    airspeed, density : (N,) [m/s], [kg/m^3] the scenario's, per sample
+    damping : (N,) [N s/m] the damper's c2, per sample (the same for every flight)
+    displacements : (F, 4, N) (past a flight's ``samples``: not flown, undefined)
+    samples : (F,) int
+    diverged : (F,) bool
+    """
+
+    airspeed: np.ndarray
+    density: np.ndarray
+    damping: np.ndarray
+    displacements: np.ndarray
+    samples: np.ndarray
+    diverged: np.ndarray
+
+
+def damper_schedule(config, critical_airspeed: float, command, source: str) -> np.ndarray:
+    """c2 [N s/m] of every sample when the commands do not depend on the response.
+
+    ``command(block)`` is asked after each block (a FlightBlock with the block's time and
+    flight condition; its response arrays are NaN) and returns a c2 or None, which the damper
+    (the runtime's DamperModel, updated once per block) takes at the block's end, as
+    :class:`FlightRuntime` takes a controller's command.
+    """
+    from aero_dva.flight.flight_runtime import FlightBlock
+
+    scenario = resolve_airspeeds(config.scenario, critical_airspeed)
+    total, size = scenario.n_samples, scenario.block_size
+    damper = DamperModel(config.damper, start_time=0.0)
+    damping = np.empty(total)
+    for a in range(0, total, size):
+        n = min(size, total - a)
+        t = sample_times(scenario, a, n)
+        damping[a:a + n] = damper.update(float(t[0]))
+        nan = np.full(n, math.nan)
+        block = FlightBlock(first_index=a, t0=float(t[0]), t_end=(a + n) / scenario.sample_rate,
+                            force=nan, airspeed=airspeed_at(scenario, t),
+                            density=density_at(scenario, t), damping=damping[a:a + n],
+                            displacements=np.full((N_DISPLACEMENTS, n), math.nan),
+                            accelerations=np.full((N_OUTPUTS - N_DISPLACEMENTS, n), math.nan),
+                            diverged=False)
+        c2 = command(block)
+        if c2 is not None:
+            damper.command(c2, block.t_end, source)
+    return damping
+
+
+def fly_held_commands(config, seeds: Sequence[int], damping: np.ndarray,
+                      critical_airspeed: float) -> HeldCommandFlights:
+    """The flights of ``seeds`` with the c2 of every sample given (:func:`damper_schedule`),
+    whole, by the batch simulator (:func:`~aero_dva.flight.batch_simulator.simulate_flights`,
+    vectorised across hold periods: no Python per block); each then ends with the block in
+    which it diverged, as :class:`SeedBatchRuntime` and the runtime end it. The same hold (the
+    default hold, the flight quantum) and forces (each seed's per-block draws, which are one
+    draw of the whole flight), so the same flights up to rounding."""
+    from aero_dva.flight.batch_simulator import simulate_flights
+
+    problem = batch_problem(config)
+    if problem is not None:
+        raise ValueError(f"these flights cannot be flown as a seed batch: {problem}")
+    scenario = resolve_airspeeds(config.scenario, critical_airspeed)
+    total, size = scenario.n_samples, scenario.block_size
+    t = sample_times(scenario)
+    force = np.stack([np.random.default_rng(int(s)).standard_normal(total) for s in seeds])
+    force *= scenario.force_std
+    if scenario.force_levels:
+        force *= force_scale_at(scenario, t)
+    airspeed, density = airspeed_at(scenario, t), density_at(scenario, t)
+    with np.errstate(over="ignore", invalid="ignore"):  # diverged flights run on, cut below
+        traces = simulate_flights(config.wing, config.absorber, force=force, airspeed=airspeed,
+                                  density=density, damping=damping,
+                                  sample_rate=scenario.sample_rate, aero=config.aero,
+                                  hold=DEFAULT_HOLD, quantum=FLIGHT_QUANTUM)
+        disp = traces.displacements
+        bad = ~np.isfinite(disp).all(axis=1) | \
+            (np.abs(disp[:, LEADING_EDGE]) > 0.5 * config.wing.chord)
+    diverged = bad.any(axis=1)
+    first_bad = np.where(diverged, bad.argmax(axis=1), total)
+    samples = np.minimum((first_bad // size + 1) * size, total)
+    return HeldCommandFlights(airspeed=airspeed, density=density, damping=damping,
+                              displacements=disp, samples=samples, diverged=diverged)

@@ -5,8 +5,11 @@ stepped together (:class:`~aero_dva.flight.seed_batch.SeedBatchRuntime`) and the
 arithmetic runs once per block for all of them:
 
 - ``fixed``, ``schedule`` and ``oracle`` command from the block's time and flight condition
-  alone, the same for every flight: the controller of :mod:`.closed_loop` is asked once per
-  block and one damper model serves the batch;
+  alone, the same for every flight: the controller of :mod:`.closed_loop` and the damper give
+  the c2 of every block first (:func:`~aero_dva.flight.seed_batch.damper_schedule`), then
+  every seed's whole flight is simulated at once
+  (:func:`~aero_dva.flight.seed_batch.fly_held_commands`) and cut after the block in which
+  it diverged;
 - ``rbf``: :class:`BatchSpectrumRBF`, the ``spectrum`` + ``rbf_controller`` arithmetic of
   :class:`.closed_loop.SpectrumRBFControl` (eq. 7.3 windows of 2 s every 0.1 s, the network's
   clamped c2 from each completed window, the last one acting) on every flight's window at once.
@@ -20,11 +23,18 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import replace
+from types import SimpleNamespace
 
 import numpy as np
 
-from aero_dva.flight.flight_runtime import FlightBlock
-from aero_dva.flight.seed_batch import SeedBatchRuntime, batch_problem
+from aero_dva.flight.scenario import resolve_airspeeds
+from aero_dva.flight.seed_batch import (
+    SeedBatchRuntime,
+    batch_problem,
+    damper_schedule,
+    fly_held_commands,
+)
+from aero_dva.wing.flutter import bare_critical_airspeed
 from aero_dva.wing.model import LEADING_EDGE
 from dva_offline.evaluation.closed_loop import (
     FixedControl,
@@ -134,15 +144,18 @@ def fly_batch(config, make_controller: Callable[[], object], seeds: Sequence[int
         return [fly(replace(config, scenario=replace(config.scenario, seed=int(s))),
                     controller if i == 0 else make_controller(), critical_airspeed)
                 for i, s in enumerate(seeds)]
-    shared = isinstance(controller, SHARED_COMMANDS)
-    runtime = SeedBatchRuntime(config, seeds, critical_airspeed, shared_damper=shared)
+    if critical_airspeed is None:
+        critical_airspeed = bare_critical_airspeed(config.wing, config.scenario.density,
+                                                   config.aero)
+    if isinstance(controller, SHARED_COMMANDS):
+        return _fly_shared(config, controller, seeds, critical_airspeed)
+    runtime = SeedBatchRuntime(config, seeds, critical_airspeed)
     f, total = len(seeds), runtime.scenario.n_samples
     trace_u, trace_rho = np.empty(total), np.empty(total)
     damping, leading_edge = np.empty((f, total)), np.empty((f, total))
     samples = np.zeros(f, dtype=int)
     diverged = np.zeros(f, dtype=bool)
-    spectra = None if shared else BatchSpectrumRBF(controller, f, total)
-    source = controller.name
+    spectra = BatchSpectrumRBF(controller, f, total)
     while not runtime.done:
         block = runtime.step()
         a, n = block.first_index, block.force.shape[1]
@@ -153,34 +166,35 @@ def fly_batch(config, make_controller: Callable[[], object], seeds: Sequence[int
         diverged[block.flights[block.diverged]] = True
         if runtime.active.size == 0:
             break
-        if shared:
-            c2 = controller.command(_shared_view(block), runtime)
-            if c2 is not None:
-                runtime.command(c2, source)
-            continue
         c2 = spectra.command(_without_diverged(block))
         if c2 is not None:
-            runtime.command(c2, source)
+            runtime.command(c2, controller.name)
     outcomes = []
     for i in range(f):
         k = int(samples[i])
-        activation = spectra.peak_activation[i] if spectra is not None else []
         outcomes.append(FlightOutcome(
             diverged=bool(diverged[i]), samples=k, sample_rate=runtime.sample_rate,
             airspeed=trace_u[:k].copy(), density=trace_rho[:k].copy(),
             damping=damping[i, :k].copy(), leading_edge=leading_edge[i, :k].copy(),
-            peak_activation=np.asarray(activation, dtype=float)))
+            peak_activation=np.asarray(spectra.peak_activation[i], dtype=float)))
     return outcomes
 
 
-def _shared_view(block) -> FlightBlock:
-    """The block as a shared controller reads it (its time and flight condition; the
-    response is the first flight's, which such a controller does not look at)."""
-    return FlightBlock(first_index=block.first_index, t0=block.t0, t_end=block.t_end,
-                       force=block.force[0], airspeed=block.airspeed, density=block.density,
-                       damping=np.full(block.airspeed.size, block.damping[0]),
-                       displacements=block.displacements[0],
-                       accelerations=block.accelerations[0], diverged=False)
+def _fly_shared(config, controller, seeds, critical_airspeed) -> list[FlightOutcome]:
+    """A controller that commands from time and flight condition alone: its c2 of every
+    sample first (the damper and the controller over the blocks, no flight needed), then
+    every seed's whole flight with that c2 at once."""
+    view = SimpleNamespace(scenario=resolve_airspeeds(config.scenario, critical_airspeed))
+    damping = damper_schedule(config, critical_airspeed,
+                              lambda block: controller.command(block, view), controller.name)
+    flights = fly_held_commands(config, seeds, damping, critical_airspeed)
+    rate = config.scenario.sample_rate
+    return [FlightOutcome(diverged=bool(flights.diverged[i]), samples=int(k), sample_rate=rate,
+                          airspeed=flights.airspeed[:k].copy(),
+                          density=flights.density[:k].copy(), damping=damping[:k].copy(),
+                          leading_edge=flights.displacements[i, LEADING_EDGE, :k].copy(),
+                          peak_activation=np.empty(0))
+            for i, k in enumerate(flights.samples.tolist())]
 
 
 def _without_diverged(block):
