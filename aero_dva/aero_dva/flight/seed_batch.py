@@ -42,8 +42,8 @@ from aero_dva.flight.scenario import (
 from aero_dva.wing.flutter import bare_critical_airspeed
 from aero_dva.wing.model import LEADING_EDGE, AeroelasticModel
 
-__all__ = ["HeldCommandFlights", "SeedBatchBlock", "SeedBatchRuntime", "batch_problem",
-           "damper_schedule", "fly_held_commands"]
+__all__ = ["HeldCommandFlights", "IdealDampers", "SeedBatchBlock", "SeedBatchRuntime",
+           "batch_problem", "damper_schedule", "fly_held_commands"]
 
 
 def batch_problem(config) -> str | None:
@@ -57,6 +57,39 @@ def batch_problem(config) -> str | None:
     if config.absorber is None:
         return "the wing flies without absorber"
     return None
+
+
+class IdealDampers:
+    """:class:`~aero_dva.flight.damper.DamperModel` without lag (``time_constant`` 0) for many
+    flights at once: the same rules on arrays. Before a first accepted command the initial c2
+    acts; a command is accepted when it is finite, >= 0 and not absurd, clipped to the range,
+    and acts at once; once the last accepted command is older than the stale timeout, the
+    fallback acts. NaN means no command (the node publishes none)."""
+
+    def __init__(self, config, flights: int):
+        if config.time_constant != 0.0:
+            raise ValueError("IdealDampers model a damper without lag (time_constant 0)")
+        self.config = config
+        self.accepted_time = np.full(flights, math.nan)
+        self.accepted = np.full(flights, math.nan)
+
+    def values(self, which: np.ndarray, t: float) -> np.ndarray:
+        """[N s/m] c2 acting at sim time ``t`` in the flights ``which``."""
+        cfg = self.config
+        at = self.accepted_time[which]
+        with np.errstate(invalid="ignore"):
+            stale = t > at + cfg.stale_timeout
+        return np.where(np.isnan(at), cfg.initial_damping,
+                        np.where(stale, cfg.fallback_damping, self.accepted[which]))
+
+    def command(self, which: np.ndarray, damping: np.ndarray, t: float) -> None:
+        """Commands ``damping`` to the flights ``which`` at sim time ``t``."""
+        cfg = self.config
+        with np.errstate(invalid="ignore"):
+            ok = np.isfinite(damping) & (damping >= 0.0) & (damping <= cfg.absurd_limit)
+        self.accepted_time[which[ok]] = t
+        self.accepted[which[ok]] = np.minimum(np.maximum(damping[ok], cfg.min_damping),
+                                              cfg.max_damping)
 
 
 @dataclass(frozen=True)
@@ -129,7 +162,9 @@ class SeedBatchRuntime:
         self.divergence_limit = 0.5 * config.wing.chord
         self.shared_damper = bool(shared_damper)
         count = 1 if shared_damper else len(seeds)
-        self._dampers = [DamperModel(config.damper, start_time=0.0) for _ in range(count)]
+        self._dampers = IdealDampers(config.damper, count) \
+            if config.damper.time_constant == 0.0 else \
+            [DamperModel(config.damper, start_time=0.0) for _ in range(count)]
         self._rngs = [np.random.default_rng(s) for s in seeds]
         self._y = np.zeros((len(seeds), model.n_states))
         self._held_flight = (math.nan, math.nan)  # airspeed, density in force (shared)
@@ -151,19 +186,24 @@ class SeedBatchRuntime:
     def command(self, damping, source: str) -> None:
         """Hand each active flight its c2 command (``damping`` (F_a,), NaN: no command); with a
         shared damper, one command for all (a scalar)."""
-        if self.shared_damper:
-            self._dampers[0].command(float(damping), self.time, source)
-            return
-        values = np.broadcast_to(np.asarray(damping, dtype=float), self.active.shape)
         t = self.time
-        for f, c2 in zip(self.active.tolist(), values.tolist()):
+        if self.shared_damper:
+            which, values = np.zeros(1, dtype=int), np.array([float(damping)])
+        else:
+            which = self.active
+            values = np.broadcast_to(np.asarray(damping, dtype=float), which.shape)
+        if isinstance(self._dampers, IdealDampers):
+            self._dampers.command(which, values, t)
+            return
+        for f, c2 in zip(which.tolist(), values.tolist()):
             if not math.isnan(c2):
                 self._dampers[f].command(c2, t, source)
 
     def _damper_values(self, t: float) -> np.ndarray:
-        if self.shared_damper:
-            return np.full(self.active.size, self._dampers[0].update(t))
-        return np.array([self._dampers[f].update(t) for f in self.active.tolist()])
+        which = np.zeros(self.active.size, dtype=int) if self.shared_damper else self.active
+        if isinstance(self._dampers, IdealDampers):
+            return self._dampers.values(which, t)
+        return np.array([self._dampers[f].update(t) for f in which.tolist()])
 
     def step(self) -> SeedBatchBlock:
         """Simulate the next block of every active flight; flights that diverge in it are

@@ -7,10 +7,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from aero_dva.flight.damper import DamperConfig, DamperModel
 from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
 from aero_dva.flight.hidden_plant import PlantOptions
 from aero_dva.flight.scenario import AirspeedProfile, Scenario
-from aero_dva.flight.seed_batch import SeedBatchRuntime, batch_problem
+from aero_dva.flight.seed_batch import IdealDampers, SeedBatchRuntime, batch_problem
 
 CONFIG = load_runtime_config({})
 RTOL = 1e-9  # rounding only (products over several flights sum in another order)
@@ -72,3 +73,26 @@ def test_what_cannot_fly_as_a_batch_is_refused_by_name():
     assert batch_problem(_config()) is None
     with pytest.raises(ValueError, match="seeds"):
         SeedBatchRuntime(_config(), (), 100.0)
+
+
+def test_ideal_dampers_follow_the_damper_model_rules():
+    config = DamperConfig(min_damping=100.0, max_damping=2000.0, fallback_damping=600.0,
+                          initial_damping=300.0, stale_timeout=0.5)
+    rng = np.random.default_rng(1)
+    flights = 4
+    models = [DamperModel(config) for _ in range(flights)]
+    ideal = IdealDampers(config, flights)
+    which = np.arange(flights)
+    choices = [50.0, 700.0, 2500.0, 1e6, -1.0, math.inf, math.nan, 1500.0]
+    for k in range(200):
+        t = 0.05 * k
+        np.testing.assert_array_equal(ideal.values(which, t),
+                                      [m.update(t) for m in models])
+        # sparse commands, so some go stale; bad ones are rejected (the target stays)
+        values = np.where(rng.random(flights) < 0.15, rng.choice(choices, flights), math.nan)
+        ideal.command(which, values, t)
+        for m, v in zip(models, values.tolist()):
+            if not math.isnan(v):
+                m.command(v, t)
+    with pytest.raises(ValueError, match="lag"):
+        IdealDampers(DamperConfig(0.0, 2500.0, 600.0, time_constant=0.1), 1)
