@@ -4,17 +4,20 @@
 seeds at once: the same airspeed and density profile, each flight its own aileron force (drawn
 per block from ``default_rng(seed)``, as the runtime draws it) and its own damper, so a
 controller may command a different c2 to every flight. A block of all flights costs one pass
-of Python: the held conditions of every flight come from one cache of the
-:class:`~aero_dva.flight.discrete_model.DiscreteWing` (new ones discretised together), and each
-hold period is one product of the period map with the states and forces of every flight that
-holds that condition (one product in all when the flights share their c2).
+of Python: while the flights hold one condition, each hold period is one product of its
+period map (:class:`~aero_dva.flight.discrete_model.DiscreteWing`'s, as the runtime's) with
+the states and forces of all flights; once their c2 differ, the new conditions of the block
+are discretised together and the flights step on their own one-sample maps.
 
-Same arithmetic as the one-flight route (the discrete wing's period maps, the parameter hold
-with the flight quantum, the damper model, divergence at half the chord), so a flight's
-samples agree with :class:`FlightRuntime`'s to rounding: products over several flights may sum
-in another order. A flight stops after the block in which it diverged, as a flown one does.
-Nominal wings only: a hidden plant, a stepped sweep or the switching law fly one at a time
-(:func:`batch_problem`). Pure numerics.
+When the commands do not depend on the response (a c2 from time and flight condition), no
+block-by-block flight is needed: :func:`damper_schedule` gives the c2 of every sample and
+:func:`fly_held_commands` flies every seed whole with it through the batch simulator.
+
+The same model, parameter hold (the flight quantum), forces, damper rules and divergence (half
+the chord) as the one-flight route, so a flight's samples agree with :class:`FlightRuntime`'s
+to rounding (products summed in another order). A flight stops after the block in which it
+diverged, as a flown one does. Nominal wings only: a hidden plant or a stepped sweep fly one
+at a time (:func:`batch_problem`); the switching law is not commanded here. Pure numerics.
 """
 from __future__ import annotations
 
@@ -134,13 +137,9 @@ class SeedBatchRuntime:
     seeds : sequence of int
     critical_airspeed : float, optional
         [m/s] the bare wing's U_cr (solved if not given), for relative airspeeds.
-    shared_damper : bool
-        Every flight gets the same commands (a controller that does not look at the
-        response): one damper model serves all.
     """
 
-    def __init__(self, config, seeds: Sequence[int], critical_airspeed: float | None = None,
-                 shared_damper: bool = False):
+    def __init__(self, config, seeds: Sequence[int], critical_airspeed: float | None = None):
         problem = batch_problem(config)
         if problem is not None:
             raise ValueError(f"these flights cannot be flown as a seed batch: {problem}")
@@ -160,11 +159,10 @@ class SeedBatchRuntime:
         self.discrete = DiscreteWing(model, self.sample_rate, hold=DEFAULT_HOLD,
                                      quantum=FLIGHT_QUANTUM)
         self.divergence_limit = 0.5 * config.wing.chord
-        self.shared_damper = bool(shared_damper)
-        count = 1 if shared_damper else len(seeds)
-        self._dampers = IdealDampers(config.damper, count) \
+        # One damper per flight: as arrays when it has no lag (the evaluation's).
+        self._dampers = IdealDampers(config.damper, len(seeds)) \
             if config.damper.time_constant == 0.0 else \
-            [DamperModel(config.damper, start_time=0.0) for _ in range(count)]
+            [DamperModel(config.damper, start_time=0.0) for _ in seeds]
         self._rngs = [np.random.default_rng(s) for s in seeds]
         self._y = np.zeros((len(seeds), model.n_states))
         self._held_flight = (math.nan, math.nan)  # airspeed, density in force (shared)
@@ -184,14 +182,11 @@ class SeedBatchRuntime:
         return self._index >= self.scenario.n_samples or self.active.size == 0
 
     def command(self, damping, source: str) -> None:
-        """Hand each active flight its c2 command (``damping`` (F_a,), NaN: no command); with a
-        shared damper, one command for all (a scalar)."""
+        """Hand each active flight its c2 command (``damping`` (F_a,) or one for all, NaN: no
+        command) at the current sim time."""
         t = self.time
-        if self.shared_damper:
-            which, values = np.zeros(1, dtype=int), np.array([float(damping)])
-        else:
-            which = self.active
-            values = np.broadcast_to(np.asarray(damping, dtype=float), which.shape)
+        which = self.active
+        values = np.broadcast_to(np.asarray(damping, dtype=float), which.shape)
         if isinstance(self._dampers, IdealDampers):
             self._dampers.command(which, values, t)
             return
@@ -200,7 +195,7 @@ class SeedBatchRuntime:
                 self._dampers[f].command(c2, t, source)
 
     def _damper_values(self, t: float) -> np.ndarray:
-        which = np.zeros(self.active.size, dtype=int) if self.shared_damper else self.active
+        which = self.active
         if isinstance(self._dampers, IdealDampers):
             return self._dampers.values(which, t)
         return np.array([self._dampers[f].update(t) for f in which.tolist()])
@@ -259,17 +254,12 @@ class SeedBatchRuntime:
             u, rho = float(airspeed[a]), float(density[a])
             held_u = held_u if abs(u - held_u) <= q * abs(held_u) else u
             held_rho = held_rho if abs(rho - held_rho) <= q * abs(held_rho) else rho
-            if self.shared_damper:  # one c2 for all: the rule on one value
-                c = float(c2[0])
-                cur = float(held_c[0])
-                held_c = np.full(flights.size, cur if abs(c - cur) <= q * abs(cur) else c)
-            else:
-                held_c = np.where(np.abs(c2 - held_c) <= q * np.abs(held_c), held_c, c2)
+            held_c = np.where(np.abs(c2 - held_c) <= q * np.abs(held_c), held_c, c2)
             segments.append((a, min(a + h, total), held_u, held_rho, held_c))
         self._held_flight = (held_u, held_rho)
         self._held_c[flights] = held_c
         out = np.empty((flights.size, N_OUTPUTS, total))
-        if self.shared_damper or all(bool((c == c[0]).all()) for *_, c in segments):
+        if all(bool((c == c[0]).all()) for *_, c in segments):
             y = self._shared_conditions(y, force, segments, out)
         else:
             y = self._own_conditions(y, force, segments, out)

@@ -57,8 +57,8 @@ def test_each_seed_of_a_batch_is_the_flight_runtime_of_that_seed(block_size):
     assert all(s.done for s in singles) and k == -(-1000 // block_size)
 
 
-def test_a_shared_damper_takes_one_command_for_all():
-    batch = SeedBatchRuntime(_config(), (1, 2), 100.0, shared_damper=True)
+def test_one_command_for_all_flights_is_broadcast():
+    batch = SeedBatchRuntime(_config(), (1, 2), 100.0)
     batch.step()
     batch.command(700.0, "fixed")
     assert np.all(batch.step().damping == 700.0)
