@@ -32,7 +32,7 @@ from dva_offline.evaluation.closed_loop import (
 from dva_offline.evaluation.closed_loop_batch import fly_batch
 from dva_offline.evaluation.paired import DensityCase, FlightRecord, case_scenario, flight_record
 
-__all__ = ["EvaluationSetup", "case_table", "fly_paired", "fly_seed", "fly_seeds",
+__all__ = ["BATCH_SEEDS", "EvaluationSetup", "case_table", "fly_paired", "fly_seed", "fly_seeds",
            "oracle_table", "seed_batches", "stability_boundaries"]
 
 
@@ -133,12 +133,18 @@ def fly_seeds(setup: EvaluationSetup, controllers: Sequence[str], keep_seed: int
     return records, kept
 
 
+BATCH_SEEDS = 32
+"""Most seeds in one batch: its flights' traces are held whole (about 2 MB per flight of the
+default ramp), and from a few tens of flights on the per-block cost is already shared."""
+
+
 def seed_batches(seeds: Sequence[int], cases: int, workers: int) -> list[tuple[int, ...]]:
     """The seeds of a case cut into batches: as few as keep ``workers`` busy (at least two jobs
-    per worker over all ``cases``), each as large as possible (the per-block cost of a batch is
-    paid once for all its flights)."""
+    per worker over all ``cases``) and hold at most :data:`BATCH_SEEDS` seeds each, as large as
+    possible otherwise (the per-block cost of a batch is paid once for all its flights)."""
     seeds = tuple(seeds)
     parts = 1 if workers <= 1 else max(1, min(len(seeds), -(-2 * workers // max(cases, 1))))
+    parts = max(parts, -(-len(seeds) // BATCH_SEEDS))
     size = -(-len(seeds) // parts)
     return [seeds[i:i + size] for i in range(0, len(seeds), size)]
 

@@ -20,7 +20,12 @@ from dva_offline.evaluation.closed_loop import (
     fly,
 )
 from dva_offline.evaluation.closed_loop_batch import fly_batch
-from dva_offline.evaluation.flights import EvaluationSetup, fly_paired, seed_batches
+from dva_offline.evaluation.flights import (
+    BATCH_SEEDS,
+    EvaluationSetup,
+    fly_paired,
+    seed_batches,
+)
 from dva_offline.evaluation.paired import default_cases
 
 CONFIG = load_runtime_config({})
@@ -113,6 +118,8 @@ def test_seed_batches_keep_every_worker_busy():
     two = seed_batches(seeds, 1, 2)
     assert len(two) == 4 and sum(two, ()) == tuple(seeds)
     assert seed_batches([4], 6, 8) == [(4,)]
+    many = seed_batches(list(range(100)), 6, 1)  # memory: at most BATCH_SEEDS per batch
+    assert max(map(len, many)) <= BATCH_SEEDS and sum(many, ()) == tuple(range(100))
 
 
 def test_batched_records_equal_the_one_flight_records():
