@@ -1,8 +1,7 @@
 """Closed-loop flights of many seeds at once: :func:`.closed_loop.fly` for a seed batch.
 
 The flights of one controller in one case differ only in their aileron force, so they are
-stepped together (:class:`~aero_dva.flight.seed_batch.SeedBatchRuntime`) and the controller's
-arithmetic runs once per block for all of them:
+flown together and the controller's arithmetic runs once for all of them:
 
 - ``fixed``, ``schedule`` and ``oracle`` command from the block's time and flight condition
   alone, the same for every flight: the controller of :mod:`.closed_loop` and the damper give
@@ -10,7 +9,9 @@ arithmetic runs once per block for all of them:
   every seed's whole flight is simulated at once
   (:func:`~aero_dva.flight.seed_batch.fly_held_commands`) and cut after the block in which
   it diverged;
-- ``rbf``: :class:`BatchSpectrumRBF`, the ``spectrum`` + ``rbf_controller`` arithmetic of
+- ``rbf``: the flights step block by block together
+  (:class:`~aero_dva.flight.seed_batch.SeedBatchRuntime`, each its own c2) and
+  :class:`BatchSpectrumRBF`, the ``spectrum`` + ``rbf_controller`` arithmetic of
   :class:`.closed_loop.SpectrumRBFControl` (eq. 7.3 windows of 2 s every 0.1 s, the network's
   clamped c2 from each completed window, the last one acting) on every flight's window at once.
 
@@ -78,7 +79,9 @@ class BatchSpectrumRBF:
         self.low, self.high = control.law.damping_range
         self.window = sliding.window_length
         self.hop = sliding.hop_length
-        kernel = sliding._kernel[:self.hop]  # the node's DFT kernel (scaled), one hop's rows
+        # The node's rectangular-window DFT kernel (eq. 7.3 scaling 2 / n), one hop's rows.
+        kernel = np.exp(-2j * np.pi * np.outer(np.arange(self.hop), sliding.frequencies)
+                        / sliding.sample_rate) * (2.0 / self.window)
         self.kernel = np.concatenate([kernel.real, kernel.imag], axis=1)
         self.bins = kernel.shape[1]
         hops = np.arange(self.window // self.hop)[:, None]
