@@ -127,13 +127,12 @@ class BatchSpectrumRBF:
         mean_c2 = np.mean(self.damping[flights, start:start + self.window], axis=1)
         inputs = np.concatenate([magnitudes.reshape(len(flights), -1), mean_c2[:, None]],
                                 axis=1)
-        if self.network.n_neurons:
-            activation = self.network.hidden(inputs).max(axis=1)
-        else:
-            activation = np.ones(len(flights))
+        net = self.network
+        hidden = net.hidden(inputs)  # once for the activation and the output (as predict)
+        activation = hidden.max(axis=1) if net.n_neurons else np.ones(len(flights))
         for f, value in zip(flights.tolist(), activation.tolist()):
             self.peak_activation[f].append(value)
-        c2 = np.asarray(self.network.predict(inputs), dtype=float)
+        c2 = hidden @ net.output_weights + net.output_bias
         return np.where(np.isfinite(c2), np.clip(c2, self.low, self.high), np.nan)
 
 
