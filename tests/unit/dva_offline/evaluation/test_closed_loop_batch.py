@@ -153,3 +153,4 @@ def test_batched_records_equal_the_one_flight_records():
                for r in batched)
     assert all(np.isfinite(r.median_peak_activation) == (r.controller == "rbf")
                for r in batched)
+
