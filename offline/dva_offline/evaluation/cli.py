@@ -72,6 +72,9 @@ def register(subparsers) -> None:
     p.add_argument("--workers", type=int, default=1, metavar="N",
                    help="flights in parallel: N local processes (default 1); with --graph, N "
                         "flights at a time, each in its own ROS domain")
+    p.add_argument("--one-flight", action="store_true",
+                   help="fly one flight at a time (the reference route) instead of each "
+                        "case's seeds together (same records up to rounding)")
     p.add_argument("--ray", metavar="ADDRESS", default=None,
                    help="hand the flights to a Ray cluster: its address, 'auto' (the cluster "
                         "this machine is part of) or 'local' (start one here with --workers "
@@ -225,7 +228,8 @@ def _paired(args) -> int:
     try:
         records, kept = fly_paired(setup, list(cases.values()), seeds, controllers, progress,
                                   keep_seed=seeds[0], workers=args.workers,
-                                  ray_address=args.ray, done=done, finished=store.save)
+                                  ray_address=args.ray, done=done, finished=store.save,
+                                  batch=not args.one_flight)
     finally:
         bar.close()
     flight_time = time.monotonic() - flights_started

@@ -1,8 +1,10 @@
 """The paired evaluation's flights and stability boundaries (``dva evaluate``).
 
-:func:`fly_paired` flies every (case, seed, controller) of :mod:`dva_offline.evaluation.paired`
-with :func:`.closed_loop.fly`, seeds innermost per case so the controllers of a
-seed are flown one after the other; :func:`stability_boundaries` gives, per case, where the
+:func:`fly_paired` flies every (case, seed, controller) of :mod:`dva_offline.evaluation.paired`:
+by default the seeds of a case in batches, each controller's flights of a batch together
+(:func:`fly_seeds`, :func:`.closed_loop_batch.fly_batch`); with ``batch=False`` one flight at
+a time (:func:`fly_seed`, :func:`.closed_loop.fly`, the reference route). Both give the same
+records up to rounding. :func:`stability_boundaries` gives, per case, where the
 linear wing stops being stable under each analysable control law: the frozen-density
 eigenvalue boundary (at the case's density, or at the worst density of its cycle) and, for a
 varying density, the Floquet boundary of the periodic system
@@ -27,10 +29,11 @@ from dva_offline.evaluation.closed_loop import (
     SpectrumRBFControl,
     fly,
 )
+from dva_offline.evaluation.closed_loop_batch import fly_batch
 from dva_offline.evaluation.paired import DensityCase, FlightRecord, case_scenario, flight_record
 
-__all__ = ["EvaluationSetup", "case_table", "fly_paired", "fly_seed", "oracle_table",
-           "stability_boundaries"]
+__all__ = ["BATCH_SEEDS", "EvaluationSetup", "case_table", "fly_paired", "fly_seed", "fly_seeds",
+           "oracle_table", "seed_batches", "stability_boundaries"]
 
 
 @dataclass(frozen=True)
@@ -107,41 +110,91 @@ def fly_seed(setup: EvaluationSetup, controllers: Sequence[str], keep_seed: int 
     return records, kept
 
 
+def fly_seeds(setup: EvaluationSetup, controllers: Sequence[str], keep_seed: int | None,
+              job: tuple[DensityCase, tuple[int, ...]]
+              ) -> tuple[dict[int, list[FlightRecord]], dict]:
+    """One batched job: every controller on a batch of seeds of one case, each controller's
+    flights of the batch flown together (:func:`.closed_loop_batch.fly_batch`). Returns the
+    records per seed (in controller order, as :func:`fly_seed`) and the outcomes of
+    ``keep_seed`` when it is in the batch."""
+    case, seeds = job
+    scenario = case_scenario(setup.config.scenario, case, setup.critical_airspeed, seeds[0])
+    config = replace(setup.config, scenario=scenario)
+    records: dict[int, list[FlightRecord]] = {s: [] for s in seeds}
+    kept = {}
+    for name in controllers:
+        outcomes = fly_batch(config, partial(setup.controller, name), seeds,
+                             setup.critical_airspeed)
+        for seed, outcome in zip(seeds, outcomes, strict=True):
+            records[seed].append(flight_record(name, case.name, seed, outcome,
+                                               setup.critical_airspeed, setup.rms_range))
+            if seed == keep_seed:
+                kept[(name, case.name, seed)] = outcome
+    return records, kept
+
+
+BATCH_SEEDS = 32
+"""Most seeds in one batch: its flights' traces are held whole (about 2 MB per flight of the
+default ramp), and from a few tens of flights on the per-block cost is already shared."""
+
+
+def seed_batches(seeds: Sequence[int], cases: int, workers: int) -> list[tuple[int, ...]]:
+    """The seeds of a case cut into batches: as few as keep ``workers`` busy (at least two jobs
+    per worker over all ``cases``) and hold at most :data:`BATCH_SEEDS` seeds each, as large as
+    possible otherwise (the per-block cost of a batch is paid once for all its flights)."""
+    seeds = tuple(seeds)
+    parts = 1 if workers <= 1 else max(1, min(len(seeds), -(-2 * workers // max(cases, 1))))
+    parts = max(parts, -(-len(seeds) // BATCH_SEEDS))
+    size = -(-len(seeds) // parts)
+    return [seeds[i:i + size] for i in range(0, len(seeds), size)]
+
+
 def fly_paired(setup: EvaluationSetup, cases: Sequence[DensityCase], seeds: Sequence[int],
               controllers: Sequence[str], progress: Callable[[str], None] | None = None,
               keep_seed: int | None = None, *, workers: int = 1, ray_address: str | None = None,
               done: Mapping[tuple[str, int], list[FlightRecord]] | None = None,
-              finished: Callable[[tuple[str, int], list[FlightRecord]], None] | None = None
-              ) -> tuple[list[FlightRecord], dict]:
+              finished: Callable[[tuple[str, int], list[FlightRecord]], None] | None = None,
+              batch: bool = True) -> tuple[list[FlightRecord], dict]:
     """Fly everything; returns the records (in case, seed, controller order, whatever the
     route) and the outcomes of ``keep_seed`` (for plots).
 
-    The jobs are the (case, seed) pairs, run by :func:`.campaign.run_jobs`: in
-    order, on ``workers`` forked processes, or on Ray (``ray_address``). ``done`` maps a
-    (case name, seed) already flown (a resumed evaluation) to its records: that job is not
-    flown again unless its outcomes are wanted for plots. ``finished(key, records)`` is called
-    in this process as each job completes (to save it).
+    The jobs are run by :func:`.campaign.run_jobs`: in order, on ``workers`` forked
+    processes, or on Ray (``ray_address``). With ``batch`` (the default) a job is a batch of
+    seeds of one case (:func:`seed_batches`, :func:`fly_seeds`); without, one (case, seed)
+    (:func:`fly_seed`, the one-flight reference route). ``done`` maps a (case name, seed)
+    already flown (a resumed evaluation) to its records: that seed is not flown again unless
+    its outcomes are wanted for plots. ``finished(key, records)`` is called in this process
+    for each (case name, seed) as its job completes (to save it).
     """
-    from dva_offline.evaluation.campaign import run_jobs
+    from dva_offline.evaluation.campaign import check_workers, run_jobs
 
+    check_workers(workers)
     done = dict(done or {})
-    jobs = [(case, seed) for case in cases for seed in seeds
-            if seed == keep_seed or (case.name, seed) not in done]
-    # The jobs whose outcomes come back (large) first, so they are not the last to finish.
-    jobs.sort(key=lambda job: job[1] != keep_seed)
     results: dict[tuple[str, int], list[FlightRecord]] = dict(done)
     kept: dict = {}
-    work = partial(fly_seed, setup, tuple(controllers), keep_seed)
+    todo = {case.name: [s for s in seeds if s == keep_seed or (case.name, s) not in done]
+            for case in cases}
+    if batch:
+        jobs = [(case, part) for case in cases if todo[case.name]
+                for part in seed_batches(todo[case.name], len(cases), workers)]
+        # The jobs whose outcomes come back (large) first, so they are not the last to finish.
+        jobs.sort(key=lambda job: keep_seed not in job[1])
+        work = partial(fly_seeds, setup, tuple(controllers), keep_seed)
+    else:
+        jobs = [(case, seed) for case in cases for seed in todo[case.name]]
+        jobs.sort(key=lambda job: job[1] != keep_seed)
+        work = partial(fly_seed, setup, tuple(controllers), keep_seed)
     for job, (records, outcomes) in run_jobs(jobs, work, workers=workers,
                                              ray_address=ray_address, processes=True):
-        _finish(job, records, results, finished, progress)
+        by_seed = records if batch else {job[1]: records}
+        for seed, rows in by_seed.items():
+            _finish((job[0].name, seed), rows, results, finished, progress)
         kept.update(outcomes)
     ordered = [r for case in cases for seed in seeds for r in results[(case.name, seed)]]
     return ordered, kept
 
 
-def _finish(job, records, results, finished, progress) -> None:
-    key = (job[0].name, job[1])
+def _finish(key, records, results, finished, progress) -> None:
     results[key] = records
     if finished is not None:
         finished(key, records)
