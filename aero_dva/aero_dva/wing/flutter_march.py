@@ -1,0 +1,249 @@
+"""Bracketing the first instability by marching on the modes' tangents.
+
+The growth rate ``g(U)`` (largest real part of the non-neutral eigenvalues of ``A(U) = A0 + U A1
++ U^2 A2``) is sampled from the low end of the range upward, one LAPACK ``dgeev`` call per
+sample. Its left and right eigenvectors give the slope of every mode, ``dlambda/dU = w^H A'(U)
+v / (w^H v)``, so each sample carries the tangent of every mode's real part:
+
+- a step ends where the first rising mode's tangent reaches zero (a little beyond, so that a
+  mode that keeps rising is bracketed by the next sample), and never exceeds the largest step;
+- a mode that is concave over a step lies below its tangents at both ends, so when the step
+  ends stable, the two ends' tangents rule out a crossing inside it unless they overlap above
+  zero; such a step is split at the tangents' highest meeting point, and the parts are
+  checked again (down to a floor).
+
+This replaces a fixed grid (where only the local maxima of the samples hinted at a short
+excursion above zero) with samples placed where the modes can reach zero. The first bracket
+``(a, b)`` with ``g(a) < 0 < g(b)`` is returned with both samples; the root is then found by
+the safeguarded Newton iteration of :mod:`aero_dva.wing.flutter`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg.lapack import dgeev
+
+__all__ = ["ModeSample", "TangentGrowth", "march_to_instability"]
+
+NEUTRAL = 1e-7
+"""[rad/s] Eigenvalues smaller than this are neutral integrators, not instabilities (the same
+threshold as :data:`aero_dva.wing.flutter.NEUTRAL`)."""
+
+OVERSHOOT = 1.25
+"""A step aimed at a mode's predicted zero crossing ends this far beyond it (as a fraction of
+the step), so that a mode rising faster than its tangent is still bracketed."""
+
+MIN_STEP_FRACTION = 1.0 / 16.0
+"""The shortest step, as a fraction of the largest: a mode just below zero and rising slowly
+does not shrink the steps without bound."""
+
+MAX_SPLITS = 48
+"""Samples spent at most on splitting steps whose ends' tangents overlap above zero."""
+
+
+@dataclass(frozen=True)
+class ModeSample:
+    """The modes at one airspeed.
+
+    Attributes
+    ----------
+    airspeed : float
+    growth : float
+        Largest real part [1/s] of the non-neutral eigenvalues (``-inf`` if none).
+    eigenvalue : complex
+        The critical eigenvalue (the one with ``growth`` as real part; upper half plane).
+    derivative : complex
+        ``dlambda/dU`` of the critical eigenvalue (NaN if it could not be formed).
+    real : list of float
+        Real parts of the non-neutral modes (one entry per complex pair).
+    slope : list of float
+        ``d Re(lambda) / dU`` of those modes (NaN where it could not be formed).
+    """
+
+    airspeed: float
+    growth: float
+    eigenvalue: complex
+    derivative: complex
+    real: list
+    slope: list
+
+
+class TangentGrowth:
+    """The modes of ``A(U) = a0 + U a1 + U^2 a2`` with the slopes of their real parts.
+
+    A sample is one ``dgeev`` call and two 7 x 7 products; the rest works on a handful of
+    numbers in plain Python, which is cheaper than numpy calls on arrays this small.
+    """
+
+    def __init__(self, a0: np.ndarray, a1: np.ndarray, a2: np.ndarray):
+        self.n = a0.shape[0]
+        self._coefficients = np.stack((a0, a1, a2)).reshape(3, self.n * self.n)
+
+    def sample(self, u: float) -> ModeSample:
+        n = self.n
+        # A(U) and A'(U) in one product.
+        a, a_u = (np.array(((1.0, u, u * u), (0.0, 1.0, 2.0 * u))) @ self._coefficients)
+        wr, wi, vl, vr, info = dgeev(a.reshape(n, n))
+        wr, wi = wr.tolist(), wi.tolist()
+        if info == 0:
+            # Columns 0..n-1: vl' A'(U) vr (p below); columns n..2n-1: vl' vr (q below).
+            pq = (vl.T @ np.concatenate((a_u.reshape(n, n) @ vr, vr), axis=1)).tolist()
+        real, slope, crit = [], [], None
+        for j, (x, y) in enumerate(zip(wr, wi)):
+            # One entry per mode: real eigenvalues and the upper member of each complex pair
+            # (dgeev stores a pair consecutively, the positive imaginary part first).
+            if y < 0.0 or x * x + y * y < NEUTRAL * NEUTRAL:
+                continue
+            if info != 0:
+                d = complex(np.nan)
+            elif y > 0.0:
+                # A pair's vectors are columns (real part, imaginary part) j, k = j + 1; with
+                # v = vr_j + i vr_k, w = vl_j + i vl_k:
+                # w^H M v = (vl_j' M vr_j + vl_k' M vr_k) + i (vl_j' M vr_k - vl_k' M vr_j).
+                k, jq, kq = j + 1, j + n, j + 1 + n
+                num = complex(pq[j][j] + pq[k][k], pq[j][k] - pq[k][j])
+                den = complex(pq[j][jq] + pq[k][kq], pq[j][kq] - pq[k][jq])
+                d = num / den if den != 0 else complex(np.nan)  # 0: a defective pair
+            else:
+                den = pq[j][j + n]
+                d = complex(pq[j][j] / den) if den != 0 else complex(np.nan)
+            if crit is None or x > real[crit]:
+                crit, lam, dlam = len(real), complex(x, y), d
+            real.append(x)
+            slope.append(d.real)
+        if crit is None:
+            return ModeSample(u, -np.inf, 0j, complex(np.nan), [], [])
+        return ModeSample(u, real[crit], lam, dlam, real, slope)
+
+    def at(self, u: float):
+        """Growth rate, critical eigenvalue and its derivative (the Newton iteration's step)."""
+        s = self.sample(u)
+        return s.growth, s.eigenvalue, s.derivative
+
+
+def _tangent_limit(s: ModeSample) -> float:
+    """Distance [m/s] to the first zero crossing of a rising mode's tangent (inf if none); 0 if
+    a slope is unknown."""
+    limit = np.inf
+    for x, d in zip(s.real, s.slope):
+        if not d == d:  # NaN
+            return 0.0
+        if d > 0.0:
+            limit = min(limit, -x / d)
+    return limit
+
+
+def _overlap_peak(s: ModeSample, t: ModeSample):
+    """Highest point of ``min(F, B)`` over ``[s.airspeed, t.airspeed]``, ``F`` and ``B`` the upper
+    envelopes of the modes' tangents at the two ends: ``(airspeed, value)``.
+
+    ``F`` and ``B`` are convex, so each is highest at an end of the step, and the minimum is
+    highest at an end or where a tangent of one end meets a tangent of the other; every mode
+    concave over the step lies below it.
+    """
+    u, v = s.airspeed, t.airspeed
+    if any(d != d for d in s.slope) or any(d != d for d in t.slope):
+        return 0.5 * (u + v), np.inf  # no tangents: split the step
+    left = list(zip(s.real, s.slope))
+    right = list(zip(t.real, t.slope))
+    if (max(x + (v - u) * d for x, d in left) <= 0.0
+            or max(x + (u - v) * d for x, d in right) <= 0.0):
+        return u, -np.inf  # one envelope stays below zero (the cheap, common case)
+    best = (u, -np.inf)
+    for xl, dl in left:
+        for xr, dr in right:
+            if dr == dl:
+                continue
+            m = v + (xr - (xl + (v - u) * dl)) / (dr - dl)  # where the two tangents meet
+            if u < m < v:
+                f = max(x + (m - u) * d for x, d in left)
+                b = max(x + (m - v) * d for x, d in right)
+                if min(f, b) > best[1]:
+                    best = (m, min(f, b))
+    return best
+
+
+def march_to_instability(growth: TangentGrowth, low: float, high: float, max_step, first: bool,
+                         split_floor: float):
+    """The first bracket of a zero crossing of the growth rate in ``[low, high]``.
+
+    Parameters
+    ----------
+    growth : TangentGrowth
+    low, high : float
+        [m/s] The searched range.
+    max_step : callable
+        ``max_step(U)`` [m/s], the largest step from airspeed ``U``.
+    first : bool
+        The range starts the search: an instability at ``low`` is an error.
+    split_floor : float
+        [m/s] Steps shorter than this are not split further.
+
+    Returns
+    -------
+    (ModeSample, ModeSample) or None
+        The samples at the ends of the bracket (``g(a) < 0 < g(b)``); ``None`` if the range
+        holds no crossing.
+
+    Raises
+    ------
+    ValueError
+        The model is unstable at ``low`` (``first``), or goes unstable right above it.
+    """
+    s = growth.sample(low)
+    # Zero structural damping leaves the wind-off modes exactly neutral: allow round-off.
+    scale = [max(abs(s.eigenvalue), 1.0)]
+    if first and s.growth > 1e-9 * scale[0]:
+        raise ValueError(
+            f"the model is already unstable at the low end of airspeed_range ({low:g} m/s)"
+        )
+    splits = [0]
+
+    def unstable(b: ModeSample) -> bool:
+        scale[0] = max(scale[0], abs(b.eigenvalue))
+        return b.growth > 1e-9 * scale[0]
+
+    def bracket(a: ModeSample, b: ModeSample):
+        """``(a, b)`` with ``b`` unstable, moved off a neutral ``a`` (growth 0 to round-off:
+        undamped wind-off modes) by bisection."""
+        while a.growth >= 0:
+            if b.airspeed - a.airspeed <= shortest:
+                raise ValueError("the model goes unstable right above the low end of "
+                                 "airspeed_range; start the range higher")
+            m = growth.sample(0.5 * (a.airspeed + b.airspeed))
+            if unstable(m):
+                b = m
+            else:
+                a = m
+        return a, b
+
+    def hidden(a: ModeSample, b: ModeSample):
+        """A bracket inside the stable step ``(a, b)``, by splitting where the tangents say a
+        mode might cross zero; None if none is found."""
+        x, peak = _overlap_peak(a, b)
+        if peak <= 0.0 or splits[0] >= MAX_SPLITS or b.airspeed - a.airspeed <= split_floor:
+            return None
+        x = min(max(x, a.airspeed + 0.05 * (b.airspeed - a.airspeed)),
+                b.airspeed - 0.05 * (b.airspeed - a.airspeed))
+        splits[0] += 1
+        m = growth.sample(x)
+        if unstable(m):
+            return bracket(a, m)
+        return hidden(a, m) or hidden(m, b)
+
+    shortest = MIN_STEP_FRACTION * max_step(low)
+    while s.airspeed < high:
+        u = s.airspeed
+        longest = max_step(u)
+        h = min(longest, OVERSHOOT * _tangent_limit(s))
+        h = min(max(h, MIN_STEP_FRACTION * longest), high - u)
+        t = growth.sample(u + h if u + h < high else high)
+        if unstable(t):
+            return bracket(s, t)
+        inside = hidden(s, t)
+        if inside is not None:
+            return inside
+        s = t
+    return None
