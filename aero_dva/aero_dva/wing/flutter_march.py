@@ -31,6 +31,11 @@ NEUTRAL = 1e-7
 """[rad/s] Eigenvalues smaller than this are neutral integrators, not instabilities (the same
 threshold as :data:`aero_dva.wing.flutter.NEUTRAL`)."""
 
+RISING = 1e-6
+"""[1/s per m/s] A real eigenvalue within NEUTRAL of zero that rises faster than this is a mode
+diverging through zero, not a neutral integrator: it stays in the growth rate, which so stays
+continuous at a divergence point."""
+
 OVERSHOOT = 1.25
 """A step aimed at a mode's predicted zero crossing ends this far beyond it (as a fraction of
 the step), so that a mode rising faster than its tangent is still bracketed."""
@@ -94,7 +99,8 @@ class TangentGrowth:
         for j, (x, y) in enumerate(zip(wr, wi)):
             # One entry per mode: real eigenvalues and the upper member of each complex pair
             # (dgeev stores a pair consecutively, the positive imaginary part first).
-            if y < 0.0 or x * x + y * y < NEUTRAL * NEUTRAL:
+            neutral = x * x + y * y < NEUTRAL * NEUTRAL
+            if y < 0.0 or (neutral and (y > 0.0 or info != 0)):
                 continue
             if info != 0:
                 d = complex(np.nan)
@@ -109,6 +115,8 @@ class TangentGrowth:
             else:
                 den = pq[j][j + n]
                 d = complex(pq[j][j] / den) if den != 0 else complex(np.nan)
+            if neutral and not d.real > RISING:
+                continue  # an integrator; a real mode rising through zero (divergence) stays
             if crit is None or x > real[crit]:
                 crit, lam, dlam = len(real), complex(x, y), d
             real.append(x)
