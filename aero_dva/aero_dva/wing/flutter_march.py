@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.linalg.lapack import dgeev
+from scipy.optimize import brentq
 
 __all__ = ["ModeSample", "TangentGrowth", "march_to_instability"]
 
@@ -131,6 +132,14 @@ class TangentGrowth:
         return s.growth, s.eigenvalue, s.derivative
 
 
+class _Unstable(Exception):
+    """Raised inside a root search by the first unstable sample, which it carries."""
+
+    def __init__(self, sample: ModeSample):
+        super().__init__()
+        self.sample = sample
+
+
 def _tangent_limit(s: ModeSample) -> float:
     """Distance [m/s] to the first zero crossing of a rising mode's tangent (inf if none); 0 if
     a slope is unknown."""
@@ -164,7 +173,7 @@ def _overlap_peak(s: ModeSample, t: ModeSample):
         for xr, dr in right:
             if dr == dl:
                 continue
-            m = v + (xr - (xl + (v - u) * dl)) / (dr - dl)  # where the two tangents meet
+            m = v + (xr - (xl + (v - u) * dl)) / (dl - dr)  # where the two tangents meet
             if u < m < v:
                 f = max(x + (m - u) * d for x, d in left)
                 b = max(x + (m - v) * d for x, d in right)
@@ -241,6 +250,28 @@ def march_to_instability(growth: TangentGrowth, low: float, high: float, max_ste
             return bracket(a, m)
         return hidden(a, m) or hidden(m, b)
 
+    def summit(a: ModeSample, b: ModeSample):
+        """A bracket at a maximum of the growth rate inside the stable step ``(a, b)`` (its
+        slope positive at ``a``, negative at ``b``): a hump the tangents cannot see (not
+        concave over the step) may still reach above zero there. The slope's root is found
+        by Brent's method; the first unstable sample ends the search. None if none."""
+        if not a.derivative.real > 0.0 > b.derivative.real:
+            return None
+
+        def slope(x):
+            m = growth.sample(x)
+            if unstable(m):
+                raise _Unstable(m)
+            return m.derivative.real if np.isfinite(m.derivative.real) else 0.0
+
+        try:
+            brentq(slope, a.airspeed, b.airspeed, xtol=split_floor, maxiter=MAX_SPLITS)
+        except _Unstable as found:
+            return bracket(a, found.sample)
+        except RuntimeError:  # not converged in MAX_SPLITS samples: as the grid search, give up
+            pass
+        return None
+
     shortest = MIN_STEP_FRACTION * max_step(low)
     while s.airspeed < high:
         u = s.airspeed
@@ -250,7 +281,7 @@ def march_to_instability(growth: TangentGrowth, low: float, high: float, max_ste
         t = growth.sample(u + h if u + h < high else high)
         if unstable(t):
             return bracket(s, t)
-        inside = hidden(s, t)
+        inside = hidden(s, t) or summit(s, t)
         if inside is not None:
             return inside
         s = t
