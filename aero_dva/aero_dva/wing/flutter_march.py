@@ -49,7 +49,7 @@ MAX_SPLITS = 48
 """Samples spent at most on splitting steps whose ends' tangents overlap above zero."""
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)
 class ModeSample:
     """The modes at one airspeed.
 
@@ -66,6 +66,8 @@ class ModeSample:
         Real parts of the non-neutral modes (one entry per complex pair).
     slope : list of float
         ``d Re(lambda) / dU`` of those modes (NaN where it could not be formed).
+    tangents : bool
+        Every slope was formed.
     """
 
     airspeed: float
@@ -74,6 +76,7 @@ class ModeSample:
     derivative: complex
     real: list
     slope: list
+    tangents: bool = True
 
 
 class TangentGrowth:
@@ -96,7 +99,7 @@ class TangentGrowth:
         if info == 0:
             # Columns 0..n-1: vl' A'(U) vr (p below); columns n..2n-1: vl' vr (q below).
             pq = (vl.T @ np.concatenate((a_u.reshape(n, n) @ vr, vr), axis=1)).tolist()
-        real, slope, crit = [], [], None
+        real, slope, crit, tangents = [], [], None, info == 0
         for j, (x, y) in enumerate(zip(wr, wi)):
             # One entry per mode: real eigenvalues and the upper member of each complex pair
             # (dgeev stores a pair consecutively, the positive imaginary part first).
@@ -113,18 +116,21 @@ class TangentGrowth:
                 num = complex(pq[j][j] + pq[k][k], pq[j][k] - pq[k][j])
                 den = complex(pq[j][jq] + pq[k][kq], pq[j][kq] - pq[k][jq])
                 d = num / den if den != 0 else complex(np.nan)  # 0: a defective pair
+            elif pq[j][j + n] == 0:
+                d = complex(np.nan)
             else:
-                den = pq[j][j + n]
-                d = complex(pq[j][j] / den) if den != 0 else complex(np.nan)
+                d = complex(pq[j][j] / pq[j][j + n])
             if neutral and not d.real > RISING:
                 continue  # an integrator; a real mode rising through zero (divergence) stays
+            if d != d:
+                tangents = False
             if crit is None or x > real[crit]:
                 crit, lam, dlam = len(real), complex(x, y), d
             real.append(x)
             slope.append(d.real)
         if crit is None:
-            return ModeSample(u, -np.inf, 0j, complex(np.nan), [], [])
-        return ModeSample(u, real[crit], lam, dlam, real, slope)
+            return ModeSample(u, -np.inf, 0j, complex(np.nan), [], [], False)
+        return ModeSample(u, real[crit], lam, dlam, real, slope, tangents)
 
     def at(self, u: float):
         """Growth rate, critical eigenvalue and its derivative (the Newton iteration's step)."""
@@ -143,12 +149,12 @@ class _Unstable(Exception):
 def _tangent_limit(s: ModeSample) -> float:
     """Distance [m/s] to the first zero crossing of a rising mode's tangent (inf if none); 0 if
     a slope is unknown."""
+    if not s.tangents:
+        return 0.0
     limit = np.inf
     for x, d in zip(s.real, s.slope):
-        if not d == d:  # NaN
-            return 0.0
-        if d > 0.0:
-            limit = min(limit, -x / d)
+        if d > 0.0 and -x / d < limit:
+            limit = -x / d
     return limit
 
 
@@ -161,13 +167,14 @@ def _overlap_peak(s: ModeSample, t: ModeSample):
     concave over the step lies below it.
     """
     u, v = s.airspeed, t.airspeed
-    if any(d != d for d in s.slope) or any(d != d for d in t.slope):
+    if not (s.tangents and t.tangents):
         return 0.5 * (u + v), np.inf  # no tangents: split the step
+    h = v - u
+    if (max([x + h * d for x, d in zip(s.real, s.slope)]) <= 0.0
+            or max([x - h * d for x, d in zip(t.real, t.slope)]) <= 0.0):
+        return u, -np.inf  # one envelope stays below zero (the cheap, common case)
     left = list(zip(s.real, s.slope))
     right = list(zip(t.real, t.slope))
-    if (max(x + (v - u) * d for x, d in left) <= 0.0
-            or max(x + (u - v) * d for x, d in right) <= 0.0):
-        return u, -np.inf  # one envelope stays below zero (the cheap, common case)
     best = (u, -np.inf)
     for xl, dl in left:
         for xr, dr in right:
