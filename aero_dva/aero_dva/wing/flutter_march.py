@@ -87,18 +87,19 @@ class TangentGrowth:
     """
 
     def __init__(self, a0: np.ndarray, a1: np.ndarray, a2: np.ndarray):
-        self.n = a0.shape[0]
-        self._coefficients = np.stack((a0, a1, a2)).reshape(3, self.n * self.n)
+        self.n = n = a0.shape[0]
+        # Rows A0, A1, A2 and the identity: one product gives A(U), A'(U) and I.
+        self._coefficients = np.concatenate((a0, a1, a2, np.eye(n))).reshape(4, n * n)
 
     def sample(self, u: float) -> ModeSample:
         n = self.n
-        # A(U) and A'(U) in one product.
-        a, a_u = (np.array(((1.0, u, u * u), (0.0, 1.0, 2.0 * u))) @ self._coefficients)
-        wr, wi, vl, vr, info = dgeev(a.reshape(n, n))
+        rows = np.array(((1.0, u, u * u, 0.0), (0.0, 1.0, 2.0 * u, 0.0), (0.0, 0.0, 0.0, 1.0)))
+        mats = rows @ self._coefficients
+        wr, wi, vl, vr, info = dgeev(mats[0].reshape(n, n))
         wr, wi = wr.tolist(), wi.tolist()
         if info == 0:
-            # Columns 0..n-1: vl' A'(U) vr (p below); columns n..2n-1: vl' vr (q below).
-            pq = (vl.T @ np.concatenate((a_u.reshape(n, n) @ vr, vr), axis=1)).tolist()
+            # p = vl' A'(U) vr and q = vl' vr, as (2, n, n).
+            p, q = (vl.T @ (mats[1:].reshape(2 * n, n) @ vr).reshape(2, n, n)).tolist()
         real, slope, crit, tangents = [], [], None, info == 0
         for j, (x, y) in enumerate(zip(wr, wi)):
             # One entry per mode: real eigenvalues and the upper member of each complex pair
@@ -112,14 +113,14 @@ class TangentGrowth:
                 # A pair's vectors are columns (real part, imaginary part) j, k = j + 1; with
                 # v = vr_j + i vr_k, w = vl_j + i vl_k:
                 # w^H M v = (vl_j' M vr_j + vl_k' M vr_k) + i (vl_j' M vr_k - vl_k' M vr_j).
-                k, jq, kq = j + 1, j + n, j + 1 + n
-                num = complex(pq[j][j] + pq[k][k], pq[j][k] - pq[k][j])
-                den = complex(pq[j][jq] + pq[k][kq], pq[j][kq] - pq[k][jq])
+                k = j + 1
+                num = complex(p[j][j] + p[k][k], p[j][k] - p[k][j])
+                den = complex(q[j][j] + q[k][k], q[j][k] - q[k][j])
                 d = num / den if den != 0 else complex(np.nan)  # 0: a defective pair
-            elif pq[j][j + n] == 0:
+            elif q[j][j] == 0:
                 d = complex(np.nan)
             else:
-                d = complex(pq[j][j] / pq[j][j + n])
+                d = complex(p[j][j] / q[j][j])
             if neutral and not d.real > RISING:
                 continue  # an integrator; a real mode rising through zero (divergence) stays
             if d != d:
