@@ -2,15 +2,17 @@
 
 Method: the *growth rate* ``g(U)`` = largest real part [1/s] of the system's eigenvalues
 (ignoring exactly neutral ones, ``|lambda| < NEUTRAL``: the free integrator of a locked Maxwell
-damper and the aerodynamic lag states at ``U = 0``) is sampled on a grid of airspeeds; local
-maxima between grid points are refined so that a mode that goes unstable only briefly is not
-missed; the first sign change is then bracketed and solved to a relative tolerance far below
-1e-6: by Newton's method on ``g`` with the eigenvalue derivative (safeguarded by bisection),
-where ``A(U)`` is a polynomial, and by Brent's method for the p-k route. With quasi-steady or
-finite-state aerodynamics ``g`` comes from the eigenvalues of ``A(U) = A0 + U A1 + U^2 A2``;
-with Theodorsen aerodynamics each structural mode is converged by the p-k method (C(k) frozen
-at the mode's own reduced frequency), which is exact where the damping crosses zero, i.e. at
-the flutter point.
+damper and the aerodynamic lag states at ``U = 0``) goes from negative to positive at the
+critical airspeed. With quasi-steady or finite-state aerodynamics ``A(U) = A0 + U A1 + U^2 A2``
+and the search marches up from the low end on the modes' tangents
+(:mod:`aero_dva.wing.flutter_march`: one eigenvalue problem per sample, with every mode's
+slope from the left and right eigenvectors), then solves the first sign change to a relative
+tolerance far below 1e-6 by Newton's method on ``g`` with the eigenvalue derivative,
+safeguarded by bisection. The previous fixed-grid searches are kept for comparison
+(:func:`grid_flutter_speed`, :func:`reference_flutter_speed`). With Theodorsen aerodynamics
+each structural mode is converged by the p-k method (C(k) frozen at the mode's own reduced
+frequency), which is exact where the damping crosses zero, i.e. at the flutter point; the
+sign change is bracketed on a grid and solved by Brent's method.
 
 :class:`NoFlutterError` (a ValueError) is raised when the range holds no instability.
 """

@@ -83,12 +83,14 @@ def test_chapter6_wing_with_its_dva_switches_critical_mode_before_flutter(cfg):
     assert res.critical_airspeed == pytest.approx(
         grid_flutter_speed(model, RHO).critical_airspeed, rel=1e-9)
     assert res.kind == "flutter"
-    # The least damped mode below U_cr is not one mode throughout: its frequency jumps.
+    # The least damped mode below U_cr is not one mode throughout: its frequency jumps twice
+    # (steps of a followed mode on this grid stay below 0.1 rad/s), the last time to the
+    # flutter mode.
     below = u < res.critical_airspeed
     crit = np.take_along_axis(lam[below], lam[below].real.argmax(axis=1)[:, None], 1)[:, 0]
     freq = np.abs(crit.imag)
-    assert np.max(np.abs(np.diff(freq))) > 0.2 * freq.max()
-    assert abs(freq[-1] - 2 * np.pi * res.flutter_frequency) < 0.2 * freq[-1]
+    assert np.count_nonzero(np.abs(np.diff(freq)) > 5.0) == 2
+    assert abs(freq[-1] - 2 * np.pi * res.flutter_frequency) < 0.01 * freq[-1]
 
 
 def test_no_flutter_in_range_agrees_with_the_fine_grid(cfg):
