@@ -165,3 +165,21 @@ def test_a_bump_its_tangents_do_not_show_is_found_at_the_growth_maximum():
     modes = _Modes(lambda u: -0.05 - 0.1 * (u - 1.05) ** 2, lambda u: -0.2 * (u - 1.05))
     assert march_to_instability(modes, 0.0, 2.0, lambda u: 0.1, True, 2e-9) is None
     assert modes.airspeeds[-1] == 2.0
+
+
+def test_the_searchs_polynomial_equals_the_checked_one(cfg):
+    """``polynomial_unchecked`` (plain-Python features, one product) against ``polynomial``
+    and against the assembly at an airspeed, for every kind of damper setting."""
+    u = 83.0
+    for name, absorber in _absorbers(cfg):
+        for aero in (QuasiSteadyAero(), WagnerAero()):
+            model = AeroelasticModel(cfg.wing, absorber, aero)
+            for c in ((None,) if absorber is None else (None, 0.0, 1e-6, 500.0, np.inf)):
+                if c == np.inf and not model.has_maxwell:
+                    continue
+                fast = model.polynomial_unchecked(RHO, c)
+                for x, y in zip(fast, model.polynomial(RHO, c)):
+                    np.testing.assert_allclose(x, y, rtol=1e-13, atol=1e-13 * np.abs(y).max())
+                a, _ = model.matrices(u, RHO, c)
+                np.testing.assert_allclose(fast[0] + u * fast[1] + u * u * fast[2], a,
+                                           rtol=1e-12, atol=1e-12 * np.abs(a).max(), err_msg=name)
