@@ -10,10 +10,13 @@ v / (w^H v)``, so each sample carries the tangent of every mode's real part:
 - a mode that is concave over a step lies below its tangents at both ends, so when the step
   ends stable, the two ends' tangents rule out a crossing inside it unless they overlap above
   zero; such a step is split at the tangents' highest meeting point, and the parts are
-  checked again (down to a floor).
+  checked again (down to a floor);
+- a maximum of the growth rate inside a stable step (its slope positive at the left end,
+  negative at the right) is located by Brent's method on the slope, for a hump that is not
+  concave over the step (the fixed grid's refinement of local maxima, here found from the
+  slopes instead of three samples).
 
-This replaces a fixed grid (where only the local maxima of the samples hinted at a short
-excursion above zero) with samples placed where the modes can reach zero. The first bracket
+This replaces a fixed grid with samples placed where the modes can reach zero. The first bracket
 ``(a, b)`` with ``g(a) < 0 < g(b)`` is returned with both samples; the root is then found by
 the safeguarded Newton iteration of :mod:`aero_dva.wing.flutter`.
 """
