@@ -312,6 +312,9 @@ def grid_flutter_speed(model, density: float = 1.2, airspeed_range=None, damping
     safeguarded Newton iteration. Quasi-steady and finite-state models only; kept as the
     reference the marching search is compared with (tests, ``bench_wing_flutter``).
     """
+    if isinstance(getattr(model, "aero", None), TheodorsenAero):
+        raise ValueError("grid_flutter_speed needs quasi-steady or finite-state aerodynamics; "
+                         "use flutter_speed for a Theodorsen (p-k) model")
     rho, n, damping = _checked(model, density, damping, n_grid)
     growth = _EigenGrowth(model, rho, damping, checked=True)
     if airspeed_range is None:

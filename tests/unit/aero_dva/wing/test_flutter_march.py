@@ -183,3 +183,11 @@ def test_the_searchs_polynomial_equals_the_checked_one(cfg):
                 a, _ = model.matrices(u, RHO, c)
                 np.testing.assert_allclose(fast[0] + u * fast[1] + u * u * fast[2], a,
                                            rtol=1e-12, atol=1e-12 * np.abs(a).max(), err_msg=name)
+
+
+def test_the_grid_search_refuses_a_theodorsen_model(cfg):
+    from aero_dva.wing.aerodynamics import TheodorsenAero
+
+    model = AeroelasticModel(cfg.wing, cfg.maxwell_design, TheodorsenAero())
+    with pytest.raises(ValueError, match="Theodorsen"):
+        grid_flutter_speed(model, RHO)
