@@ -2,15 +2,17 @@
 
 Method: the *growth rate* ``g(U)`` = largest real part [1/s] of the system's eigenvalues
 (ignoring exactly neutral ones, ``|lambda| < NEUTRAL``: the free integrator of a locked Maxwell
-damper and the aerodynamic lag states at ``U = 0``) is sampled on a grid of airspeeds; local
-maxima between grid points are refined so that a mode that goes unstable only briefly is not
-missed; the first sign change is then bracketed and solved to a relative tolerance far below
-1e-6: by Newton's method on ``g`` with the eigenvalue derivative (safeguarded by bisection),
-where ``A(U)`` is a polynomial, and by Brent's method for the p-k route. With quasi-steady or
-finite-state aerodynamics ``g`` comes from the eigenvalues of ``A(U) = A0 + U A1 + U^2 A2``;
-with Theodorsen aerodynamics each structural mode is converged by the p-k method (C(k) frozen
-at the mode's own reduced frequency), which is exact where the damping crosses zero, i.e. at
-the flutter point.
+damper and the aerodynamic lag states at ``U = 0``) goes from negative to positive at the
+critical airspeed. With quasi-steady or finite-state aerodynamics ``A(U) = A0 + U A1 + U^2 A2``
+and the search marches up from the low end on the modes' tangents
+(:mod:`aero_dva.wing.flutter_march`: one eigenvalue problem per sample, with every mode's
+slope from the left and right eigenvectors), then solves the first sign change to a relative
+tolerance far below 1e-6 by Newton's method on ``g`` with the eigenvalue derivative,
+safeguarded by bisection. The previous fixed-grid searches are kept for comparison
+(:func:`grid_flutter_speed`, :func:`reference_flutter_speed`). With Theodorsen aerodynamics
+each structural mode is converged by the p-k method (C(k) frozen at the mode's own reduced
+frequency), which is exact where the damping crosses zero, i.e. at the flutter point; the
+sign change is bracketed on a grid and solved by Brent's method.
 
 :class:`NoFlutterError` (a ValueError) is raised when the range holds no instability.
 """
@@ -25,9 +27,11 @@ from scipy.optimize import brentq, minimize_scalar
 
 from aero_dva.wing.aerodynamics import TheodorsenAero
 from aero_dva.wing.checks import non_negative, real_scalar
+from aero_dva.wing.flutter_march import TangentGrowth, march_to_instability
 
 __all__ = ["FlutterResult", "NoFlutterError", "bare_critical_airspeed", "flutter_speed",
-           "flutter_vs_density", "growth_rate", "reference_flutter_speed"]
+           "flutter_vs_density", "grid_flutter_speed", "growth_rate",
+           "reference_flutter_speed"]
 
 NEUTRAL = 1e-7
 """[rad/s] Eigenvalues smaller than this are neutral integrators, not instabilities."""
@@ -205,12 +209,12 @@ def flutter_speed(model, density: float = 1.2, airspeed_range=None, damping=None
         Air density [kg/m^3], > 0.
     airspeed_range : (float, float), optional
         Searched airspeeds [m/s], ``0 <= low < high``; the model must be stable at ``low``.
-        Default: ``(0, 100)``, then on to 400, 1600, ... up to 1e5 m/s, each range starting
-        at the previous range's last stable sample.
+        Default: from 0 on up to 1e5 m/s (steps of at most 25 m/s or half the airspeed).
     damping : float, optional
         Tunable damper [N s/m] (``c2`` or ``c1``), held fixed; default the absorber's.
     n_grid : int, optional
-        Grid points per range for bracketing (default 16; 32 for Theodorsen p-k models).
+        The longest step is the range over ``n_grid - 1`` (default 5, i.e. 25 m/s for the
+        default search); for Theodorsen p-k models, grid points per range (default 32).
     xtol : float
         Relative tolerance on the critical airspeed.
 
@@ -227,24 +231,91 @@ def flutter_speed(model, density: float = 1.2, airspeed_range=None, damping=None
 
     Notes
     -----
-    With quasi-steady or finite-state aerodynamics the growth rate is sampled on the grid (one
-    batched eigenvalue call per range), local maxima of the samples are refined so that a short
-    excursion above zero is not missed, and the first sign change is solved by Newton's method
-    on the growth rate with the eigenvalue derivative (from the left and right eigenvectors),
-    safeguarded by bisection inside the bracket. Theodorsen models use
-    :func:`reference_flutter_speed` (p-k method).
+    With quasi-steady or finite-state aerodynamics the search marches up from the low end,
+    each sample one eigenvalue problem with the slopes of every mode from the left and right
+    eigenvectors; steps end where a rising mode's tangent reaches zero, and a stable step is
+    split where the tangents at its ends leave room for a crossing
+    (:mod:`aero_dva.wing.flutter_march`). The first sign change is solved by Newton's method on
+    the growth rate with the eigenvalue derivative, safeguarded by bisection inside the
+    bracket. Theodorsen models use :func:`reference_flutter_speed` (p-k method).
+    :func:`grid_flutter_speed` keeps the previous fixed-grid search.
     """
     if isinstance(getattr(model, "aero", None), TheodorsenAero):
         return reference_flutter_speed(model, density, airspeed_range, damping,
                                        64 if n_grid is None else 2 * int(n_grid), xtol)
+    rho, n, damping = _checked(model, density, damping, 5 if n_grid is None else n_grid)
+    growth = TangentGrowth(*model.polynomial_unchecked(rho, damping))
+    if airspeed_range is None:
+        low, high = 0.0, 1e5
+        shortest = 100.0 / (n - 1)
+
+        def max_step(u):
+            return max(shortest, 0.5 * u)
+    else:
+        low, high = _checked_range(airspeed_range)
+        shortest = (high - low) / (n - 1)
+
+        def max_step(u):
+            return shortest
+    bracket = march_to_instability(growth, low, high, max_step, True, 1e-9 * high)
+    if bracket is None:
+        where = (f"below {high:g} m/s" if airspeed_range is None
+                 else f"between {low:g} and {high:g} m/s")
+        raise NoFlutterError(f"no flutter or divergence {where} at density {rho:g} kg/m^3")
+    a, b = bracket
+    # Start from the root of the critical mode's tangent at the unstable end.
+    slope = b.derivative.real
+    x0 = b.airspeed - b.growth / slope if np.isfinite(slope) and slope > 0 else None
+    u_cr, lam_cr = _safeguarded_newton(growth, a.airspeed, b.airspeed, a.growth, b.growth,
+                                       xtol, x0=x0)
+    return _result(u_cr, lam_cr, rho)
+
+
+def _checked(model, density, damping, n_grid):
     rho = non_negative(density, "density")
     if rho <= 0:
         raise ValueError("density must be > 0")
-    n = 16 if n_grid is None else int(n_grid)
+    n = int(n_grid)
     if n < 4:
         raise ValueError("n_grid must be >= 4")
     if damping is not None:
         damping = non_negative(damping, "damping", allow_inf=getattr(model, "has_maxwell", False))
+    return rho, n, damping
+
+
+def _checked_range(airspeed_range):
+    try:
+        low, high = (real_scalar(v, "airspeed_range") for v in airspeed_range)
+    except (TypeError, ValueError) as exc:
+        raise ValueError("airspeed_range must be two airspeeds (low, high) in m/s") from exc
+    if not (0.0 <= low < high and np.isfinite(high)):
+        raise ValueError(f"airspeed_range must satisfy 0 <= low < high, got {(low, high)}")
+    return low, high
+
+
+def _result(u_cr, lam_cr, rho) -> FlutterResult:
+    kind = "flutter" if abs(lam_cr.imag) > NEUTRAL else "divergence"
+    return FlutterResult(
+        critical_airspeed=float(u_cr),
+        flutter_frequency=abs(lam_cr.imag) / (2 * np.pi) if kind == "flutter" else 0.0,
+        kind=kind,
+        density=rho,
+        eigenvalue=lam_cr,
+    )
+
+
+def grid_flutter_speed(model, density: float = 1.2, airspeed_range=None, damping=None,
+                       n_grid: int = 16, xtol: float = 1e-10) -> FlutterResult:
+    """:func:`flutter_speed` by the previous search: fixed grids of ``n_grid`` airspeeds per
+    range, ``(0, 100)`` then on to 400, 1600, ... up to 1e5 m/s (each range starting at the
+    previous range's last stable sample), local maxima of the samples refined, then the same
+    safeguarded Newton iteration. Quasi-steady and finite-state models only; kept as the
+    reference the marching search is compared with (tests, ``bench_wing_flutter``).
+    """
+    if isinstance(getattr(model, "aero", None), TheodorsenAero):
+        raise ValueError("grid_flutter_speed needs quasi-steady or finite-state aerodynamics; "
+                         "use flutter_speed for a Theodorsen (p-k) model")
+    rho, n, damping = _checked(model, density, damping, n_grid)
     growth = _EigenGrowth(model, rho, damping, checked=True)
     if airspeed_range is None:
         low, high = 0.0, 100.0
@@ -259,12 +330,7 @@ def flutter_speed(model, density: float = 1.2, airspeed_range=None, damping=None
                 # Continue from the last strictly stable sample: the range's end may already
                 # be neutral to round-off (a wing tuned to flutter exactly there).
                 low, high = exc.resume, 4.0 * high
-    try:
-        low, high = (real_scalar(v, "airspeed_range") for v in airspeed_range)
-    except (TypeError, ValueError) as exc:
-        raise ValueError("airspeed_range must be two airspeeds (low, high) in m/s") from exc
-    if not (0.0 <= low < high and np.isfinite(high)):
-        raise ValueError(f"airspeed_range must satisfy 0 <= low < high, got {(low, high)}")
+    low, high = _checked_range(airspeed_range)
     return _newton_flutter(growth, rho, low, high, n, xtol, first=True)
 
 
@@ -290,17 +356,10 @@ def _newton_flutter(growth, rho, low, high, n_grid, xtol, first):
     i = int(np.searchsorted(u, a))
     gb = g[i + 1] if b == u[i + 1] else growth.at(b)[0]
     u_cr, lam_cr = _safeguarded_newton(growth, a, b, g[i], gb, xtol)
-    kind = "flutter" if abs(lam_cr.imag) > NEUTRAL else "divergence"
-    return FlutterResult(
-        critical_airspeed=float(u_cr),
-        flutter_frequency=abs(lam_cr.imag) / (2 * np.pi) if kind == "flutter" else 0.0,
-        kind=kind,
-        density=rho,
-        eigenvalue=lam_cr,
-    )
+    return _result(u_cr, lam_cr, rho)
 
 
-def _safeguarded_newton(growth, a, b, ga, gb, xtol, maxiter: int = 100):
+def _safeguarded_newton(growth, a, b, ga, gb, xtol, maxiter: int = 100, x0=None):
     """Root of the growth rate in ``(a, b)`` (``g(a) < 0 < g(b)``) and its critical eigenvalue.
 
     Newton steps with the eigenvalue derivative from the secant point on, bisection whenever a
@@ -309,9 +368,12 @@ def _safeguarded_newton(growth, a, b, ga, gb, xtol, maxiter: int = 100):
     ``K = |dx| / dx_prev^2`` the point after ``dx`` is within about ``K dx^2`` of the root; once
     that is below ``xtol / 10`` relative it is returned without another eigenvalue problem, its
     eigenvalue carried along by the derivative. Otherwise the search ends when a step is below
-    ``xtol`` relative.
+    ``xtol`` relative. ``x0``: a first point inside the bracket (default the secant point).
     """
-    x = a - ga * (b - a) / (gb - ga) if gb > ga else 0.5 * (a + b)
+    if x0 is not None and a < x0 < b:
+        x = x0
+    else:
+        x = a - ga * (b - a) / (gb - ga) if gb > ga else 0.5 * (a + b)
     dx_old = dx = b - a
     newton_dx = None  # the previous step, if it was a Newton step
     for _ in range(maxiter):

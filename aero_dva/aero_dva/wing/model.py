@@ -26,6 +26,7 @@ setting, ``F = sum_j phi_j F_j`` with ``phi = [1, U, rho U, rho U^2, k1, c_v, r,
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -405,22 +406,31 @@ class AeroelasticModel:
         ab = self.absorber
         k1 = 0.0 if ab is None else ab.stiffness
         c = 0.0 if ab is None else (ab.damping if damping is None else damping)
-        return self._polynomial_of(self._features_of(0.0, density, k1, c), float(density))
+        return self._polynomial_of(self._still_air_features(float(density), float(k1), float(c)),
+                                   float(density))
+
+    def _still_air_features(self, rho: float, k1: float, c: float) -> np.ndarray:
+        """:meth:`_features_of` at ``U = 0`` for one condition, in plain Python (the array
+        version's broadcasting costs more than the assembly it feeds)."""
+        phi = [1.0, 0.0, 0.0, 0.0, k1, c, 0.0, 0.0]
+        if self.has_maxwell:
+            k2 = self.absorber.series_stiffness
+            if c * MAXWELL_RATE_LIMIT < k2 and k2 > 0:  # includes c = 0
+                phi[6] = MAXWELL_RATE_LIMIT
+            else:
+                phi[5], phi[7] = 0.0, 1.0
+                phi[6] = 0.0 if math.isinf(c) else k2 / (c if c > 0 else 1.0)
+        return np.array(phi)
 
     def _polynomial_of(self, phi, rho: float):
-        base = phi.copy()
-        d1 = np.zeros(N_FEATURES)
-        d1[1], d1[2] = 1.0, rho
-        d2 = np.zeros(N_FEATURES)
-        d2[3] = rho
-        n = self.n_dof
-        minv = self._inv_mass_at(rho)
-        out = []
-        for p in (base, d1, d2):
-            a = np.einsum("j,jab->ab", p, self._features)
-            a[n:2 * n] = minv @ a[n:2 * n]
-            out.append(a)
-        return tuple(out)
+        # Rows: the features of A0 (still air), of dA/dU and of d2A/dU2 / 2.
+        p = np.zeros((3, N_FEATURES))
+        p[0] = phi
+        p[1, 1], p[1, 2], p[2, 3] = 1.0, rho, rho
+        ns, n = self.n_states, self.n_dof
+        a = (p @ self._features.reshape(N_FEATURES, ns * ns)).reshape(3, ns, ns)
+        a[:, n:2 * n] = self._inv_mass_at(rho) @ a[:, n:2 * n]
+        return a[0], a[1], a[2]
 
     def state_space(self, airspeed: float, density: float, damping=None) -> StateSpace:
         """The full :class:`StateSpace` at one condition."""
