@@ -40,6 +40,9 @@ from dva_ros_common.node_params import NodeSpec, Param, declare_parameters
 from dva_ros_common.node_tools import run_node
 
 POLL_PERIOD = 0.005  # [s] wall time between checks before the start and while held
+# [s] wall time one step callback may spend catching up before it returns to the executor, so
+# that commands (and everything else) are delivered while a flight runs behind its schedule
+CATCH_UP_SLICE = 0.02
 # [s] wall time between two reports of rejected commands of one kind: a controller gone wrong
 # can send thousands a second, and one report (with the count) per second says as much.
 REJECTION_REPORT_PERIOD = 1.0
@@ -298,6 +301,7 @@ class Simulator(Node):
             if not self._ready():
                 return
             self._started_wall = time.monotonic()
+        began = time.monotonic()
         while True:
             if self._waiting_for_controller():
                 if self.finished.done():
@@ -322,9 +326,11 @@ class Simulator(Node):
                 self._finish("completed")
                 return
             # A paced flight that fell behind its wall-clock schedule (it waited for the
-            # controller, or a tick came late) catches up at once, so the real-time factor
-            # holds on average instead of every wait adding to the flight's wall time.
-            if not self._behind_schedule():
+            # controller, or a tick came late) catches up, so the real-time factor holds on
+            # average instead of every wait adding to the flight's wall time; in slices, the
+            # next one on the next tick: a machine too busy to keep the pace once kept the
+            # callback looping for the whole flight, and no command was ever taken in.
+            if not self._behind_schedule() or time.monotonic() - began > CATCH_UP_SLICE:
                 break
         # As fast as possible the flight mostly has to wait for the controller right away:
         # pause now rather than on the next tick. A paced flight waits for its tick.
