@@ -75,7 +75,7 @@ else
   pip+=("${quiet[@]}")
   "${pip[@]}" install --upgrade pip wheel
   # uv installs the same pinned wheels as pip, in parallel, bytecode compiled (the suite starts
-  # many Python processes): about 50 s here against pip's 140 s. It knows nothing of pip's
+  # many Python processes): 50-70 s here against pip's 137-145 s. It knows nothing of pip's
   # configuration files, so pip's environment variables are passed on, and any failure of
   # uv falls back to pip.
   uv=()
