@@ -479,14 +479,7 @@ def reference_flutter_speed(model, density: float = 1.2, airspeed_range=None, da
     u_cr = brentq(lambda x: growth(x)[0], a, b, xtol=xtol * b, rtol=4 * np.finfo(float).eps,
                   maxiter=200)
     _, lam_cr = growth(u_cr)
-    kind = "flutter" if abs(lam_cr.imag) > NEUTRAL else "divergence"
-    return FlutterResult(
-        critical_airspeed=float(u_cr),
-        flutter_frequency=abs(lam_cr.imag) / (2 * np.pi) if kind == "flutter" else 0.0,
-        kind=kind,
-        density=rho,
-        eigenvalue=lam_cr,
-    )
+    return _result(u_cr, lam_cr, rho)
 
 
 def _first_bracket(growth, u, g, high, tol):
