@@ -149,17 +149,21 @@ def load_runtime_config(params: dict) -> RuntimeConfig:
                          absorber=absorber, damper=damper)
 
 
+def resolved_scenario(config: RuntimeConfig, critical_airspeed: float | None = None):
+    """(U_cr, the scenario with absolute airspeeds): relative airspeeds (U/U_cr, as the study
+    states them) refer to the wing without DVA; a caller that flies many flights of one wing
+    passes the U_cr it already has."""
+    u_cr = (bare_critical_airspeed(config.wing, config.scenario.density, config.aero)
+            if critical_airspeed is None else float(critical_airspeed))
+    return u_cr, resolve_airspeeds(config.scenario, u_cr)
+
+
 class FlightRuntime:
     """Step a flight block by block (see module docstring)."""
 
     def __init__(self, config: RuntimeConfig, critical_airspeed: float | None = None):
         self.config = config
-        # Relative airspeeds (U/U_cr, as the study states them) refer to the wing without DVA;
-        # a caller that flies many flights of one wing passes the U_cr it already has.
-        self.critical_airspeed = bare_critical_airspeed(
-            config.wing, config.scenario.density, config.aero) \
-            if critical_airspeed is None else float(critical_airspeed)
-        self.scenario = resolve_airspeeds(config.scenario, self.critical_airspeed)
+        self.critical_airspeed, self.scenario = resolved_scenario(config, critical_airspeed)
         self.sample_rate = self.scenario.sample_rate
         self.block_size = self.scenario.block_size
         self.block_duration = self.block_size / self.sample_rate

@@ -35,6 +35,7 @@ from aero_dva.flight.discrete_model import (
     N_OUTPUTS,
     DiscreteWing,
 )
+from aero_dva.flight.flight_runtime import resolved_scenario
 from aero_dva.flight.scenario import (
     airspeed_at,
     density_at,
@@ -42,7 +43,6 @@ from aero_dva.flight.scenario import (
     resolve_airspeeds,
     sample_times,
 )
-from aero_dva.wing.flutter import bare_critical_airspeed
 from aero_dva.wing.model import LEADING_EDGE, AeroelasticModel
 
 __all__ = ["HeldCommandFlights", "IdealDampers", "SeedBatchBlock", "SeedBatchRuntime",
@@ -148,10 +148,7 @@ class SeedBatchRuntime:
             raise ValueError("seeds must not be empty")
         self.config = config
         self.seeds = seeds
-        self.critical_airspeed = bare_critical_airspeed(
-            config.wing, config.scenario.density, config.aero) \
-            if critical_airspeed is None else float(critical_airspeed)
-        self.scenario = resolve_airspeeds(config.scenario, self.critical_airspeed)
+        self.critical_airspeed, self.scenario = resolved_scenario(config, critical_airspeed)
         self.sample_rate = self.scenario.sample_rate
         self.block_size = self.scenario.block_size
         model = AeroelasticModel(config.wing, config.absorber, config.aero)
