@@ -140,11 +140,12 @@ def make_executor() -> Executor:
     return EventsExecutor() if kind == "events" else SingleThreadedExecutor()
 
 
-def spin(executor: Executor, until: Future | None = None) -> None:
-    """Spin until ``until`` is done (for ever without one); raise ExternalShutdownException
-    when the context is shut down (Ctrl-C, SIGTERM), as ``rclpy.spin`` does."""
+def spin(executor: Executor, until: Future | None = None,
+         stop_when: Callable[[], bool] | None = None) -> None:
+    """Spin until ``until`` is done (for ever without one) or ``stop_when()`` is true; raise
+    ExternalShutdownException when the context is shut down, as ``rclpy.spin`` does."""
     until = until or Future()
-    while not until.done():
+    while not until.done() and not (stop_when and stop_when()):
         if not rclpy.ok():
             raise ExternalShutdownException()
         executor.spin_until_future_complete(until, timeout_sec=SLICE)
@@ -168,18 +169,28 @@ def _drain(executor: Executor, taken: Callable[[], int]) -> None:
             return
 
 
-def _stop_on_signals() -> Future:
-    """A future that SIGINT or SIGTERM completes, in place of rclpy's handlers (which shut the
-    context down at once, dropping every message still queued)."""
-    stop = Future()
+class _Signals:
+    """SIGINT and SIGTERM, caught in place of rclpy's handlers: ``received`` is the first
+    signal's number (None before one).
 
-    def request(signum, _frame) -> None:
-        if not stop.done():
-            stop.set_result(signum)
+    rclpy's handlers shut the context down at once (dropping every message still queued) and
+    then chain to Python's own SIGINT handler, whose KeyboardInterrupt lands wherever the
+    interpreter happens to be - once inside the very handler that was cleaning up after the
+    shutdown (a CI run: exit code -2 instead of 0). These only note the signal; the spin loop
+    reads it between slices and the node stops in order. The handler takes no lock: it runs
+    between two bytecodes of the main thread, which may hold any lock at that moment."""
 
-    signal.signal(signal.SIGINT, request)
-    signal.signal(signal.SIGTERM, request)
-    return stop
+    def __init__(self) -> None:
+        self.received: int | None = None
+        signal.signal(signal.SIGINT, self._note)
+        signal.signal(signal.SIGTERM, self._note)
+
+    def _note(self, signum, _frame) -> None:
+        if self.received is None:
+            self.received = signum
+
+    def __call__(self) -> bool:
+        return self.received is not None
 
 
 def run_node(node_class: Callable[[], Node], spec: NodeSpec, args=None, *,
@@ -189,17 +200,18 @@ def run_node(node_class: Callable[[], Node], spec: NodeSpec, args=None, *,
     ``-h``/``--help`` prints the node's parameter table (``spec``) and returns 0 without
     starting ROS; unknown arguments outside ``--ros-args`` return 2, as do bad parameters or
     files (a one-line error). The node spins until its ``done`` future completes, if it has
-    one that is not None, else until shutdown. A node with a ``close()`` method has it called
+    one that is not None, or until SIGINT or SIGTERM (:class:`_Signals`: the context
+    stays up until the node has stopped). A node with a ``close()`` method has it called
     once at the end, with SIGINT and SIGTERM ignored so that a second Ctrl-C cannot cut it
     short (the recorder closes its bag there). A node's ``exit_code`` attribute, if it has one,
     is the exit code after a normal end (the simulator's 1 for a failed flight). Errors while
     spinning are left to raise, so they keep their traceback. ``args`` is the whole command
     line (default ``sys.argv``).
 
-    ``drain(node)``, a count of messages the node has taken: SIGINT and SIGTERM stop the spin
-    but leave the context up, and the node takes what is still queued (until the count stops
-    growing, :func:`_drain`) before ``close()``. A busy recorder can be a second behind its
-    publishers; without this, a signal would drop that second (bench/bench_faults.py).
+    ``drain(node)``, a count of messages the node has taken: after a signal the node takes
+    what is still queued (until the count stops growing, :func:`_drain`) before ``close()``.
+    A busy recorder can be a second behind its publishers; without this, a signal would drop
+    that second (bench/bench_faults.py).
     """
     from rclpy.signals import SignalHandlerOptions
 
@@ -207,9 +219,8 @@ def run_node(node_class: Callable[[], Node], spec: NodeSpec, args=None, *,
     if code is not None:
         return code
     node_name = spec.name
-    handlers = SignalHandlerOptions.NO if drain is not None else SignalHandlerOptions.ALL
-    rclpy.init(args=args, signal_handler_options=handlers)
-    stop = _stop_on_signals() if drain is not None else None
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    signalled = _Signals()
     node = None
     try:
         try:
@@ -219,22 +230,22 @@ def run_node(node_class: Callable[[], Node], spec: NodeSpec, args=None, *,
             print(f"{node_name}: error: {exc}", file=sys.stderr)
             return 2
         executor.add_node(node)
-        spin(executor, getattr(node, "done", None) or stop)
-        if stop is not None and stop.done():
+        spin(executor, getattr(node, "done", None), stop_when=signalled)
+        if drain is not None and signalled():
             _drain(executor, lambda: drain(node))
     except (KeyboardInterrupt, ExternalShutdownException):
-        pass  # Ctrl-C or SIGTERM: a clean exit
+        pass  # a shutdown from outside the node's own handlers: a clean exit
     except RuntimeError:  # RCLError is one
-        # After a signal: the node was starting (RCLError), or the events executor could not
-        # hand a message to Python mid-shutdown (pybind11 "Unable to convert call argument",
-        # about 1 in 20 SIGINTs of a busy recorder, bench/bench_faults.py): a clean exit.
-        if rclpy.ok():
+        # The events executor could not hand a message to Python mid-stop (pybind11 "Unable
+        # to convert call argument", about 1 in 20 SIGINTs of a busy recorder under rclpy's
+        # handlers, bench/bench_faults.py): a clean exit when a stop was asked for.
+        if not signalled() and rclpy.ok():
             raise
     finally:
         if node is not None:
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+            signal.signal(signal.SIGTERM, signal.SIG_IGN)
             if hasattr(node, "close"):
-                signal.signal(signal.SIGINT, signal.SIG_IGN)
-                signal.signal(signal.SIGTERM, signal.SIG_IGN)
                 node.close()
             node.destroy_node()
         rclpy.try_shutdown()
