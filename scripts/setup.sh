@@ -146,6 +146,9 @@ else
       export AMENT_PREFIX_PATH="$VENV${AMENT_PREFIX_PATH:+:$AMENT_PREFIX_PATH}"
       export CMAKE_PREFIX_PATH="$VENV${CMAKE_PREFIX_PATH:+:$CMAKE_PREFIX_PATH}"
     fi
+    # colcon's default for make is -j<cores> -l<cores>: no second compiler while the load is
+    # at the core count, which on a busy machine builds the message package one file at a time.
+    export MAKEFLAGS="${MAKEFLAGS:--j$(nproc)}"
     colcon_args=(build --symlink-install --event-handlers console_cohesion- summary+
       --cmake-args -DPython3_EXECUTABLE="$VPY" -DBUILD_TESTING=OFF)
     mkdir -p "$WS/log"

@@ -155,18 +155,21 @@ DRAIN_IDLE = 0.05  # [s] wall time without a message that ends a drain
 DRAIN_LIMIT = 2.0  # [s] wall time a drain takes at most
 
 
-def _drain(executor: Executor, taken: Callable[[], int]) -> None:
+def _drain(executor: Executor, taken: Callable[[], int]) -> tuple[int, float]:
     """Take the messages that arrived before a stop request and wait in the executor's queue:
-    spin until ``taken()`` has not grown for DRAIN_IDLE s, at most DRAIN_LIMIT s."""
-    deadline = time.monotonic() + DRAIN_LIMIT
-    last, quiet_since = taken(), time.monotonic()
-    while time.monotonic() < deadline:
+    spin until ``taken()`` has not grown for DRAIN_IDLE s, at most DRAIN_LIMIT s. Returns
+    the messages taken and the wall time it took [s]."""
+    start = time.monotonic()
+    first = last = taken()
+    quiet_since = start
+    while time.monotonic() < start + DRAIN_LIMIT:
         executor.spin_once(timeout_sec=0.01)
         now = taken()
         if now != last:
             last, quiet_since = now, time.monotonic()
         elif time.monotonic() - quiet_since >= DRAIN_IDLE:
-            return
+            break
+    return last - first, time.monotonic() - start
 
 
 class _Signals:
@@ -232,7 +235,10 @@ def run_node(node_class: Callable[[], Node], spec: NodeSpec, args=None, *,
         executor.add_node(node)
         spin(executor, getattr(node, "done", None), stop_when=signalled)
         if drain is not None and signalled():
-            _drain(executor, lambda: drain(node))
+            taken, took = _drain(executor, lambda: drain(node))
+            # (in the log: a stop that lost messages can be told from one that had none queued)
+            print(f"[{node_name}] stop requested (signal {signalled.received}): took {taken} "
+                  f"queued messages in {took:.3f} s", file=sys.stderr)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass  # a shutdown from outside the node's own handlers: a clean exit
     except RuntimeError:  # RCLError is one
