@@ -26,11 +26,18 @@ NODES = {
 }
 
 
-@pytest.mark.parametrize(("package", "executable"), sorted(NODES))
-@pytest.mark.parametrize("stop_signal", [signal.SIGINT, signal.SIGTERM], ids=["INT", "TERM"])
-def test_node_starts_joins_the_graph_and_stops_cleanly(package, executable, stop_signal, executor,
-                                                       spin, ros_context, start_process,
-                                                       tmp_path):
+# run_node handles SIGINT and SIGTERM with one handler: every node gets SIGINT, and SIGTERM
+# goes to the two whose stop does most (the simulator's flight, the recorder's bag).
+STOPS = [(signal.SIGINT, node) for node in sorted(NODES)] + [
+    (signal.SIGTERM, ("aero_dva_sim", "simulator")),
+    (signal.SIGTERM, ("aero_dva_sim", "mcap_recorder"))]
+
+
+@pytest.mark.parametrize(("stop_signal", "node"), STOPS,
+                         ids=[f"{s.name[3:]}-{p}-{e}" for s, (p, e) in STOPS])
+def test_node_starts_joins_the_graph_and_stops_cleanly(stop_signal, node, executor, spin,
+                                                       ros_context, start_process, tmp_path):
+    package, executable = node
     path = ros2_run_path(package, executable)
     assert path.is_file() and os.access(path, os.X_OK), path
     args = [a.format(tmp=tmp_path) for a in NODES[(package, executable)]]

@@ -64,12 +64,12 @@ def test_every_candidate_reduces_to_the_baseline_at_its_null_value():
     assert seen == {"sensor_delay", "covariate_shift", "amplitude_dependence"}
 
 
-@pytest.mark.parametrize("seed", [1, 5])
-def test_level_dependent_mode_is_named_and_the_error_halved(seed):
+def test_level_dependent_mode_is_named_and_the_error_halved():
     """The issue's case: a multi-mode FRF at three levels, one mode softening with the level,
-    the level recorded with 1 % scatter per point (grouped by the set column)."""
+    the level recorded with 1 % scatter per point (grouped by the set column). One generated
+    case; no bench measures the rate over many yet."""
     case = structure_synthetic.generate_structure("amplitude_dependence",
-                                                  np.random.default_rng(seed), jitter=True)
+                                                  np.random.default_rng(1), jitter=True)
     res = loop.run(domain_for(case), rule=loop.DecisionRule(max_steps=1))  # the first step
     v = res.verdict
     assert v.status == "explained" and v.effect == "amplitude_dependence"
