@@ -308,11 +308,17 @@ class FlightDomain:
         idx = np.concatenate([s.windows[:, :1] for s in self.segments]) + np.arange(
             self.n_window)
         self._win_idx = idx
-        x = np.fft.rfft(self.window * self._force[idx], axis=-1)[:, self.bins]
+        # The windowed DFT at the band's bins only, as one real matrix (N, 2F) [cos | -sin]:
+        # a fit asks for a few bins of every window thousands of times, where a whole FFT
+        # per window computed every bin
+        phase = 2.0 * np.pi * np.outer(np.arange(self.n_window), self.bins) / self.n_window
+        self._dft = self.window[:, None] * np.concatenate([np.cos(phase), -np.sin(phase)], 1)
+        # the windows of each segment summed by one matrix product (S, W)
+        self._seg_of_win = (self.win_segment[None, :] == np.arange(len(self.segments))[:, None]
+                            ).astype(float)
+        x = self._band_spectrum(self._force[idx])
         self._win_xc = np.conj(x)  # (W, F)
-        sxx = np.zeros((len(self.segments), self.bins.size))
-        np.add.at(sxx, self.win_segment, np.abs(x) ** 2)
-        self._seg_sxx = sxx
+        self._seg_sxx = self._seg_of_win @ np.abs(x) ** 2
 
     def _noise_eps(self, h) -> np.ndarray:
         """Expected relative error of each estimate from the sensor noise alone.
@@ -427,13 +433,18 @@ class FlightDomain:
         if delay:
             y = delay_outputs(y, delay / self.dt)
         # the segments' estimator applied to the simulated accelerations
-        spec = np.fft.rfft(self.window * y[:, self._win_idx], axis=-1)[..., self.bins]
-        seg = np.zeros((len(self.segments), y.shape[0], self.bins.size), dtype=complex)
-        np.add.at(seg, self.win_segment, (self._win_xc * spec).transpose(1, 0, 2))
+        spec = self._band_spectrum(y[:, self._win_idx])  # (p, W, F)
+        seg = np.tensordot(self._seg_of_win, self._win_xc * spec, axes=([1], [1]))  # (S, p, F)
         seg /= self._seg_sxx[:, None, :]
         if not np.all(np.isfinite(seg)):  # an unstable candidate diverges: a huge residual
             seg = np.where(np.isfinite(seg), seg, 1e12)
         return seg.reshape(-1)
+
+    def _band_spectrum(self, frames: np.ndarray) -> np.ndarray:
+        """rfft(window * frames)[..., bins] of frames (..., N), by the band's DFT matrix."""
+        both = frames @ self._dft
+        n = self.bins.size
+        return both[..., :n] + 1j * both[..., n:]
 
     def _conditions(self, c2, drift: bool, lagged: bool) -> tuple[np.ndarray, np.ndarray]:
         """The distinct conditions of the blocks (rows u, rho, c2[, drift time]) and each
