@@ -37,7 +37,6 @@ import numpy as np
 from aero_dva.flight.discrete_model import DEFAULT_HOLD, held_values
 from aero_dva.flight.discretize import zoh
 from aero_dva.flight.smooth_tables import interpolated_maps
-from aero_dva.flight.switched_kernel import fly_maps
 from aero_dva.wing.absorbers import MaxwellAbsorber
 from aero_dva.wing.checks import positive
 from aero_dva.wing.model import AeroelasticModel
@@ -345,6 +344,10 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
     locked = (_steps(plant, plant, keys, np.array([np.inf]), dt)[:, 0, :n * (n + 1)]
               if yield_force > 0 else np.zeros((1, n * (n + 1))))
     sample_map = np.repeat(period_map.astype(np.int64).ravel(), hold)[:nsamp]
+    # imported here: numba takes 0.4 s to import, and every simulator process imports this
+    # module (switching_io) whether or not a switching law flies
+    from aero_dva.flight.switched_kernel import fly_maps
+
     states, level, targets = fly_maps(
         steps, index, weight, est, g_in, g_state, sample_map, inputs, n, tau, lag.decay,
         lag.mean_factor, lag.c_lo, lag.c_hi, lag.per_level, lag.force_limit, lag.k2,
