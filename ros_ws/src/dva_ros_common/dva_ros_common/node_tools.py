@@ -222,8 +222,8 @@ def run_node(node_class: Callable[[], Node], spec: NodeSpec, args=None, *,
     if code is not None:
         return code
     node_name = spec.name
+    signalled = _Signals()  # first: a signal while rclpy starts is noted too
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    signalled = _Signals()
     node = None
     try:
         try:
