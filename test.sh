@@ -6,11 +6,6 @@ cd "$(dirname "${BASH_SOURCE[0]}")"
 bash scripts/setup.sh
 # shellcheck disable=SC1091
 source scripts/env.sh
-# The suite starts some hundred Python processes (nodes, `dva` commands, two workers) that
-# import the same modules; with bytecode written once (into the gitignored __pycache__
-# folders) they do not each compile them again, and pytest keeps its assertion-rewritten test
-# modules between runs.
-unset PYTHONDONTWRITEBYTECODE
 # Two worker processes (pytest-xdist); an idle worker takes tests from the other's queue
 # (worksteal), so a slow file does not leave one core idle at the end (a module fixture may
 # then run on both workers). DVA_TEST_WORKERS=0 runs every test in this process.

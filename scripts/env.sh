@@ -23,4 +23,8 @@ _dva_nounset=0; [[ $- == *u* ]] && _dva_nounset=1; set +u
 COLCON_CURRENT_PREFIX="$_dva_repo/ros_ws/install" source "$_dva_repo/ros_ws/install/local_setup.bash"
 (( _dva_nounset )) && set -u
 export DVA_REPO="$_dva_repo"
+# Python writes the bytecode of what it imports (into .venv and the gitignored __pycache__
+# folders), once: the nodes, `dva` commands and test workers import the same modules, and
+# with PYTHONDONTWRITEBYTECODE set (as some images do) every process compiled them again.
+unset PYTHONDONTWRITEBYTECODE
 unset _dva_repo _dva_venv _dva_nounset

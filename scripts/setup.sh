@@ -73,10 +73,11 @@ else
   quiet=()
   [[ "${DVA_VERBOSE:-0}" == 1 ]] || quiet=(-q)
   pip+=("${quiet[@]}")
-  # uv installs the same pinned wheels as pip, in parallel, bytecode compiled (the suite starts
-  # many Python processes): 50-70 s here against pip's 137-145 s. It knows nothing of pip's
-  # configuration files, so pip's environment variables are passed on, and any failure of
-  # uv falls back to pip.
+  # uv installs the same pinned wheels as pip, in parallel: about 25 s here against pip's
+  # 137-145 s. Bytecode is not compiled ahead (24 s more for every module of every wheel):
+  # scripts/env.sh lets Python write it for the modules the processes import, once. uv knows
+  # nothing of pip's configuration files, so pip's environment variables are passed on, and
+  # any failure of uv falls back to pip.
   uv=()
   if "${pip[@]}" install -r "$SCRIPTS/requirements-installer.txt" 2>/dev/null; then
     uv=(env)
@@ -88,7 +89,7 @@ else
     "${pip[@]}" install --upgrade pip wheel  # the venv's own pip may predate the pinned wheels
   fi
   install_requirements() {
-    if [[ ${#uv[@]} -gt 0 ]] && "${uv[@]}" --compile-bytecode -r "$1"; then
+    if [[ ${#uv[@]} -gt 0 ]] && "${uv[@]}" -r "$1"; then
       return 0
     fi
     if [[ ${#uv[@]} -gt 0 ]]; then

@@ -3,7 +3,10 @@
 # machine:
 #   1. FULL times: a fresh clone of this checkout's HEAD (its own .venv and colcon build), then
 #      `CI=true ./test.sh` in it, as CI runs it;
-#   2. INTEGRATION times: `./test.sh tests/integration` in this checkout;
+#   2. INTEGRATION times: `./test.sh tests/integration` in one more clone of that commit (set
+#      up before the first run, outside its time);
+# every run tests the commit that was HEAD at the start, whatever happens in this checkout
+# meanwhile;
 # each while BUSY CPU-bound loops run beside it. Prints one line per run and a summary table,
 # and writes both to OUT/summary.md (default runs/stress_<UTC time>/); each run's pytest output
 # goes next to it.
@@ -36,6 +39,11 @@ done
 OUT="${OUT:-$REPO/runs/stress_$(date -u +%Y%m%dT%H%M%SZ)}"
 mkdir -p "$OUT"
 SUMMARY="$OUT/summary.md"
+COMMIT="$(git -C "$REPO" rev-parse HEAD)"
+clone_commit() {  # DIR: a fresh clone of COMMIT in DIR/repo
+  git clone -q --no-checkout "$REPO" "$1/repo"
+  git -C "$1/repo" checkout -q --detach "$COMMIT"
+}
 
 # ---------------------------------------------------------------- the busy loops
 busy_pids=()
@@ -53,7 +61,7 @@ done
 {
   echo "# Test suite under load"
   echo
-  echo "$(date -u +%Y-%m-%dT%H:%M:%SZ), commit $(git -C "$REPO" rev-parse --short HEAD), $(nproc) cores,"
+  echo "$(date -u +%Y-%m-%dT%H:%M:%SZ), commit ${COMMIT:0:7}, $(nproc) cores,"
   echo "$BUSY CPU-bound loops beside each run."
   echo
   echo "| run | kind | exit | result | wall s | load (1 min) at the end |"
@@ -76,7 +84,7 @@ record() {  # kind index log rc seconds
 for i in $(seq 1 "$FULL"); do
   clone="$(mktemp -d "${TMPDIR:-/tmp}/dva-stress-clone.XXXXXX")"
   log="$OUT/full_$i.log"
-  git clone -q "$REPO" "$clone/repo"
+  clone_commit "$clone"
   start=$SECONDS
   set +e
   (cd "$clone/repo" && CI=true ./test.sh -p no:cacheprovider) > "$log" 2>&1
@@ -87,15 +95,25 @@ for i in $(seq 1 "$FULL"); do
 done
 
 # ---------------------------------------------------------------- integration tests, K times
-for i in $(seq 1 "$INTEGRATION"); do
-  log="$OUT/integration_$i.log"
-  start=$SECONDS
-  set +e
-  (cd "$REPO" && ./test.sh tests/integration -p no:cacheprovider) > "$log" 2>&1
-  rc=$?
-  set -e
-  record "./test.sh tests/integration" "$i" "$log" "$rc" "$((SECONDS - start))"
-done
+if [[ "$INTEGRATION" -gt 0 ]]; then
+  clone="$(mktemp -d "${TMPDIR:-/tmp}/dva-stress-clone.XXXXXX")"
+  clone_commit "$clone"
+  if ! (cd "$clone/repo" && bash scripts/setup.sh) > "$OUT/integration_setup.log" 2>&1; then
+    echo "[stress] setting up the integration clone failed: see $OUT/integration_setup.log" >&2
+    rm -rf "$clone"
+    exit 1
+  fi
+  for i in $(seq 1 "$INTEGRATION"); do
+    log="$OUT/integration_$i.log"
+    start=$SECONDS
+    set +e
+    (cd "$clone/repo" && ./test.sh tests/integration -p no:cacheprovider) > "$log" 2>&1
+    rc=$?
+    set -e
+    record "./test.sh tests/integration" "$i" "$log" "$rc" "$((SECONDS - start))"
+  done
+  rm -rf "$clone"
+fi
 
 stop_busy
 echo >> "$SUMMARY"
