@@ -256,6 +256,7 @@ class _Walker:
         self.previous: dict | None = None  # channel id -> [(log time, offset)] of the last chunk
         self.unchecked: list = []  # schema and channel records of a summary failing its CRC
         self.loose: list = []  # ... and of chunks failing theirs, as far as they read
+        self.declared: dict | None = None  # topic -> (type, QoS YAML) of rosbag2's metadata
 
     def damage(self, start, end, reason, lost=0, topics=(), span=(None, None)):
         self.out.damaged.append(DamagedRange(self.out.path, start, end, reason, lost,
@@ -398,6 +399,7 @@ def _walk(w: _Walker) -> None:
                 data_end = pos
                 break
             elif opcode == Opcode.METADATA and _reads_whole(Metadata, data, pos, limit):
+                w.declared = _declared_topics(data, pos) or w.declared
                 pos += _HEAD.size + length  # rosbag2's metadata record, at the end
                 continue
             else:
@@ -536,14 +538,82 @@ def _records(data, start: int, end: int) -> list:
 
 
 def _agreeing_copies(w: _Walker) -> None:
-    """Schemas and channels whose only good copy was lost: a record that reads the same in a
-    summary failing its CRC and in a chunk failing its CRC is taken (two independent copies
-    agreeing field for field; one damaged copy alone is not trusted)."""
+    """Schemas and channels whose only good copy was lost: a record of a summary failing its
+    CRC is taken when an independent copy agrees with it (one damaged copy alone is not
+    trusted):
+
+    - the same record, field for field, at the start of a chunk failing its CRC; or
+    - for a channel (and its schema): rosbag2's own description of the topic, in the file's
+      ``rosbag2`` metadata record or else the ``metadata.yaml`` beside it, giving the same
+      type and offered QoS, with the schema's text the one the type's ``.msg`` files give
+      (:func:`aero_dva.bag.schemas.message_definition`). A flipped bit in a topic, type, QoS
+      or schema text then disagrees and the record is refused; a flipped channel or schema id
+      names no message of the file, so nothing is decoded wrongly.
+    """
     out = w.out
     for record in w.unchecked:
         known = out.schemas if isinstance(record, Schema) else out.channels
         if record.id not in known and record in w.loose:
             known[record.id] = record
+    declared = w.declared if w.declared is not None else _declared_in_yaml(out.path)
+    if not declared:
+        return
+    schemas = {r.id: r for r in w.unchecked if isinstance(r, Schema)}
+    for channel in (r for r in w.unchecked if isinstance(r, Channel)):
+        if channel.id in out.channels or channel.message_encoding != "cdr":
+            continue
+        schema = out.schemas.get(channel.schema_id) or schemas.get(channel.schema_id)
+        qos = channel.metadata.get("offered_qos_profiles")
+        if schema is None or declared.get(channel.topic) != (schema.name, qos):
+            continue
+        if schema.id not in out.schemas:
+            if schema.encoding != "ros2msg" or not _is_definition_of(schema):
+                continue
+            out.schemas[schema.id] = schema
+        out.channels[channel.id] = channel
+
+
+def _declared_topics(data, pos: int) -> dict | None:
+    """topic -> (type, offered QoS YAML) from rosbag2's metadata record at ``pos``."""
+    length = _HEAD.unpack_from(data, pos)[1]
+    record = Metadata.read(ReadDataStream(_bytes_io(data, pos + _HEAD.size, length)))
+    if record.name != "rosbag2":
+        return None
+    return _topics_of(record.metadata.get("serialized_metadata"), nested=False)
+
+
+def _declared_in_yaml(path: Path) -> dict | None:
+    """The same from the ``metadata.yaml`` of the bag directory holding ``path``."""
+    meta = path.parent / "metadata.yaml"
+    try:
+        text = meta.read_text(encoding="utf-8") if meta.stat().st_size < (4 << 20) else None
+    except (OSError, UnicodeDecodeError):
+        return None
+    return _topics_of(text, nested=True)
+
+
+def _topics_of(text: str | None, *, nested: bool) -> dict | None:
+    import yaml
+
+    try:
+        info = yaml.safe_load(text) if text else None
+        if nested:
+            info = info["rosbag2_bagfile_information"]
+        return {t["topic_metadata"]["name"]: (t["topic_metadata"]["type"],
+                                              t["topic_metadata"]["offered_qos_profiles"])
+                for t in info["topics_with_message_count"]}
+    except (yaml.YAMLError, KeyError, TypeError, AttributeError):
+        return None  # a damaged description vouches for nothing
+
+
+def _is_definition_of(schema: Schema) -> bool:
+    """Whether the schema's text is the one the type's ``.msg`` files give."""
+    from aero_dva.bag.schemas import message_definition
+
+    try:
+        return schema.data.decode("utf-8") == message_definition(schema.name)
+    except Exception:  # noqa: BLE001 - unknown type or undecodable text: not vouched for
+        return False
 
 
 def _loose_records(data, pos: int, limit: int) -> list:

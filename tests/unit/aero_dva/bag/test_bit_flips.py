@@ -94,3 +94,68 @@ def test_an_intact_bag_has_no_damage(zstd_bag, tmp_path):
     assert result.lost == 0 and not result.damaged
     assert read_checked(tmp_path / "copy") == sorted(read_checked(zstd_bag),
                                                      key=lambda m: m[1])
+
+
+@pytest.fixture(scope="module")
+def late_topic_bag(tmp_path_factory):
+    """A bag whose second topic first appears in a later chunk: its schema and channel records
+    are in that chunk and in the summary only."""
+    path = tmp_path_factory.mktemp("late") / "run"
+    with BagWriter(path, chunk_size=2048) as writer:
+        writer.add_topic("clock", "rosgraph_msgs/msg/Clock")
+        writer.add_topic("dva/damper_command", "dva_msgs/msg/DamperCommand")
+        for k in range(300):
+            t = 10_000_000 * k
+            writer.write("clock", {"clock": {"sec": 0, "nanosec": t}}, t)
+            if k >= 100:
+                writer.write("dva/damper_command", {
+                    "header": {"stamp": {"sec": 0, "nanosec": t}, "frame_id": ""},
+                    "damping": 400.0 + k, "source": "fixed"}, t + 1)
+    return path
+
+
+def _late_damage(bag, tmp_path, summary_flip):
+    """A copy with the chunk that first holds the late topic damaged and one summary flip."""
+    (mcap,) = bag.glob("*.mcap")
+    lay = layout(mcap)
+    data = mcap.read_bytes()
+    first = next(a for a, b in lay.chunks
+                 if b"dva_msgs/msg/DamperCommand" in _chunk_records(data[a:b]))
+    copy = flip_copy(bag, [(first + 40, 0), (summary_flip(data, lay), 0)], tmp_path / "copy")
+    expected, _ = expected_messages(mcap, copy / mcap.name, lay)
+    return copy, expected
+
+
+def _chunk_records(chunk: bytes) -> bytes:
+    import zstandard
+
+    try:  # the writer's chunks are zstd frames after the chunk's fixed fields
+        return zstandard.ZstdDecompressor().decompressobj().decompress(chunk[chunk.find(
+            b"\x28\xb5\x2f\xfd"):])
+    except zstandard.ZstdError:
+        return chunk
+
+
+def test_a_lost_channel_record_is_taken_from_the_summary_when_rosbag2_vouches(
+        late_topic_bag, tmp_path):
+    # The summary fails its CRC (a flip in its last chunk index) but its channel records read;
+    # the topic's type and QoS in the rosbag2 metadata agree, the schema text is the .msg's.
+    def in_chunk_index(data, lay):
+        return data.rindex(b"\x08", lay.summary_start) + 20
+    copy, expected = _late_damage(late_topic_bag, tmp_path, in_chunk_index)
+    assert sum(t == "/dva/damper_command" for t, *_ in expected) > 100
+    result = recover_bag(copy, tmp_path / "new")
+    kept = Counter(read_checked(tmp_path / "new"))
+    assert not expected - kept and not kept - expected
+    assert not any("channel record was lost" in d.reason for d in result.damaged)
+
+
+def test_a_flipped_topic_in_the_summary_is_not_vouched_for(late_topic_bag, tmp_path):
+    def in_topic_name(data, lay):
+        return data.index(b"/dva/damper_command", lay.summary_start) + 5
+    copy, expected = _late_damage(late_topic_bag, tmp_path, in_topic_name)
+    result = recover_bag(copy, tmp_path / "new")
+    kept = read_checked(tmp_path / "new")
+    assert {t for t, *_ in kept} == {"/clock"}  # the late topic's messages: lost, not misread
+    assert result.lost == sum(Counter(read_checked(late_topic_bag)).values()) - len(kept)
+    assert any("channel record was lost" in d.reason for d in result.damaged)
