@@ -593,16 +593,16 @@ def _declared_in_yaml(path: Path) -> dict | None:
 
 
 def _topics_of(text: str | None, *, nested: bool) -> dict | None:
-    import yaml
+    from aero_dva.safe_files import parse_yaml  # depth, alias and size limits of every loader
 
     try:
-        info = yaml.safe_load(text) if text else None
+        info = parse_yaml(text, "rosbag2 metadata") if text else None
         if nested:
             info = info["rosbag2_bagfile_information"]
         return {t["topic_metadata"]["name"]: (t["topic_metadata"]["type"],
                                               t["topic_metadata"]["offered_qos_profiles"])
                 for t in info["topics_with_message_count"]}
-    except (yaml.YAMLError, KeyError, TypeError, AttributeError):
+    except (ValueError, KeyError, TypeError, AttributeError):
         return None  # a damaged description vouches for nothing
 
 
