@@ -184,6 +184,9 @@ class Probe(Node):
         self.logs.append(LogRecord(time.monotonic(), int(msg.level), msg.name, msg.msg))
 
 
+SPINNER_STOP_TIMEOUT = 120.0  # [s] wall time for the probe's spin thread to stop
+
+
 class RosSession:
     """A reserved domain, an rclpy context with a probe spinning in a thread, node processes.
 
@@ -227,7 +230,15 @@ class RosSession:
             process.stop()
         self._stop.set()
         if self._thread is not None:
-            self._thread.join(timeout=5.0)
+            # Wait for the spinner to leave spin_once: a node must not be destroyed while
+            # another thread is inside the executor (the 5 s this waited before could run out
+            # on a loaded machine). It stops within one wait (0.02 s) and one callback; the
+            # bound only keeps a hang from lasting forever.
+            self._thread.join(timeout=SPINNER_STOP_TIMEOUT)
+            if self._thread.is_alive():
+                raise RuntimeError(f"the probe's spin thread did not stop within "
+                                   f"{SPINNER_STOP_TIMEOUT:.0f} s; its nodes are left as they "
+                                   "are (destroying them under a running executor crashes)")
         for node in list(self.executor.get_nodes()):
             self.executor.remove_node(node)
             node.destroy_node()

@@ -353,7 +353,11 @@ class BagPlayer(Node):
         """Stop the playing thread (idempotent)."""
         self._stop.set()
         if self._thread.is_alive() and self._thread is not threading.current_thread():
-            self._thread.join(timeout=5.0)
+            # the node is destroyed next: the thread must be out of its publish calls first
+            # (it checks the stop between two messages; the bound only ends a hang)
+            self._thread.join(timeout=60.0)
+            if self._thread.is_alive():
+                raise RuntimeError("the playing thread did not stop within 60 s")
 
 
 def main(args=None) -> int:
