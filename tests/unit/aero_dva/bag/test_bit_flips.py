@@ -138,11 +138,12 @@ def _chunk_records(chunk: bytes) -> bytes:
 
 def test_a_lost_channel_record_is_taken_from_the_summary_when_rosbag2_vouches(
         late_topic_bag, tmp_path):
-    # The summary fails its CRC (a flip in its last chunk index) but its channel records read;
-    # the topic's type and QoS in the rosbag2 metadata agree, the schema text is the .msg's.
-    def in_chunk_index(data, lay):
+    # The summary fails the footer's CRC (a flip after its schema and channel records, which
+    # come first and still read); the topic's type and QoS in the rosbag2 metadata agree and
+    # the schema text is the .msg's.
+    def after_the_channels(data, lay):
         return data.rindex(b"\x08", lay.summary_start) + 20
-    copy, expected = _late_damage(late_topic_bag, tmp_path, in_chunk_index)
+    copy, expected = _late_damage(late_topic_bag, tmp_path, after_the_channels)
     assert sum(t == "/dva/damper_command" for t, *_ in expected) > 100
     result = recover_bag(copy, tmp_path / "new")
     kept = Counter(read_checked(tmp_path / "new"))
