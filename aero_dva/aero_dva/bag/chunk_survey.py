@@ -575,34 +575,36 @@ def _agreeing_copies(w: _Walker) -> None:
 
 def _declared_topics(data, pos: int) -> dict | None:
     """topic -> (type, offered QoS YAML) from rosbag2's metadata record at ``pos``."""
+    from aero_dva.safe_files import parse_yaml  # depth, alias and size limits of every loader
+
     length = _HEAD.unpack_from(data, pos)[1]
     record = Metadata.read(ReadDataStream(_bytes_io(data, pos + _HEAD.size, length)))
-    if record.name != "rosbag2":
+    text = record.metadata.get("serialized_metadata")
+    if record.name != "rosbag2" or not text:
         return None
-    return _topics_of(record.metadata.get("serialized_metadata"), nested=False)
+    try:
+        return _topics_of(parse_yaml(text, "rosbag2 metadata record"))
+    except ValueError:
+        return None
 
 
 def _declared_in_yaml(path: Path) -> dict | None:
     """The same from the ``metadata.yaml`` of the bag directory holding ``path``."""
-    meta = path.parent / "metadata.yaml"
+    from aero_dva.safe_files import read_yaml
+
     try:
-        text = meta.read_text(encoding="utf-8") if meta.stat().st_size < (4 << 20) else None
-    except (OSError, UnicodeDecodeError):
+        info = read_yaml(path.parent / "metadata.yaml", "bag metadata")
+        return _topics_of(info["rosbag2_bagfile_information"])
+    except (ValueError, OSError, KeyError, TypeError):
         return None
-    return _topics_of(text, nested=True)
 
 
-def _topics_of(text: str | None, *, nested: bool) -> dict | None:
-    from aero_dva.safe_files import parse_yaml  # depth, alias and size limits of every loader
-
+def _topics_of(info) -> dict | None:
     try:
-        info = parse_yaml(text, "rosbag2 metadata") if text else None
-        if nested:
-            info = info["rosbag2_bagfile_information"]
         return {t["topic_metadata"]["name"]: (t["topic_metadata"]["type"],
                                               t["topic_metadata"]["offered_qos_profiles"])
                 for t in info["topics_with_message_count"]}
-    except (ValueError, KeyError, TypeError, AttributeError):
+    except (KeyError, TypeError, AttributeError):
         return None  # a damaged description vouches for nothing
 
 
