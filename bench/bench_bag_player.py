@@ -40,6 +40,7 @@ from aero_dva_sim.bag_player_node import BagPlayer
 from aero_dva_sim.bag_source import BagSource
 from aero_dva_sim.run_flight import die_with_parent, executable
 from aero_dva_sim.run_flight import main as run_flight
+from dva_ros_common.node_tools import close_executor
 
 TOPICS = ["/wing/acceleration", "/wing/displacement", "/wing/excitation", "/flight/condition",
           "/dva/damper_state", "/dva/damper_command"]
@@ -102,8 +103,7 @@ def play(bag: Path, topics: list[str], rate: float, domain: int, out: Path) -> d
     finally:
         if player is not None:
             player.close()
-            player.destroy_node()
-        executor.shutdown()
+        close_executor(executor, *([player] if player is not None else []))
         rclpy.try_shutdown(context=context)
         recorder.send_signal(signal.SIGINT)
         recorder.wait(timeout=30)

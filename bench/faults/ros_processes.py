@@ -35,6 +35,7 @@ from dva_msgs.msg import (
     FlightCondition,
     ForceBlock,
 )
+from dva_ros_common.node_tools import close_executor
 
 DATA_TOPICS = {"wing/acceleration": AccelerationBlock, "wing/displacement": DisplacementBlock,
                "wing/excitation": ForceBlock, "flight/condition": FlightCondition,
@@ -239,10 +240,7 @@ class RosSession:
                 raise RuntimeError(f"the probe's spin thread did not stop within "
                                    f"{SPINNER_STOP_TIMEOUT:.0f} s; its nodes are left as they "
                                    "are (destroying them under a running executor crashes)")
-        for node in list(self.executor.get_nodes()):
-            self.executor.remove_node(node)
-            node.destroy_node()
-        self.executor.shutdown()
+        close_executor(self.executor)
 
 
 @contextlib.contextmanager

@@ -22,6 +22,7 @@ try:
     from rclpy.executors import SingleThreadedExecutor
 
     from aero_dva_sim.run_flight import die_with_parent
+    from dva_ros_common.node_tools import close_executor
 except ImportError as exc:  # pragma: no cover - environment problem, reported clearly
     raise pytest.UsageError(
         f"integration tests need rclpy and the built workspace ({exc}); run ./test.sh, or "
@@ -56,10 +57,7 @@ def executor(ros_context: Context) -> Iterator[SingleThreadedExecutor]:
     try:
         yield exe
     finally:
-        for node in list(exe.get_nodes()):
-            exe.remove_node(node)
-            node.destroy_node()
-        exe.shutdown()
+        close_executor(exe)
 
 
 #: Every wait's timeout is multiplied by this (DVA_TEST_TIMEOUT_SCALE). A wait returns as soon as

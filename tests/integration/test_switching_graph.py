@@ -10,6 +10,7 @@ switching_controller supervises it. Launch-free, real nodes over DDS on sim time
 from __future__ import annotations
 
 import pytest
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
@@ -24,6 +25,7 @@ from dva_msgs.msg import (
     FlightCondition,
     ForceBlock,
 )
+from dva_ros_common.node_tools import close_executor
 
 pytestmark = pytest.mark.ros
 
@@ -99,14 +101,16 @@ def test_switching_diverges_later_than_the_best_constant_c2(executor, spin, ros_
     rates = sorted(s.switching_rate for s in armed)
     assert rates[len(rates) // 2] > 5.0  # the law switches within the blocks
     assert any("switching law armed in the damper path" in t for t in texts)
-    for node in list(executor.get_nodes()):
-        executor.remove_node(node)
-        node.destroy_node()
+    close_executor(executor)  # the second flight has its own executor and nodes
 
+    second = SingleThreadedExecutor(context=ros_context)
     fixed = FixedController(context=ros_context, parameter_overrides=[
         Parameter("use_sim_time", value=True), Parameter("damping", value=SAFE_C2),
         Parameter("rate", value=20.0)])
-    sim, states, texts, _ = fly(executor, spin, ros_context, tmp_path, fixed, RAMP, 4.0)
+    try:
+        sim, states, texts, _ = fly(second, spin, ros_context, tmp_path, fixed, RAMP, 4.0)
+    finally:
+        close_executor(second, fixed)
     assert sim.finished.result() == "diverged"
     assert all(s.mode == DamperState.MODE_CONSTANT for s in states)
     assert switched_at > diverged_at(sim, texts) + 0.01

@@ -196,6 +196,25 @@ class _Signals:
         return self.received is not None
 
 
+def close_executor(executor: Executor, *nodes: Node) -> None:
+    """Shut ``executor`` down, then destroy its nodes and ``nodes``; call it once nothing spins.
+
+    rclpy's Python executor keeps its last wait set and the suspended generator over it
+    between two ``spin_once`` calls (rclpy/executors.py, ``_wait_for_ready_callbacks``);
+    when it last handed out a QoS event, that generator still holds the event and context
+    handles "in use". ``shutdown()`` drops both, so no executor object refers to a node's
+    entities when they are destroyed (destroying entities under a live executor is
+    ros2/rclpy#319 and #663). A pytest worker died once in
+    ``destroy_node`` in the other order (docs/reliability.md); isolated repeats of that order
+    did not crash, so this is the safe order, not a proven cause.
+    """
+    owned = list(executor.get_nodes())
+    owned += [node for node in nodes if node not in owned]
+    executor.shutdown()
+    for node in owned:
+        node.destroy_node()
+
+
 def run_node(node_class: Callable[[], Node], spec: NodeSpec, args=None, *,
              drain: Callable[[Node], int] | None = None) -> int:
     """Body of a node's ``main``: the exit code.
