@@ -167,24 +167,50 @@ def with_switching(config, path: str, wing: str | None = None):
 
     if not path:
         return problem("no switching gains file (parameter switching_gains)")
-    try:
-        gains = load_gains(path)
-    except SwitchingGainsError as exc:
-        return problem(f"invalid switching gains: {exc}")
+    gains, text = _read_gains(path)
+    if gains is None:
+        return problem(text)
     wing_file = load_wing(wing or None)
     design, absorber = wing_file.maxwell_design, config.absorber
     if absorber is None or (absorber.mass, absorber.stiffness, absorber.series_stiffness,
                             absorber.position) != (design.mass, design.stiffness,
                                                    design.series_stiffness, design.position):
         return problem("the switching gains are for the wing file's own Maxwell absorber")
-    fingerprint = wing_fingerprint(wing_file)
-    if gains.wing_fingerprint != fingerprint:
-        return problem(f"switching gains {str(path)!r} were designed for another wing "
-                       f"(fingerprint {gains.wing_fingerprint}, this wing's {fingerprint})")
-    if gains.state_names != _state_names(config):
-        return problem(f"switching gains {str(path)!r}: states {list(gains.state_names)} "
-                       "are not the flown wing's")
+    text = wing_problem(gains, path, wing_fingerprint(wing_file), _state_names(config))
+    if text is not None:
+        return problem(text)
     return dataclasses.replace(config, switching=gains, switching_problem=None)
+
+
+def gains_problem(path, wing: str | None = None) -> str | None:
+    """Why the gains file ``path`` cannot serve the wing file ``wing`` (None: the package's),
+    or None: the same texts as :func:`with_switching` (for a node that only supervises)."""
+    from aero_dva.wing.wing_io import load_wing, wing_fingerprint
+
+    gains, text = _read_gains(path)
+    if gains is None:
+        return text
+    return wing_problem(gains, path, wing_fingerprint(load_wing(wing or None)))
+
+
+def wing_problem(gains: SwitchingGains, path, fingerprint: str,
+                 state_names=None) -> str | None:
+    """Why ``gains`` (read from ``path``) do not belong to the wing of ``fingerprint`` and,
+    when given, these ``state_names``; None when they do."""
+    if gains.wing_fingerprint != fingerprint:
+        return (f"switching gains {str(path)!r} were designed for another wing (fingerprint "
+                f"{gains.wing_fingerprint}, this wing's {fingerprint})")
+    if state_names is not None and tuple(gains.state_names) != tuple(state_names):
+        return (f"switching gains {str(path)!r}: states {list(gains.state_names)} are not the "
+                "flown wing's")
+    return None
+
+
+def _read_gains(path) -> tuple[SwitchingGains | None, str | None]:
+    try:
+        return load_gains(path), None
+    except SwitchingGainsError as exc:
+        return None, f"invalid switching gains: {exc}"
 
 
 def _state_names(config) -> tuple:

@@ -183,15 +183,13 @@ def _design(args) -> int:
 
 
 def _gains_for_wing(args):
-    from aero_dva.control.switching_io import load_gains
+    from aero_dva.control.switching_io import load_gains, wing_problem
 
     gains = load_gains(args.gains)
     cfg, model, fingerprint = _wing(args.wing, args.aero)
-    if fingerprint != gains.wing_fingerprint:
-        raise ValueError(f"{args.gains} was designed for another wing (fingerprint "
-                         f"{gains.wing_fingerprint}, this wing {fingerprint})")
-    if gains.state_names != model.state_names:
-        raise ValueError(f"{args.gains}: states {gains.state_names} are not the wing's")
+    problem = wing_problem(gains, args.gains, fingerprint, model.state_names)
+    if problem is not None:
+        raise ValueError(problem)
     return gains, cfg, model
 
 

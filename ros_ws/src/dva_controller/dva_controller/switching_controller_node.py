@@ -59,21 +59,11 @@ subscribes wing/displacement (burst detector), dva/damper_state (whether the dam
 
 
 def gains_problem(path: str, wing: str) -> str | None:
-    """Why the gains file cannot be used for ``wing``, or None."""
-    from aero_dva.control.switching_io import SwitchingGainsError, load_gains
+    """Why the gains file (empty: the package's) cannot be used for ``wing``, or None."""
+    from aero_dva.control.switching_io import gains_problem as problem
     from aero_dva.data_files import data_file
-    from aero_dva.wing.wing_io import load_wing, wing_fingerprint
 
-    path = path or str(data_file("switching_gains.json"))
-    try:
-        gains = load_gains(path)
-    except SwitchingGainsError as exc:
-        return f"invalid switching gains: {exc}"
-    fingerprint = wing_fingerprint(load_wing(wing or None))
-    if gains.wing_fingerprint != fingerprint:
-        return (f"switching gains {path!r} were designed for another wing (fingerprint "
-                f"{gains.wing_fingerprint}, this wing's {fingerprint})")
-    return None
+    return problem(path or str(data_file("switching_gains.json")), wing or None)
 
 
 class SwitchingController(Node):

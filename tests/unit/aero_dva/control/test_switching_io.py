@@ -1,6 +1,7 @@
 """The switching-gains file: round trip and refusal of bad files, naming the field."""
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -10,13 +11,15 @@ from aero_dva.control.switching_design import law_gain
 from aero_dva.control.switching_io import (
     SwitchingGains,
     SwitchingGainsError,
+    gains_problem,
     gains_to_dict,
     load_gains,
     save_gains,
+    wing_problem,
 )
 from aero_dva.flight.switched_flight import SwitchingLaw
 from aero_dva.wing.model import AeroelasticModel
-from aero_dva.wing.wing_io import load_wing
+from aero_dva.wing.wing_io import load_wing, wing_fingerprint
 
 
 @pytest.fixture(scope="module")
@@ -73,3 +76,17 @@ def test_missing_and_broken_files(tmp_path):
     (tmp_path / "broken.json").write_text("{")
     with pytest.raises(SwitchingGainsError, match="not valid JSON"):
         load_gains(tmp_path / "broken.json")
+
+
+def test_gains_for_another_wing_or_other_states_are_refused_by_one_rule(tmp_path, gains):
+    # one rule for the simulator (with_switching), the supervisor node and `dva switching`
+    names = gains.state_names
+    assert wing_problem(gains, "g.json", "abc", names) is None
+    assert "designed for another wing (fingerprint abc" in wing_problem(gains, "g.json", "xyz")
+    assert "are not the flown wing's" in wing_problem(gains, "g.json", "abc", names[::-1])
+    path = save_gains(gains, tmp_path / "g.json")  # fingerprint "abc": not the package's wing
+    assert "another wing" in gains_problem(path)
+    assert gains_problem(tmp_path / "none.json").startswith("invalid switching gains")
+    ours = save_gains(dataclasses.replace(gains, wing_fingerprint=wing_fingerprint(
+        load_wing(None))), tmp_path / "ours.json")
+    assert gains_problem(ours) is None
