@@ -112,7 +112,7 @@ def _offline(args, recording):
     return [], [CommandRecord(stamp, damping, "fixed") for stamp, _ in recording.conditions]
 
 
-def _ros(args) -> dict:
+def _ros(args, expected: list[int]) -> dict:
     try:
         from aero_dva_sim.run_flight import executable
     except ImportError:
@@ -128,6 +128,8 @@ def _ros(args) -> dict:
         value = getattr(args, option)
         if value is not None:
             argv += [f"--{option}", str(value)]
+    if args.controller != "fixed":  # the graph must give what the nodes' code says
+        argv += ["--expect-spectra", str(expected[0]), "--expect-commands", str(expected[1])]
     result = subprocess.run(argv, capture_output=True, text=True)
     if result.returncode != 0:
         lines = (result.stderr or result.stdout).strip().splitlines()
@@ -160,7 +162,7 @@ def _replay(args) -> int:
         # two nodes (DDS discovery under load) is caught, and the replay flown again.
         expected = [len(x) for x in _offline(args, recording)]
         for attempt in range(1 + args.retries):
-            summary = _ros(args)
+            summary = _ros(args, expected)
             spectra, commands = read_outputs(args.out)
             if [len(spectra), len(commands)] == expected or args.controller == "fixed":
                 break

@@ -4,8 +4,10 @@ Starts, as ``ros2 run`` would and as separate processes on sim time: ``mcap_reco
 bag), the controller (with ``spectrum`` before it for the RBF network), then ``bag_player``,
 which waits for them and plays the recorded controller inputs (``wing/acceleration``,
 ``dva/damper_state``, ``flight/condition``) with ``/clock`` from the log times. When the bag has
-been played the others are stopped with SIGINT (the recorder closes its bag). ``dva replay``
-runs this and compares the new spectra and commands with the recorded ones.
+been played, this process waits until the graph's outputs (spectra, commands) have all gone by
+(as many as ``--expect-spectra`` / ``--expect-commands`` say, else until none came for
+:data:`QUIET` seconds), then stops the recorder (it closes its bag) and the others with SIGINT.
+``dva replay`` runs this and compares the new spectra and commands with the recorded ones.
 
 Unless ``--domain-id`` is given, the graph runs on a ROS_DOMAIN_ID reserved for this run.
 """
@@ -35,6 +37,18 @@ INPUTS = tuple(c.absolute() for c in (ch.ACCELERATION, ch.DAMPER_STATE, ch.FLIGH
 DEFAULT_RATE = 10.0  # x recorded speed; docs/replay.md: what the graph keeps up with here
 
 
+QUIET = 2.0  # [s] wall time without a new output after which an unbounded replay is done
+OUTPUT_WAIT = 60.0  # [s] wall time at most for the outputs after the bag has been played
+
+
+def watched_channels(controller: str) -> list[ch.Channel]:
+    """The outputs :class:`OutputWatch` counts: a controller's commands follow its inputs one
+    for one (the fixed controller's come from its own timer: nothing to wait for)."""
+    if controller == "rbf":
+        return [ch.SPECTRUM, ch.DAMPER_COMMAND]
+    return [ch.DAMPER_COMMAND] if controller == "schedule" else []
+
+
 def build_commands(args, inputs: list[str]) -> dict[str, list[str]]:
     """The processes of the replay graph, in start order (the player last)."""
     sim_time = {"use_sim_time": True}
@@ -43,14 +57,17 @@ def build_commands(args, inputs: list[str]) -> dict[str, list[str]]:
                           *ros_params(output=args.out, **sim_time),
                           "-p", "exclude:=[/rosout,/parameter_events]"],
     }
-    # The commands are held until the recorder has matched them (the spectra until the network
-    # and the recorder have).
-    commands.update(controller_commands(args, command_readers=1, **sim_time))
+    # The commands are held until the recorder and this process's watch have matched them
+    # (the spectra until the network, the recorder and the watch have).
+    watch = 1 if watched_channels(args.controller) else 0
+    commands.update(controller_commands(args, command_readers=1 + watch,
+                                        spectrum_readers=2 + watch, **sim_time))
     others = list(commands)
     # The links between the nodes must be up before the first message, not only the nodes:
-    # the spectra reach the network and the recorder, the commands the recorder.
-    links = ["/dva/spectrum:2", "/dva/damper_command:1"] if args.controller == "rbf" \
-        else ["/dva/damper_command:1"]
+    # the spectra reach the network and the recorder, the commands the recorder (and both the
+    # watch).
+    links = [f"/dva/spectrum:{2 + watch}", f"/dva/damper_command:{1 + watch}"] \
+        if args.controller == "rbf" else [f"/dva/damper_command:{1 + watch}"]
     commands["bag_player"] = [
         executable("aero_dva_sim", "bag_player"), "--ros-args",
         *ros_params(bag=args.bag, rate=args.rate, wait_for_subscribers=1,
@@ -60,6 +77,63 @@ def build_commands(args, inputs: list[str]) -> dict[str, list[str]]:
                  wait_timeout_fails=True),
     ]
     return commands
+
+
+class OutputWatch:
+    """Counts the graph's outputs on ``channels`` as they go by, on the replay's ROS domain.
+
+    The replay is over when its outputs are, not after a fixed time: on a busy machine the
+    spectrum node and the controller can be seconds behind the player.
+    """
+
+    def __init__(self, domain: int, channels: list[ch.Channel]):
+        import rclpy
+        from rclpy.context import Context
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.node import Node
+        from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+        from dva_ros_common.conversions import message_class
+
+        self.counts = {channel.absolute(): 0 for channel in channels}
+        self.last = time.monotonic()  # wall time of the last output (or of the start)
+        self.context = Context()
+        rclpy.init(context=self.context, domain_id=domain)
+        self.node = Node("replay_watch", context=self.context)
+        qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+        for channel in channels:
+            topic = channel.absolute()
+            self.node.create_subscription(message_class(channel.type_name), topic,
+                                          lambda _msg, topic=topic: self._seen(topic), qos)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+
+    def _seen(self, topic: str) -> None:
+        self.counts[topic] += 1
+        self.last = time.monotonic()
+
+    def spin(self, seconds: float) -> None:
+        self.executor.spin_once(timeout_sec=seconds)
+
+    def wait_for_outputs(self, expected: dict[str, int], quiet: float, timeout: float) -> bool:
+        """Spin until every topic of ``expected`` has its count (the others: until no output
+        came for ``quiet`` s); False when ``timeout`` [s] ran out first."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            counted = all(self.counts[t] >= n for t, n in expected.items())
+            unbounded = [t for t in self.counts if t not in expected]
+            if counted and (not unbounded or time.monotonic() - self.last >= quiet):
+                return True
+            self.spin(0.05)
+        return False
+
+    def close(self) -> None:
+        import rclpy
+
+        from dva_ros_common.node_tools import close_executor
+
+        close_executor(self.executor)
+        rclpy.try_shutdown(context=self.context)
 
 
 def run(args) -> dict:
@@ -79,20 +153,31 @@ def run(args) -> dict:
     env = dict(os.environ, ROS_DOMAIN_ID=str(args.domain_id), PYTHONUNBUFFERED="1")
     processes: dict[str, subprocess.Popen] = {}
     started = time.monotonic()
+    watch = OutputWatch(args.domain_id, watched_channels(args.controller))
+    expected = {t: n for t, n in ((ch.SPECTRUM.absolute(), args.expect_spectra),
+                                  (ch.DAMPER_COMMAND.absolute(), args.expect_commands))
+                if n is not None and t in watch.counts}
+    complete = True
     try:
         for name, argv in build_commands(args, inputs).items():
             with open(logs / f"{name}.log", "wb") as log:
                 processes[name] = subprocess.Popen(argv, env=env, stdout=log,
                                                    stderr=subprocess.STDOUT,
                                                    preexec_fn=die_with_parent)
-        try:
-            processes["bag_player"].wait(timeout=args.timeout)
-        except subprocess.TimeoutExpired:
-            raise SystemExit(f"replay_flight: error: playing took longer than {args.timeout} s;"
-                             f" node logs in {logs}") from None
-        time.sleep(0.5)  # the controller's last outputs on their way to the recorder
+        deadline = time.monotonic() + args.timeout
+        while processes["bag_player"].poll() is None:
+            if time.monotonic() > deadline:
+                raise SystemExit(f"replay_flight: error: playing took longer than "
+                                 f"{args.timeout} s; node logs in {logs}")
+            watch.spin(0.05)
+        if processes["bag_player"].returncode == 0:
+            complete = watch.wait_for_outputs(expected, QUIET, OUTPUT_WAIT)
     finally:
-        codes = {name: stop_process(p, timeout=15.0) for name, p in reversed(processes.items())}
+        # the recorder first, while the nodes whose messages it drains are still up
+        order = ["mcap_recorder", *(n for n in reversed(processes) if n != "mcap_recorder")]
+        codes = {name: stop_process(processes[name], timeout=15.0)
+                 for name in order if name in processes}
+        watch.close()
     if codes.get("bag_player") != 0:
         lines = (logs / "bag_player.log").read_text(errors="replace").strip().splitlines()
         why = next((line for line in reversed(lines) if "ERROR" in line), "")
@@ -100,7 +185,8 @@ def run(args) -> dict:
                          f"{': ' + why.strip() if why else ''}; see {logs / 'bag_player.log'}")
     counts = {name: info.message_count for name, info in bag_topics(out).items()}
     return {"bag": str(out), "node_logs": str(logs), "played": inputs, "rate": args.rate,
-            "wall_time": time.monotonic() - started, "exit_codes": codes, "counts": counts}
+            "wall_time": time.monotonic() - started, "exit_codes": codes, "counts": counts,
+            "outputs_seen": dict(watch.counts), "outputs_complete": complete}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -123,6 +209,11 @@ def build_parser() -> argparse.ArgumentParser:
                         help="ROS_DOMAIN_ID (default: one reserved for this run)")
     parser.add_argument("--timeout", type=float, default=600.0,
                         help="[s] wall time allowed for playing (default 600)")
+    parser.add_argument("--expect-spectra", type=int, default=None, metavar="N",
+                        help="spectra the graph will publish (rbf): wait for them after "
+                             "playing (default: until none came for 2 s)")
+    parser.add_argument("--expect-commands", type=int, default=None, metavar="N",
+                        help="commands the controller will publish (rbf, schedule): likewise")
     parser.add_argument("--json", action="store_true", help="print the summary as JSON")
     return parser
 

@@ -332,19 +332,21 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def controller_commands(args, command_readers: int = 0, **params) -> dict[str, list[str]]:
+def controller_commands(args, command_readers: int = 0, spectrum_readers: int = 2,
+                        **params) -> dict[str, list[str]]:
     """Node name -> command line of the controller nodes ``args.controller`` needs (rbf: the
     spectrum node and the network; none: no node), each with the ROS parameters ``params``.
     With ``command_readers``, the controller holds its first commands until that many
-    subscribers have matched them (the spectrum node its spectra until the network and the
-    recorder have)."""
+    subscribers have matched them (the spectrum node its spectra until ``spectrum_readers``
+    have: the network and the recorder)."""
     def node(package, name, **own):
         return [executable(package, name), "--ros-args", *ros_params(**own, **params)]
 
     hold = {"hold_until_subscribers": command_readers} if command_readers else {}
     if args.controller == "rbf":
         return {"spectrum": node("dva_controller", "spectrum",
-                                 **({"hold_until_subscribers": 2} if command_readers else {})),
+                                 **({"hold_until_subscribers": spectrum_readers}
+                                    if command_readers else {})),
                 "rbf_controller": node("dva_controller", "rbf_controller",
                                        network_file=args.network, **hold)}
     if args.controller == "schedule":
