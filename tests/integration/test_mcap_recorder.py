@@ -118,3 +118,41 @@ def test_sigint_mid_stream_keeps_a_valid_bag(executor, spin, ros_context, start_
     assert recorded == [float(i) for i in range(len(recorded))]
     assert len(_rosbags_messages(bag, "/dva/damper_command")) == len(recorded)
     assert bag_topics(bag)["/dva/damper_command"].message_count == len(recorded)
+
+
+def test_messages_a_writer_dropped_before_the_recorder_had_them_are_reported(
+        executor, spin, ros_context, start_process, tmp_path):
+    """A stopped (starved) recorder's transport buffers overflow, and a reliable keep-last
+    writer cannot send again what has left its history: those messages are lost for good. DDS
+    says so, and so does the recorder, in its log and in its closing line."""
+    import signal
+
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+    bag = tmp_path / "bag"
+    node = Node("source", context=ros_context)
+    executor.add_node(node)
+    commands = node.create_publisher(
+        DamperCommand, "dva/damper_command",
+        QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE))
+    recorder = _start_recorder(start_process, bag)
+    assert _wait_subscribed(executor, spin, commands), recorder.output()
+    # one message acknowledged: the recorder's reader knows this writer (a sample sent before
+    # that would not be missed, only never meant for it)
+    commands.publish(DamperCommand(damping=-2.0, source="test"))
+    assert commands.wait_for_all_acked(Duration(seconds=120))
+    recorder.proc.send_signal(signal.SIGSTOP)
+    try:
+        for i in range(3000):  # more than its buffers hold; the writer keeps only the last
+            commands.publish(DamperCommand(damping=float(i), source="test"))
+    finally:
+        recorder.proc.send_signal(signal.SIGCONT)
+    commands.publish(DamperCommand(damping=-1.0, source="test"))
+    assert commands.wait_for_all_acked(Duration(seconds=120))
+    assert spin(executor, lambda: "lost before they reached the recorder" in recorder.output(),
+                timeout=30.0), recorder.output()
+    assert recorder.stop() == 0, recorder.output()
+    closing = next(line for line in recorder.output().splitlines() if "closed" in line)
+    assert "lost before reaching it" in closing and "/dva/damper_command" in closing, closing
+    recorded = bag_topics(bag)["/dva/damper_command"].message_count
+    assert 1 < recorded < 3002

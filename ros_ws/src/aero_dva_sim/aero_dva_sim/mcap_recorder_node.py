@@ -18,6 +18,7 @@ from pathlib import Path
 
 import yaml
 from rclpy.clock import Clock, ClockType
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile, QoSReliabilityPolicy
 
@@ -84,6 +85,7 @@ class McapRecorder(Node):
         self._skipped: set[str] = set()
         self.received = 0
         self.received_by_topic: Counter[str] = Counter()
+        self.lost_by_topic: Counter[str] = Counter()  # samples DDS reports lost to us
         try:
             wall = Clock(clock_type=ClockType.STEADY_TIME)
             self.create_timer(float(values["discovery_period"]),
@@ -118,7 +120,9 @@ class McapRecorder(Node):
                 continue
             self._recorded[topic] = self.create_subscription(
                 msg_type, topic, lambda data, t=topic: self._record(t, data),
-                self._qos_for(offered), raw=True)
+                self._qos_for(offered), raw=True,
+                event_callbacks=SubscriptionEventCallbacks(
+                    message_lost=lambda info, t=topic: self._lost(t, info)))
             self.get_logger().info(f"recording {topic} [{types[0]}]")
 
     @staticmethod
@@ -145,6 +149,13 @@ class McapRecorder(Node):
         self.received += 1
         self.received_by_topic[topic] += 1
 
+    def _lost(self, topic: str, info) -> None:
+        # A sample the writer dropped before this reader had it (a reliable keep-last writer
+        # whose history ran over): not in the bag, and said so.
+        self.lost_by_topic[topic] += int(info.total_count_change)
+        self.get_logger().warning(f"{topic}: {info.total_count_change} message(s) lost "
+                                  f"before they reached the recorder ({info.total_count} in all)")
+
     def _flush(self) -> None:
         if not self._writer.closed:
             self._writer.flush()
@@ -154,7 +165,9 @@ class McapRecorder(Node):
         if not self._writer.closed:
             self._writer.close()
             # After a signal the context is shut down and /rosout is gone: say it on stderr.
-            print(f"[mcap_recorder] closed {self.output} with {self.received} messages",
+            lost = sum(self.lost_by_topic.values())
+            said = f" ({lost} lost before reaching it: {dict(self.lost_by_topic)})" if lost else ""
+            print(f"[mcap_recorder] closed {self.output} with {self.received} messages{said}",
                   file=sys.stderr)
 
 
