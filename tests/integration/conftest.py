@@ -32,6 +32,28 @@ except ImportError as exc:  # pragma: no cover - environment problem, reported c
 pytestmark = pytest.mark.ros
 
 
+SHM = Path("/dev/shm")
+
+
+@pytest.fixture(scope="session", autouse=True)
+def broken_shared_memory_ports_removed() -> None:
+    """Remove Fast DDS shared-memory port files of size 0 older than a minute.
+
+    A process that dies while creating its port leaves the file unsized, and every later DDS
+    participant that takes that port hangs for ever while being created (docs/reliability.md:
+    two loaded integration runs and an idle fresh clone failed so). A port being created now is
+    0 bytes for microseconds, not a minute.
+    """
+    now = time.time()
+    for port in SHM.glob("fastrtps_port*"):
+        try:
+            if port.stat().st_size == 0 and now - port.stat().st_mtime > 60.0:
+                port.unlink()
+                (SHM / f"sem.{port.name}_mutex").unlink(missing_ok=True)
+        except OSError:  # gone meanwhile, or not ours to remove: leave it
+            continue
+
+
 @pytest.fixture
 def ros_domain() -> Iterator[int]:
     """A ROS_DOMAIN_ID no other test process uses while the test runs."""
