@@ -150,8 +150,8 @@ class McapRecorder(Node):
         self.received_by_topic[topic] += 1
 
     def _lost(self, topic: str, info) -> None:
-        # A sample the writer dropped before this reader had it (a reliable keep-last writer
-        # whose history ran over): not in the bag, and said so.
+        # A sample this reader's transport dropped (its process starved) after the writer had
+        # let it go from its history, so it cannot come again: not in the bag, and said so.
         self.lost_by_topic[topic] += int(info.total_count_change)
         self.get_logger().warning(f"{topic}: {info.total_count_change} message(s) lost "
                                   f"before they reached the recorder ({info.total_count} in all)")
