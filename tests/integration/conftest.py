@@ -23,6 +23,7 @@ try:
 
     from aero_dva_sim.run_flight import die_with_parent
     from dva_ros_common.node_tools import close_executor
+    from dva_ros_common.shared_memory import remove_unsized_ports
 except ImportError as exc:  # pragma: no cover - environment problem, reported clearly
     raise pytest.UsageError(
         f"integration tests need rclpy and the built workspace ({exc}); run ./test.sh, or "
@@ -32,26 +33,11 @@ except ImportError as exc:  # pragma: no cover - environment problem, reported c
 pytestmark = pytest.mark.ros
 
 
-SHM = Path("/dev/shm")
-
-
 @pytest.fixture(scope="session", autouse=True)
 def broken_shared_memory_ports_removed() -> None:
-    """Remove Fast DDS shared-memory port files of size 0 older than a minute.
-
-    A process that dies while creating its port leaves the file unsized, and every later DDS
-    participant that takes that port hangs for ever while being created (docs/reliability.md:
-    two loaded integration runs and an idle fresh clone failed so). A port being created now is
-    0 bytes for microseconds, not a minute.
-    """
-    now = time.time()
-    for port in SHM.glob("fastrtps_port*"):
-        try:
-            if port.stat().st_size == 0 and now - port.stat().st_mtime > 60.0:
-                port.unlink()
-                (SHM / f"sem.{port.name}_mutex").unlink(missing_ok=True)
-        except OSError:  # gone meanwhile, or not ours to remove: leave it
-            continue
+    """Fast DDS port files a dead process left unsized would hang every test's graph
+    (dva_ros_common.shared_memory)."""
+    remove_unsized_ports()
 
 
 @pytest.fixture

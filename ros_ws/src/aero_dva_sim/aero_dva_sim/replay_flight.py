@@ -23,6 +23,7 @@ from pathlib import Path
 
 from aero_dva.bag import channels as ch
 from aero_dva_sim.run_flight import (
+    clear_broken_ports,
     controller_commands,
     controller_files_given,
     die_with_parent,
@@ -151,6 +152,7 @@ def run(args) -> dict:
     logs = out.with_name(out.name + "_logs")
     logs.mkdir(parents=True, exist_ok=True)
     env = dict(os.environ, ROS_DOMAIN_ID=str(args.domain_id), PYTHONUNBUFFERED="1")
+    clear_broken_ports("replay_flight")
     processes: dict[str, subprocess.Popen] = {}
     started = time.monotonic()
     watch = OutputWatch(args.domain_id, watched_channels(args.controller))

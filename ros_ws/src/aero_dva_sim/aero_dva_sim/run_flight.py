@@ -136,6 +136,16 @@ def die_with_parent() -> None:
         pass  # not Linux: the runner's finally-block still stops the nodes
 
 
+def clear_broken_ports(tool: str) -> None:
+    """Remove shared-memory port files a dead DDS process left unsized (they hang every later
+    node at its start: dva_ros_common.shared_memory) and say so."""
+    from dva_ros_common.shared_memory import remove_unsized_ports
+
+    for port in remove_unsized_ports():
+        print(f"{tool}: removed {port}: an unsized Fast DDS port file a dead process left "
+              "(it would hang the nodes at their start)", file=sys.stderr)
+
+
 def stop_process(process: subprocess.Popen, timeout: float) -> int:
     """SIGINT, then SIGKILL after ``timeout`` [s]; the exit code."""
     if process.poll() is None:
@@ -182,6 +192,7 @@ def run(args) -> dict:
     logs.mkdir(parents=True)
     commands = build_commands(args, bag)
     env = dict(os.environ, ROS_DOMAIN_ID=str(args.domain_id), PYTHONUNBUFFERED="1")
+    clear_broken_ports("run_flight")
     processes: dict[str, subprocess.Popen] = {}
     started = time.monotonic()
     try:
@@ -190,8 +201,9 @@ def run(args) -> dict:
                 processes[name] = subprocess.Popen(argv, env=env, stdout=log,
                                                    stderr=subprocess.STDOUT,
                                                    preexec_fn=die_with_parent)
+        # The simulator exits once its readers have acknowledged all it sent; the recorder,
+        # stopped last, takes what is still queued before it closes the bag.
         _wait_for_flight(processes, args.timeout, logs)
-        time.sleep(0.5)  # let the recorder take the last messages in flight off the wire
     finally:
         codes = {name: stop_process(p, timeout=15.0) for name, p in reversed(processes.items())}
     wall = time.monotonic() - started

@@ -1,0 +1,35 @@
+"""Fast DDS shared-memory port files that would hang every later participant.
+
+A process that dies while creating its shared-memory port leaves ``/dev/shm/fastrtps_portN``
+at size 0. Every later DDS participant that takes that port number hangs for ever while being
+created, before its first log line (docs/reliability.md: two loaded integration runs and an
+idle fresh clone failed so). Fast DDS's own ``fastdds shm clean`` removes ports whose lock file
+nobody holds; such a port may have no lock file at all. A port being created is unsized for
+microseconds, so one older than a minute is a dead process's.
+"""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+SHM = Path("/dev/shm")
+MIN_AGE = 60.0  # [s] an unsized port older than this belongs to no live process
+
+
+def remove_unsized_ports(shm: Path = SHM, min_age: float = MIN_AGE) -> list[Path]:
+    """Remove ``fastrtps_port*`` files of size 0 older than ``min_age`` seconds, with their
+    mutex (``sem.<port>_mutex``); return the ports removed. Files that vanish meanwhile or
+    belong to another user are left alone."""
+    removed = []
+    now = time.time()
+    for port in sorted(shm.glob("fastrtps_port*")):
+        try:
+            info = port.stat()
+            if info.st_size != 0 or now - info.st_mtime <= min_age:
+                continue
+            port.unlink()
+            (shm / f"sem.{port.name}_mutex").unlink(missing_ok=True)
+        except OSError:
+            continue
+        removed.append(port)
+    return removed
