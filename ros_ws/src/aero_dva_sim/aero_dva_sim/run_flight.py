@@ -201,9 +201,12 @@ def run(args) -> dict:
                 processes[name] = subprocess.Popen(argv, env=env, stdout=log,
                                                    stderr=subprocess.STDOUT,
                                                    preexec_fn=die_with_parent)
-        # The simulator exits once its readers have acknowledged all it sent; the recorder,
-        # stopped last, takes what is still queued before it closes the bag.
         _wait_for_flight(processes, args.timeout, logs)
+        # A margin for messages still on their way to the recorder, which is stopped last and
+        # then takes what is queued. Waiting for the readers' acks instead would be a condition,
+        # but Fast DDS acks the last message only at the writer's next heartbeat: 3 s per flight
+        # (docs/reliability.md).
+        time.sleep(0.5)
     finally:
         codes = {name: stop_process(p, timeout=15.0) for name, p in reversed(processes.items())}
     wall = time.monotonic() - started

@@ -27,12 +27,10 @@ from collections.abc import Callable, Mapping
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
-from rclpy.duration import Duration
 from rclpy.exceptions import ParameterException
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
-from rclpy.qos import QoSReliabilityPolicy
 from rclpy.task import Future
 
 from aero_dva.bag.channels import DIAGNOSTICS
@@ -217,30 +215,6 @@ def close_executor(executor: Executor, *nodes: Node) -> None:
         node.destroy_node()
 
 
-ACK_TIMEOUT = 3.0  # [s] a node that ends itself waits this long for its readers' acks
-
-
-def unacknowledged(node: Node, timeout: float) -> list[str]:
-    """Wait until every reader of each of ``node``'s reliable publishers has acknowledged all
-    it was sent, ``timeout`` [s] in all; return the topics still unacknowledged.
-
-    A reliable writer resends what a reader missed only while its process lives: a node that
-    exits right after its last message (the simulator at the end of a flight) would otherwise
-    take messages the recorder's transport dropped under load with it. Acks come from the
-    readers' DDS threads, not from their Python code, so a busy reader still acks within
-    milliseconds; only a stopped or killed one makes this wait the whole ``timeout``.
-    """
-    deadline = time.monotonic() + timeout
-    late = []
-    for publisher in node.publishers:
-        if publisher.qos_profile.reliability != QoSReliabilityPolicy.RELIABLE:
-            continue
-        left = max(deadline - time.monotonic(), 0.0)
-        if not publisher.wait_for_all_acked(Duration(seconds=left)):
-            late.append(publisher.topic_name)
-    return late
-
-
 def run_node(node_class: Callable[[], Node], spec: NodeSpec, args=None, *,
              drain: Callable[[Node], int] | None = None) -> int:
     """Body of a node's ``main``: the exit code.
@@ -249,9 +223,7 @@ def run_node(node_class: Callable[[], Node], spec: NodeSpec, args=None, *,
     starting ROS; unknown arguments outside ``--ros-args`` return 2, as do bad parameters or
     files (a one-line error). The node spins until its ``done`` future completes, if it has
     one that is not None, or until SIGINT or SIGTERM (:class:`_Signals`: the context
-    stays up until the node has stopped). A node that ended itself first waits (at most
-    ``ACK_TIMEOUT``) until its readers have acknowledged what it sent (:func:`unacknowledged`).
-    A node with a ``close()`` method has it called
+    stays up until the node has stopped). A node with a ``close()`` method has it called
     once at the end, with SIGINT and SIGTERM ignored so that a second Ctrl-C cannot cut it
     short (the recorder closes its bag there). A node's ``exit_code`` attribute, if it has one,
     is the exit code after a normal end (the simulator's 1 for a failed flight). Errors while
@@ -281,11 +253,6 @@ def run_node(node_class: Callable[[], Node], spec: NodeSpec, args=None, *,
             return 2
         executor.add_node(node)
         spin(executor, getattr(node, "done", None), stop_when=signalled)
-        if not signalled():  # ended itself: its readers get what it sent before it exits
-            late = unacknowledged(node, ACK_TIMEOUT)
-            if late:
-                print(f"[{node_name}] not acknowledged by every reader within {ACK_TIMEOUT:g} "
-                      f"s: {', '.join(late)}", file=sys.stderr)
         if drain is not None and signalled():
             taken, took = _drain(executor, lambda: drain(node))
             # (in the log: a stop that lost messages can be told from one that had none queued)
