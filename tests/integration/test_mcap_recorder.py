@@ -1,6 +1,7 @@
 """The recorder node writes bags that other tools read, and loses nothing it received on SIGINT."""
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -154,5 +155,8 @@ def test_messages_a_writer_dropped_before_the_recorder_had_them_are_reported(
     assert recorder.stop() == 0, recorder.output()
     closing = next(line for line in recorder.output().splitlines() if "closed" in line)
     assert "lost before reaching it" in closing and "/dva/damper_command" in closing, closing
+    assert " 0 message(s) lost" not in recorder.output()  # each loss said once, with its count
+    lost = int(re.search(r"'/dva/damper_command': (\d+)", closing).group(1))
     recorded = bag_topics(bag)["/dva/damper_command"].message_count
     assert 1 < recorded < 3002
+    assert recorded + lost == 3002, closing  # every message is either in the bag or counted

@@ -1,8 +1,11 @@
 """Executables resolve and start the way ``ros2 run`` starts them, and publish over DDS."""
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
+import time
+from pathlib import Path
 
 import pytest
 from rclpy.node import Node
@@ -36,6 +39,38 @@ def test_fixed_controller_subprocess_publishes(executor, spin, ros_context, star
     assert msg is not None, proc.output()
     assert msg.damping == 750.0
     assert msg.source == DamperCommand.SOURCE_FIXED
+    assert proc.stop() == 0, proc.output()
+
+
+def test_a_node_removes_the_unsized_port_files_that_would_hang_it(executor, spin, ros_context,
+                                                                 ros_domain, start_process):
+    """Port files a dead process left at size 0 (docs/reliability.md) on this test's domain,
+    for its first four participants: the node removes them before DDS starts, then runs."""
+    then = time.time() - 120.0
+    planted = []
+    for participant in range(4):  # Fast DDS's unicast port: 7400 + 250 domain + 11 + 2 p
+        port = Path(f"/dev/shm/fastrtps_port{7400 + 250 * ros_domain + 11 + 2 * participant}")
+        if not port.exists():  # an existing one belongs to a live participant
+            port.touch()
+            os.utime(port, (then, then))
+            planted.append(port)
+    path = ros2_run_path("dva_controller", "fixed_controller")
+    proc = start_process([path, "--ros-args", "-p", "damping:=640.0"])
+
+    def unsized():  # a removed port may come back, sized, as the node's own
+        left = []
+        for port in planted:
+            with contextlib.suppress(FileNotFoundError):
+                if port.stat().st_size == 0:
+                    left.append(port)
+        return left
+
+    deadline = time.monotonic() + 60.0
+    while unsized() and time.monotonic() < deadline:
+        time.sleep(0.05)  # polling the files: the condition itself
+    assert not unsized(), proc.output()
+    msg = _first_command(executor, spin, ros_context, "dva/damper_command")
+    assert msg is not None and msg.damping == 640.0, proc.output()
     assert proc.stop() == 0, proc.output()
 
 

@@ -21,10 +21,12 @@ def test_only_old_unsized_ports_and_their_mutex_are_removed(tmp_path):
     live = _file(tmp_path / "fastrtps_port7917", 4096, 120.0)
     other_mutex = _file(tmp_path / "sem.fastrtps_port7917_mutex", 32, 120.0)
     segment = _file(tmp_path / "fastrtps_00de632052a5ac1d", 0, 120.0)
+    lock = _file(tmp_path / "fastrtps_port7911_el", 0, 120.0)  # empty by design, held by a live
+    other_lock = _file(tmp_path / "fastrtps_port7911_sl", 0, 120.0)
 
     assert remove_unsized_ports(tmp_path, min_age=60.0) == [dead]
     assert not dead.exists() and not mutex.exists()
-    for kept in (being_created, live, other_mutex, segment):
+    for kept in (being_created, live, other_mutex, segment, lock, other_lock):
         assert kept.exists(), kept.name
 
 

@@ -136,16 +136,6 @@ def die_with_parent() -> None:
         pass  # not Linux: the runner's finally-block still stops the nodes
 
 
-def clear_broken_ports(tool: str) -> None:
-    """Remove shared-memory port files a dead DDS process left unsized (they hang every later
-    node at its start: dva_ros_common.shared_memory) and say so."""
-    from dva_ros_common.shared_memory import remove_unsized_ports
-
-    for port in remove_unsized_ports():
-        print(f"{tool}: removed {port}: an unsized Fast DDS port file a dead process left "
-              "(it would hang the nodes at their start)", file=sys.stderr)
-
-
 def stop_process(process: subprocess.Popen, timeout: float) -> int:
     """SIGINT, then SIGKILL after ``timeout`` [s]; the exit code."""
     if process.poll() is None:
@@ -192,7 +182,6 @@ def run(args) -> dict:
     logs.mkdir(parents=True)
     commands = build_commands(args, bag)
     env = dict(os.environ, ROS_DOMAIN_ID=str(args.domain_id), PYTHONUNBUFFERED="1")
-    clear_broken_ports("run_flight")
     processes: dict[str, subprocess.Popen] = {}
     started = time.monotonic()
     try:

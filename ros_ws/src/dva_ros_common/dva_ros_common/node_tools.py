@@ -41,6 +41,7 @@ from dva_ros_common.node_params import (
     command_line,
     declare_parameters,
 )
+from dva_ros_common.shared_memory import remove_unsized_ports
 
 #: The rows of :class:`InputHealth` for a node's parameter table.
 INPUT_HEALTH_PARAMS = (
@@ -242,6 +243,9 @@ def run_node(node_class: Callable[[], Node], spec: NodeSpec, args=None, *,
         return code
     node_name = spec.name
     signalled = _Signals()  # first: a signal while rclpy starts is noted too
+    for port in remove_unsized_ports():  # else the node could hang before its first line
+        print(f"[{node_name}] removed {port}: an unsized Fast DDS port file a dead process "
+              "left", file=sys.stderr)
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     node = None
     try:
