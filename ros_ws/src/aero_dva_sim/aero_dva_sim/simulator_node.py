@@ -37,7 +37,7 @@ from dva_msgs.msg import DamperCommand
 from dva_ros_common import conversions
 from dva_ros_common.conversions import message_class, time_to_seconds
 from dva_ros_common.node_params import NodeSpec, Param, declare_parameters
-from dva_ros_common.node_tools import run_node
+from dva_ros_common.node_tools import DATA_DEPTH, run_node
 
 POLL_PERIOD = 0.005  # [s] wall time between checks before the start and while held
 # [s] wall time one step callback may spend catching up before it returns to the executor, so
@@ -49,12 +49,6 @@ REJECTION_REPORT_PERIOD = 1.0
 #: The per-block topics in publish order (after /clock), as the bag records them.
 DATA_CHANNELS = tuple(c for c in ch.SIMULATOR_BLOCK if c != ch.CLOCK)
 DATA_TOPICS = tuple(c.name for c in DATA_CHANNELS)
-#: Keep-last depth of the data topics' writers. A reader whose process is starved can overflow
-#: its transport buffers; a reliable writer then sends again only what is still in its history,
-#: and the rest is lost for good (the recorder reports such losses). 50 lasted 0.25 s at 10x
-#: real time (200 blocks/s); a loaded recorder once missed one block on all five topics after a
-#: 0.29 s pause (docs/reliability.md). 1000 blocks last 5 s at 10x, about 2 MB per topic.
-DATA_DEPTH = 1000
 _NAN = float("nan")
 _DESIGN = "the wing file's Maxwell design"
 MAX_DAMPING = 1.0e6  # [N s/m] far above any damper of this size class; larger is a unit error

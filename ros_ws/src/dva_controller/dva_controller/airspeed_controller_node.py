@@ -32,7 +32,13 @@ from dva_msgs.msg import DamperCommand, FlightCondition
 from dva_ros_common import conversions
 from dva_ros_common.held_publisher import HOLD_PARAM, HeldPublisher
 from dva_ros_common.node_params import NodeSpec, Param, declare_parameters
-from dva_ros_common.node_tools import INPUT_HEALTH_PARAMS, InputHealth, Status, run_node
+from dva_ros_common.node_tools import (
+    DATA_DEPTH,
+    INPUT_HEALTH_PARAMS,
+    InputHealth,
+    Status,
+    run_node,
+)
 
 SPEC = NodeSpec(
     name="airspeed_controller",
@@ -104,7 +110,7 @@ class AirspeedController(Node):
         )
 
         self._command_pub = HeldPublisher(
-            self, self.create_publisher(DamperCommand, ch.DAMPER_COMMAND.name, 10),
+            self, self.create_publisher(DamperCommand, ch.DAMPER_COMMAND.name, DATA_DEPTH),
             values["hold_until_subscribers"])
         self.create_subscription(FlightCondition, ch.FLIGHT_CONDITION.name, self._on_condition, 10)
         self.get_logger().info(

@@ -46,7 +46,13 @@ from dva_msgs.msg import DamperCommand, ScaledSpectrum
 from dva_ros_common import conversions
 from dva_ros_common.held_publisher import HOLD_PARAM, HeldPublisher
 from dva_ros_common.node_params import NodeSpec, Param, declare_parameters
-from dva_ros_common.node_tools import INPUT_HEALTH_PARAMS, InputHealth, Status, run_node
+from dva_ros_common.node_tools import (
+    DATA_DEPTH,
+    INPUT_HEALTH_PARAMS,
+    InputHealth,
+    Status,
+    run_node,
+)
 
 FREQUENCY_TOLERANCE = 1.0e-6  # [Hz] spectrum frequencies must match the training ones this well
 DURATION_TOLERANCE = 1.0e-6  # [s]
@@ -120,7 +126,7 @@ class RBFController(Node):
                                    self._status)
 
         self._command_pub = HeldPublisher(
-            self, self.create_publisher(DamperCommand, ch.DAMPER_COMMAND.name, 10),
+            self, self.create_publisher(DamperCommand, ch.DAMPER_COMMAND.name, DATA_DEPTH),
             values["hold_until_subscribers"])
         self.create_subscription(ScaledSpectrum, ch.SPECTRUM.name, self._on_spectrum, 10)
         self.get_logger().info(

@@ -36,7 +36,13 @@ from dva_msgs.msg import AccelerationBlock, DamperState, ScaledSpectrum
 from dva_ros_common import conversions
 from dva_ros_common.held_publisher import HOLD_PARAM, HeldPublisher
 from dva_ros_common.node_params import NodeSpec, Param, declare_parameters
-from dva_ros_common.node_tools import INPUT_HEALTH_PARAMS, InputHealth, Status, run_node
+from dva_ros_common.node_tools import (
+    DATA_DEPTH,
+    INPUT_HEALTH_PARAMS,
+    InputHealth,
+    Status,
+    run_node,
+)
 
 QOS_DEPTH = 100  # blocks of 10-50 ms: a few seconds of slack at 20x real time before a gap
 STATE_WAIT = 1.0  # [s] wall time a block waits for its damper state (1-2 ticks) before it is
@@ -79,7 +85,7 @@ class SpectrumNode(Node):
         self._health = InputHealth(self, "window", ch.ACCELERATION.name, self.counts, self._status)
 
         self._spectrum_pub = HeldPublisher(
-            self, self.create_publisher(ScaledSpectrum, ch.SPECTRUM.name, 10),
+            self, self.create_publisher(ScaledSpectrum, ch.SPECTRUM.name, DATA_DEPTH),
             values["hold_until_subscribers"])
         self.create_subscription(AccelerationBlock, ch.ACCELERATION.name, self._on_block,
                                  QOS_DEPTH)
