@@ -33,7 +33,6 @@ from dva_ros_common import conversions
 from dva_ros_common.held_publisher import HOLD_PARAM, HeldPublisher
 from dva_ros_common.node_params import NodeSpec, Param, declare_parameters
 from dva_ros_common.node_tools import (
-    DATA_DEPTH,
     INPUT_HEALTH_PARAMS,
     InputHealth,
     Status,
@@ -110,8 +109,7 @@ class AirspeedController(Node):
         )
 
         self._command_pub = HeldPublisher(
-            self, self.create_publisher(DamperCommand, ch.DAMPER_COMMAND.name, DATA_DEPTH),
-            values["hold_until_subscribers"])
+            self, DamperCommand, ch.DAMPER_COMMAND.name, values["hold_until_subscribers"])
         self.create_subscription(FlightCondition, ch.FLIGHT_CONDITION.name, self._on_condition, 10)
         self.get_logger().info(
             f"c2 = {self.schedule.a0:g} + {self.schedule.a1:g} U N s/m ({origin}), "

@@ -17,7 +17,7 @@ from dva_msgs.msg import DamperCommand
 from dva_ros_common.conversions import damper_command
 from dva_ros_common.held_publisher import HOLD_PARAM, HeldPublisher
 from dva_ros_common.node_params import NodeSpec, Param, declare_parameters
-from dva_ros_common.node_tools import DATA_DEPTH, run_node
+from dva_ros_common.node_tools import run_node
 
 SPEC = NodeSpec(
     name="fixed_controller",
@@ -43,8 +43,7 @@ class FixedController(Node):
         self._damping = self._checked_damping(values["damping"])
         rate = float(values["rate"])
         self._publisher = HeldPublisher(
-            self, self.create_publisher(DamperCommand, ch.DAMPER_COMMAND.name, DATA_DEPTH),
-            values["hold_until_subscribers"])
+            self, DamperCommand, ch.DAMPER_COMMAND.name, values["hold_until_subscribers"])
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.create_timer(1.0 / rate, self._publish)
         self.get_logger().info(f"commanding c2 = {self._damping:g} N s/m at {rate:g} Hz")

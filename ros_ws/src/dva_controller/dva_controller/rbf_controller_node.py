@@ -47,7 +47,6 @@ from dva_ros_common import conversions
 from dva_ros_common.held_publisher import HOLD_PARAM, HeldPublisher
 from dva_ros_common.node_params import NodeSpec, Param, declare_parameters
 from dva_ros_common.node_tools import (
-    DATA_DEPTH,
     INPUT_HEALTH_PARAMS,
     InputHealth,
     Status,
@@ -126,8 +125,7 @@ class RBFController(Node):
                                    self._status)
 
         self._command_pub = HeldPublisher(
-            self, self.create_publisher(DamperCommand, ch.DAMPER_COMMAND.name, DATA_DEPTH),
-            values["hold_until_subscribers"])
+            self, DamperCommand, ch.DAMPER_COMMAND.name, values["hold_until_subscribers"])
         self.create_subscription(ScaledSpectrum, ch.SPECTRUM.name, self._on_spectrum, 10)
         self.get_logger().info(
             f"RBF network {path}: {self.network.n_neurons} neurons, {dim} inputs "

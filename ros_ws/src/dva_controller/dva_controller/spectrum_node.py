@@ -37,7 +37,6 @@ from dva_ros_common import conversions
 from dva_ros_common.held_publisher import HOLD_PARAM, HeldPublisher
 from dva_ros_common.node_params import NodeSpec, Param, declare_parameters
 from dva_ros_common.node_tools import (
-    DATA_DEPTH,
     INPUT_HEALTH_PARAMS,
     InputHealth,
     Status,
@@ -85,8 +84,7 @@ class SpectrumNode(Node):
         self._health = InputHealth(self, "window", ch.ACCELERATION.name, self.counts, self._status)
 
         self._spectrum_pub = HeldPublisher(
-            self, self.create_publisher(ScaledSpectrum, ch.SPECTRUM.name, DATA_DEPTH),
-            values["hold_until_subscribers"])
+            self, ScaledSpectrum, ch.SPECTRUM.name, values["hold_until_subscribers"])
         self.create_subscription(AccelerationBlock, ch.ACCELERATION.name, self._on_block,
                                  QOS_DEPTH)
         self.create_subscription(DamperState, ch.DAMPER_STATE.name, self._on_damper_state,

@@ -26,7 +26,7 @@ from dva_msgs.msg import DamperCommand, DamperState, DisplacementBlock
 from dva_ros_common import conversions
 from dva_ros_common.held_publisher import HOLD_PARAM, HeldPublisher
 from dva_ros_common.node_params import NodeSpec, Param, declare_parameters
-from dva_ros_common.node_tools import DATA_DEPTH, run_node
+from dva_ros_common.node_tools import run_node
 
 SPEC = NodeSpec(
     name="switching_controller",
@@ -79,8 +79,7 @@ class SwitchingController(Node):
         self.fallbacks: list[str] = []  # every reason said, in order
         self.damper_mode: int | None = None  # the damper's mode in its last state
         self._publisher = HeldPublisher(
-            self, self.create_publisher(DamperCommand, ch.DAMPER_COMMAND.name, DATA_DEPTH),
-            values["hold_until_subscribers"])
+            self, DamperCommand, ch.DAMPER_COMMAND.name, values["hold_until_subscribers"])
         self._diag = self.create_publisher(conversions.message_class(ch.DIAGNOSTICS.type_name),
                                            ch.DIAGNOSTICS.name, 10)
         self.create_subscription(DisplacementBlock, ch.DISPLACEMENT.name, self._on_block, 50)

@@ -12,6 +12,7 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 
 from dva_ros_common.node_params import Param
+from dva_ros_common.node_tools import DATA_DEPTH
 
 POLL_PERIOD = 0.005  # [s] wall time between looks at the matched count while holding
 MAX_HELD = 10000  # messages held at most; the oldest go first beyond it
@@ -24,10 +25,13 @@ HOLD_PARAM = Param(
 
 
 class HeldPublisher:
-    """``publish`` as rclpy's, except that messages wait until ``count`` subscribers match."""
+    """``publish`` as rclpy's, except that messages wait until ``count`` subscribers match.
 
-    def __init__(self, node: Node, publisher, count: int) -> None:
-        self._publisher = publisher
+    Its writer on ``topic`` keeps :data:`~dva_ros_common.node_tools.DATA_DEPTH` messages: what
+    it publishes is recorded, and a starved recorder must still get it whole."""
+
+    def __init__(self, node: Node, msg_type, topic: str, count: int) -> None:
+        self._publisher = node.create_publisher(msg_type, topic, DATA_DEPTH)
         self._count = int(count)
         self._held: list = []
         self._timer = None
