@@ -8,11 +8,13 @@ on a shared, busy machine the wall clock mostly measures the other processes.
 
 Prints (best of ``--repeats``):
 - the study's flight (30 s ramp 0.8 -> 1.2 U_cr at 1 kHz, Maxwell DVA) with c2 held (ch. 6) and
-  with a c2 schedule (ch. 7), this revision against the previous route
-  (``reference_simulate_flights``), timed alternately in this run: a first flight (no
-  condition discretised yet) and a repeated one (the conditions kept from the previous call,
-  as for the seeds of an evaluation case); real-time factors (targets >= 10 000x held,
-  >= 5 000x schedule), ratios and the largest difference relative to each channel's peak;
+  with a c2 schedule (ch. 7) by three routes timed alternately in this run: this revision
+  (the compiled sample loop), the previous revision's (the banded period carry and period
+  maps, ``BatchStepper`` without the compiled loop) and the reference
+  (``reference_simulate_flights``); each as a first flight (no condition discretised yet) and
+  a repeated one (the conditions kept from the previous call, as for the seeds of an
+  evaluation case); real-time factors (targets >= 10 000x held, >= 5 000x schedule), ratios
+  and the largest difference relative to each channel's peak;
 - a batch of flights vs a loop of single flights: flights per second and their ratio
   (target >= 10x);
 - a constant-airspeed flight vs scipy.signal.dlsim on the same discretised system;
@@ -27,10 +29,14 @@ import numpy as np
 from scipy.signal import cont2discrete, dlsim
 
 from aero_dva.flight.batch_simulator import (
+    BatchStepper,
+    _DiscreteCache,
+    _simulate_with,
     forget_conditions,
     reference_simulate_flights,
     simulate_flights,
 )
+from aero_dva.flight.discrete_model import DEFAULT_HOLD, DiscreteWing
 from aero_dva.flight.divergence import ramp_airspeed
 from aero_dva.flight.streaming_simulator import StreamingSimulator
 from aero_dva.wing.flutter import flutter_speed
@@ -74,25 +80,50 @@ def main() -> None:
         forget_conditions()
         return one(0, damping)
 
-    print("one 30 s flight: previous route vs this revision, timed alternately")
+    # The previous revision's route for one flight: the banded period carry and the period
+    # maps (BatchStepper without the compiled loop), its conditions kept between calls.
+    dw = DiscreteWing(AeroelasticModel(wing, dva), 1000.0, hold=DEFAULT_HOLD, quantum=2e-3)
+    kept = {}
+
+    def banded(wing_, dva_, *, damping, fresh=False, **kw):
+        key = damping is None
+        if fresh or key not in kept:
+            kept[key] = _DiscreteCache(dw)
+        stepper = BatchStepper(dw, kept[key])
+        return _simulate_with(stepper, kw["force"], kw["airspeed"], kw["density"], damping,
+                              None, None)
+
+    print("one 30 s flight: the routes timed alternately (first: nothing discretised yet;"
+          " repeated: the conditions kept from the previous call)")
     for label, damping in (("c2 held", None), ("c2 schedule", c2)):
         ref = one(0, damping, reference_simulate_flights)
         new = one(0, damping)
+        old = one(0, damping, banded)
         diff = max(float(np.max(np.abs(a - b) / np.max(np.abs(a), axis=-1, keepdims=True)))
                    for a, b in ((ref.displacements, new.displacements),
-                                (ref.accelerations, new.accelerations)))
-        times = {"previous": [], "first": [], "repeated": []}
+                                (ref.accelerations, new.accelerations),
+                                (old.displacements, new.displacements),
+                                (old.accelerations, new.accelerations)))
+        times = {k: [] for k in ("reference", "banded first", "banded repeated",
+                                 "first", "repeated")}
         for _ in range(args.repeats):
-            times["previous"].append(
+            times["reference"].append(
                 best(lambda d=damping: one(0, d, reference_simulate_flights), 1))
+            times["banded first"].append(best(
+                lambda d=damping: banded(wing, dva, force=force[0], airspeed=u, density=rho,
+                                         damping=d, fresh=True), 1))
+            times["banded repeated"].append(best(lambda d=damping: one(0, d, banded), 1))
             times["first"].append(best(lambda d=damping: first(d), 1))
             times["repeated"].append(best(lambda d=damping: one(0, d), 1))
         t = {k: min(v) for k, v in times.items()}
-        print(f"  {label:12s} previous {t['previous'] * 1e3:6.2f} ms = "
-              f"{duration / t['previous']:6.0f}x real time")
+        print(f"  {label:12s} {'reference':16s} {t['reference'] * 1e3:6.2f} ms = "
+              f"{duration / t['reference']:6.0f}x real time  (reference_simulate_flights)")
         for k in ("first", "repeated"):
-            print(f"  {label:12s} {k:8s} {t[k] * 1e3:6.2f} ms = {duration / t[k]:6.0f}x real time"
-                  f"  -> {t['previous'] / t[k]:4.1f}x the previous")
+            print(f"  {label:12s} {'previous ' + k:16s} {t['banded ' + k] * 1e3:6.2f} ms = "
+                  f"{duration / t['banded ' + k]:6.0f}x real time  (banded carry)")
+            print(f"  {label:12s} {'this ' + k:16s} {t[k] * 1e3:6.2f} ms = "
+                  f"{duration / t[k]:6.0f}x real time  -> {t['banded ' + k] / t[k]:4.1f}x the "
+                  f"previous, {t['reference'] / t[k]:4.1f}x the reference")
         print(f"  {label:12s} largest difference / channel peak: {diff:.1e}")
 
     def loop():

@@ -5,11 +5,14 @@ periods (only a short loop over hold periods stays sequential), on the sampled w
 :class:`~aero_dva.flight.discrete_model.DiscreteWing` with its parameter hold. When all flights
 share one schedule, the held conditions of the whole flight are found first and discretised in
 one vectorised call (:meth:`BatchStepper.prefetch`) and kept between calls for the same model
-(repeated flights of a schedule skip the matrix exponentials); then the states at the period
-boundaries are carried across periods (one banded solve per flight for few flights,
-:mod:`~aero_dva.flight.period_carry`; a two-level carry for eight or more,
-:data:`BATCH_COLUMNS`), and the outputs follow by one period map per run of periods with one
-held condition. :class:`BatchStepper` also serves the streaming simulator's long calls.
+(repeated flights of a schedule skip the matrix exponentials). Fewer than
+:data:`BATCH_COLUMNS` such flights are then stepped sample by sample in a compiled loop
+(:mod:`~aero_dva.flight.held_kernel`, which also discretises them); eight or more carry the
+states at the period boundaries across periods (a two-level carry) and form the outputs by one
+period map per run of periods with one held condition. :class:`BatchStepper` also serves the
+streaming simulator's long calls, without the compiled loop (a node process does not import
+numba in mid-flight): few flights there carry their period starts by one banded solve
+(:mod:`~aero_dva.flight.period_carry`).
 :func:`reference_simulate_flights` is the previous route, kept as a baseline. Pure numerics.
 """
 
@@ -28,6 +31,7 @@ from aero_dva.flight.discrete_model import (
     DiscreteWing,
     held_values,
 )
+from aero_dva.flight.discretize import TAYLOR
 from aero_dva.flight.period_carry import period_starts
 from aero_dva.wing.checks import real_array
 from aero_dva.wing.model import AeroelasticModel
@@ -76,9 +80,11 @@ class _DiscreteCache:
 
     LEVELS = {"basic": ("phi", "gam", "cacc", "dacc"), "carry": ("phih", "ctrb"),
               "period": ("period",)}
+    RANK = {"basic": 0, "carry": 1, "period": 2}
 
-    def __init__(self, wing: DiscreteWing, max_size: int = 4096):
+    def __init__(self, wing: DiscreteWing, max_size: int = 4096, compiled: bool = False):
         self.wing, self.model, self.hold, self.max_size = wing, wing.model, wing.hold, max_size
+        self.compiled = compiled  # matrix exponentials by the compiled loop (held_kernel)
         self.clear()
 
     def clear(self):
@@ -90,11 +96,23 @@ class _DiscreteCache:
                   "ctrb": (n, h), "period": (N_OUTPUTS * h, n + h)}
         self.arr = {name: np.zeros((16,) + shape) for name, shape in shapes.items()}
         self.done = {level: np.zeros(16, dtype=bool) for level in self.LEVELS}
+        self._last = None  # (params, level, indices) of the last lookup
 
     def lookup(self, params: np.ndarray, level: str = "basic") -> np.ndarray:
         """Indices (K,) of the rows of ``params`` (K, 3) = [U, rho, damping], computed to
         ``level`` ("basic", "carry" or "period"; each includes the previous)."""
         params = np.asarray(params, dtype=float).reshape(-1, 3)
+        last = self._last  # a repeated flight asks for the same schedule again
+        if (last is not None and last[1] >= self.RANK[level] and last[0].shape == params.shape
+                and np.array_equal(last[0], params)):
+            return last[2]
+        idx = self._lookup(params, level)
+        if len(params) > 1:  # a schedule, not the single condition of a partial period
+            idx.flags.writeable = False  # handed out again on a repeat
+            self._last = (params.copy(), self.RANK[level], idx)
+        return idx
+
+    def _lookup(self, params, level):
         # Held parameters come in runs: deduplicate the runs first (cheap), then the rest.
         new_run = np.ones(len(params), dtype=bool)
         new_run[1:] = np.any(params[1:] != params[:-1], axis=1)
@@ -131,7 +149,7 @@ class _DiscreteCache:
 
     def _add_basic(self, p: np.ndarray):
         # The parameters were checked where they entered (DiscreteWing.checked_inputs).
-        m = self.wing.discretise(p)
+        m = self.wing.discretise(p, _compiled_expm if self.compiled else None)
         phi, gam = m.ad, m.bd
         cacc, dacc = m.c[:, N_DISPLACEMENTS:], m.d[:, N_DISPLACEMENTS:]
         k0, k1 = self.size, self.size + len(p)
@@ -178,6 +196,14 @@ class _DiscreteCache:
         toep[:, np.arange(h), N_DISPLACEMENTS:, np.arange(h)] = dacc[None]
         self.arr["period"][idx] = period.reshape(k, N_OUTPUTS * h, n + h)
         self.done["period"][idx] = True
+
+
+def _compiled_expm(m: np.ndarray) -> np.ndarray:
+    """:func:`~aero_dva.flight.discretize.expm_batch` of a stack (K, n, n), compiled."""
+    from aero_dva.flight.held_kernel import expm_stack  # numba: imported when first used
+
+    m = np.ascontiguousarray(m, dtype=float)
+    return expm_stack(m, TAYLOR, np.empty_like(m))
 
 
 def _matrix_power(m: np.ndarray, power: int) -> np.ndarray:
@@ -290,7 +316,9 @@ def _period_outputs(period, keys, x, out):
 BATCH_COLUMNS = 8
 """From this many flights sharing one schedule on, the period starts come from the two-level
 carry (:func:`_carry`, its products serve all flights at once) and the outputs from
-:func:`_period_outputs`; fewer flights take one banded solve per flight (:func:`_run_few`)."""
+:func:`_period_outputs`; fewer flights take the compiled sample loop (:func:`_run_compiled`,
+:func:`simulate_flights`) or one banded solve per flight (:func:`_run_few`, the streaming
+simulator's long calls)."""
 
 
 def _run_outputs(period, keys, x, out):
@@ -321,6 +349,25 @@ def _run_few(cache, y, k, u, out):
     x = np.concatenate([starts[:-1].transpose(2, 0, 1), u], axis=2)
     _run_outputs(arr["period"], k, x, out.reshape(f, nb, -1))
     return starts[-1].T
+
+
+def _run_compiled(cache, y, k, u, out):
+    """Full hold periods of fewer than :data:`BATCH_COLUMNS` flights sharing the cached
+    conditions ``k`` (B,), by the compiled sample loop (:mod:`~aero_dva.flight.held_kernel`):
+    y (F, n), u (F, B, h), outputs into ``out`` (F, B, h, p); returns the final state."""
+    from aero_dva.flight.held_kernel import step_periods  # numba: imported when first used
+
+    f, nb, h = u.shape
+    arr = cache.arr
+    flat = out.reshape(f, nb * h, N_OUTPUTS)
+    dest = flat if flat.flags.c_contiguous else np.empty(flat.shape)  # one compiled layout
+    end = step_periods(arr["phi"], arr["gam"], arr["cacc"], arr["dacc"],
+                       np.ascontiguousarray(cache.model.c_displacement),
+                       np.ascontiguousarray(k, dtype=np.intp), h, np.ascontiguousarray(y),
+                       np.ascontiguousarray(u.reshape(f, nb * h)), dest)
+    if dest is not flat:
+        flat[...] = dest
+    return end
 
 
 def _run_full(cache, y, rows, u, out, reference=False):
@@ -381,11 +428,14 @@ class BatchStepper:
     the batch simulator's machinery, also taken by the streaming simulator's long calls."""
 
     def __init__(self, wing: DiscreteWing, cache: _DiscreteCache | None = None,
-                 reference: bool = False):
+                 reference: bool = False, compiled: bool = False):
         self.wing = wing
         self.hold, self.quantum = wing.hold, wing.quantum
         self.cache = _DiscreteCache(wing) if cache is None else cache
         self.reference = reference
+        # The compiled sample loop for few flights on one schedule; off for the streaming
+        # simulator, whose process should not wait for numba's import in mid-flight.
+        self.compiled = compiled and not reference
 
     def prefetch(self, u, rho, c, level):
         """Held conditions of a whole flight from sample 0, discretised in one batch.
@@ -396,7 +446,13 @@ class BatchStepper:
         whole flight instead of one per chunk).
         """
         raw = np.stack([u[::self.hold], rho[::self.hold], c[::self.hold]], axis=-1)[None]
-        rows = held_values(raw, np.full((1, 3), np.nan), self.quantum)
+        if self.compiled:
+            from aero_dva.flight.held_kernel import hold_rule
+
+            rows = hold_rule(raw[0], np.full(3, np.nan), self.quantum, np.empty_like(raw[0]))
+            rows = rows[None]
+        else:
+            rows = held_values(raw, np.full((1, 3), np.nan), self.quantum)
         if rows.shape[1] <= self.cache.max_size:
             runs = 1 + int(np.count_nonzero(np.any(rows[0, 1:] != rows[0, :-1], axis=1)))
             if self.cache.size + runs > self.cache.max_size:
@@ -432,8 +488,12 @@ class BatchStepper:
             sl = slice(first, first + n_full * h)
             pb = np.broadcast_to(rows[:, :n_full], (f, n_full, 3))
             fb = force[:, sl].reshape(f, n_full, h)
-            y = _run_full(self.cache, y, pb, fb,
-                          out[:, sl].reshape(f, n_full, h, N_OUTPUTS), self.reference)
+            outs = out[:, sl].reshape(f, n_full, h, N_OUTPUTS)
+            if self.compiled and f < BATCH_COLUMNS and (
+                    rows.shape[0] == 1 or bool(np.all(pb == pb[:1]))):
+                y = _run_compiled(self.cache, y, self.cache.lookup(pb[0]), fb, outs)
+            else:
+                y = _run_full(self.cache, y, pb, fb, outs, self.reference)
             applied[:, sl] = np.repeat(rows[:nf, :n_full], h, axis=1)
             done = n_full
         else:
@@ -474,7 +534,7 @@ def _shared_cache(dw: DiscreteWing):
     with _shared_lock:
         entry = _shared.get(key)
         if entry is None:
-            entry = _shared[key] = (_DiscreteCache(dw), threading.Lock())
+            entry = _shared[key] = (_DiscreteCache(dw, compiled=True), threading.Lock())
             while len(_shared) > _SHARED_MODELS:
                 _shared.popitem(last=False)
         _shared.move_to_end(key)
@@ -541,10 +601,11 @@ def _simulate(wing, absorber, aero, force, airspeed, density, damping, sample_ra
                               damping, x0, chunk)
     cache, lock = _shared_cache(dw)
     if not lock.acquire(blocking=False):  # in use by another thread: a private cache
-        return _simulate_with(BatchStepper(dw), force, airspeed, density, damping, x0, chunk)
+        return _simulate_with(BatchStepper(dw, _DiscreteCache(dw, compiled=True), compiled=True),
+                              force, airspeed, density, damping, x0, chunk)
     try:
-        return _simulate_with(BatchStepper(dw, cache), force, airspeed, density, damping,
-                              x0, chunk)
+        return _simulate_with(BatchStepper(dw, cache, compiled=True), force, airspeed, density,
+                              damping, x0, chunk)
     finally:
         if cache.size > _SHARED_CONDITIONS:
             cache.clear()
@@ -568,7 +629,9 @@ def _simulate_with(eng, force, airspeed, density, damping, x0, chunk) -> FlightT
     rows = None
     if shared and total >= 4 * eng.hold:
         maps = nf >= BATCH_COLUMNS or not eng.reference
-        rows = eng.prefetch(u[0], rho[0], c[0], "period" if maps else "carry")
+        level = ("basic" if eng.compiled and nf < BATCH_COLUMNS
+                 else "period" if maps else "carry")
+        rows = eng.prefetch(u[0], rho[0], c[0], level)
     # sample-major: each hold period's outputs are contiguous
     out = np.empty((nf, total, N_OUTPUTS))
     applied = np.empty((1 if shared else nf, total, 3))

@@ -318,11 +318,12 @@ class DiscreteWing:
             d[:, N_DISPLACEMENTS:, i] = model.acceleration_output(a, columns[..., i])[1]
         return c, (d[..., 0] if b.ndim == a.ndim - 1 else d)
 
-    def discretise(self, params) -> DiscreteMatrices:
-        """The sampled model of the checked conditions ``params`` (K, 3), in one batch."""
+    def discretise(self, params, expm=None) -> DiscreteMatrices:
+        """The sampled model of the checked conditions ``params`` (K, 3), in one batch
+        (``expm``: the matrix exponential of a stack, as for :func:`zoh`)."""
         params = np.asarray(params, dtype=float).reshape(-1, 3)
         a, b = self.continuous(params)
-        ad, bd = zoh(a, b, self.dt)
+        ad, bd = zoh(a, b, self.dt, expm)
         c, d = self.output_matrices(a, b)
         return DiscreteMatrices(ad=ad, bd=bd, c=c, d=d)
 

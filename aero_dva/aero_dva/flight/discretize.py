@@ -20,9 +20,10 @@ import numpy as np
 
 from aero_dva.wing.checks import positive
 
-__all__ = ["check_sampling", "expm_batch", "zoh"]
+__all__ = ["TAYLOR", "check_sampling", "expm_batch", "zoh"]
 
-_TAYLOR = np.array([1.0 / math.factorial(k) for k in range(19)])
+TAYLOR = np.array([1.0 / math.factorial(k) for k in range(19)])
+"""The coefficients ``1 / k!`` of the degree-18 Taylor polynomial of ``exp``."""
 
 
 def _add_identity(m: np.ndarray, c: float) -> np.ndarray:
@@ -41,7 +42,7 @@ def _taylor18(x: np.ndarray) -> np.ndarray:
     x2 = x @ x
     x3 = x2 @ x
     x4 = x2 @ x2
-    c = _TAYLOR
+    c = TAYLOR
 
     def block(j):
         out = c[4 * j + 1] * x
@@ -78,7 +79,7 @@ def expm_batch(m) -> np.ndarray:
     return out.reshape(m.shape)
 
 
-def zoh(a, b, dt: float):
+def zoh(a, b, dt: float, expm=None):
     """Exact ZOH discretisation of ``y' = A y + B u`` for one or many systems.
 
     Parameters
@@ -87,6 +88,8 @@ def zoh(a, b, dt: float):
     b : array_like, shape (..., n) or (..., n, m)
     dt : float
         Sample interval [s], > 0.
+    expm : callable, optional
+        The matrix exponential of a stack (K, n, n) (default :func:`expm_batch`).
 
     Returns
     -------
@@ -108,7 +111,7 @@ def zoh(a, b, dt: float):
     aug = np.zeros(shape + (n + m, n + m))
     aug[..., :n, :n] = a * dt
     aug[..., :n, n:] = b * dt
-    e = expm_batch(aug)
+    e = (expm_batch if expm is None else expm)(aug)
     phi = e[..., :n, :n]
     gamma = e[..., :n, n:]
     return phi, (gamma[..., 0] if vector else gamma)

@@ -1,15 +1,18 @@
-"""The banded period carry and the few-flight route of the batch simulator against the
-previous route (``reference_simulate_flights``) and a plain recurrence."""
+"""The banded period carry, the compiled sample loop and the few-flight routes of the batch
+simulator against the previous route (``reference_simulate_flights``) and a plain recurrence."""
 import numpy as np
 import pytest
 
 from aero_dva.flight.batch_simulator import (
     _carry,
+    _DiscreteCache,
     forget_conditions,
     reference_simulate_flights,
     simulate_flights,
 )
+from aero_dva.flight.discrete_model import DiscreteWing
 from aero_dva.flight.period_carry import period_starts
+from aero_dva.wing.model import AeroelasticModel
 from aero_dva.wing.wing_io import load_wing
 
 CFG = load_wing()
@@ -70,3 +73,41 @@ def test_kept_conditions_do_not_leak_between_models():
         ref = reference_simulate_flights(WING, absorber, force=force, airspeed=70.0,
                                          density=RHO)
         assert _peak_relative(got.accelerations, ref.accelerations) < 1e-9
+
+
+@pytest.mark.parametrize("flights", [1, 3])
+def test_compiled_route_with_a_start_state_partial_periods_and_chunks(flights):
+    # x0 set, a length that ends inside a hold period, and small chunks (each call starts
+    # inside a period; the outputs of three flights are not contiguous per chunk).
+    rng = np.random.default_rng(6)
+    n = 2007
+    u = np.linspace(60.0, 120.0, n)
+    c = np.interp(u, [60.0, 120.0], [1500.0, 200.0])
+    force = 500.0 * rng.standard_normal((flights, n))
+    x0 = 1e-3 * rng.standard_normal(7)
+    for chunk in (None, 37):
+        kw = dict(force=force, airspeed=u, density=RHO, damping=c, x0=x0, chunk=chunk)
+        ref = reference_simulate_flights(WING, DVA, **kw)
+        got = simulate_flights(WING, DVA, **kw)
+        for name in ("displacements", "accelerations", "final_state"):
+            assert _peak_relative(getattr(got, name), getattr(ref, name)) < 1e-9, name
+        np.testing.assert_array_equal(got.damping, ref.damping)
+
+
+def test_a_repeated_schedule_reuses_its_lookup_and_a_cleared_cache_does_not():
+    cache = _DiscreteCache(DiscreteWing(AeroelasticModel(WING, DVA), 1000.0))
+    rows = np.stack([np.linspace(60.0, 70.0, 50), np.full(50, RHO), np.full(50, 600.0)], -1)
+    first = cache.lookup(rows)
+    assert cache.lookup(rows.copy()) is first  # the same schedule again
+    assert not first.flags.writeable  # handed out twice: nobody may change it
+    moved = rows.copy()
+    moved[10, 0] += 1.0
+    assert cache.lookup(moved) is not first
+    np.testing.assert_array_equal(cache.lookup(rows), first)
+    assert not cache.done["carry"][first].any()
+    carry = cache.lookup(rows, "carry")  # a higher level is computed, not taken from the memo
+    assert cache.done["carry"][carry].all()
+    assert cache.lookup(rows) is carry  # and serves the lower level
+    cache.clear()
+    again = cache.lookup(rows)
+    assert again is not first and cache.size == len(np.unique(again))
