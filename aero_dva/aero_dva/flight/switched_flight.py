@@ -34,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aero_dva.flight.discrete_model import DEFAULT_HOLD, held_values
+from aero_dva.flight.discrete_model import DEFAULT_HOLD
 from aero_dva.flight.discretize import zoh
 from aero_dva.flight.smooth_tables import interpolated_maps
 from aero_dva.wing.absorbers import MaxwellAbsorber
@@ -323,9 +323,17 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
         inputs[:, :, 1:] = noise
     # The held condition of each hold period, then every map they need in one batch.
     starts = np.arange(0, nsamp, hold)
-    raw = np.stack([speeds[starts], rhos[starts]], axis=-1)[None]
-    held = held_values(raw, np.full((1, 2), np.nan), quantum)[0]
-    keys, period_map = np.unique(held, axis=0, return_inverse=True)
+    # imported here: numba takes 0.4 s to import, and every simulator process imports this
+    # module (switching_io) whether or not a switching law flies
+    from aero_dva.flight.held_kernel import hold_rule
+    from aero_dva.flight.switched_kernel import fly_maps
+
+    raw = np.stack([speeds[starts], rhos[starts]], axis=-1)
+    held = hold_rule(raw, np.full(2, np.nan), quantum, np.empty_like(raw))
+    # held values come in runs: the distinct conditions of the runs' first periods
+    new_run = np.r_[True, np.any(held[1:] != held[:-1], axis=1)]
+    keys, run_key = np.unique(held[new_run], axis=0, return_inverse=True)
+    period_map = run_key.ravel()[np.cumsum(new_run) - 1]
     steps, index, weight = interpolated_maps(
         lambda cond, lev: _steps(plant, observer_model, cond, lev, dt), keys, table,
         plant.absorber.series_stiffness)
@@ -344,10 +352,6 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
     locked = (_steps(plant, plant, keys, np.array([np.inf]), dt)[:, 0, :n * (n + 1)]
               if yield_force > 0 else np.zeros((1, n * (n + 1))))
     sample_map = np.repeat(period_map.astype(np.int64).ravel(), hold)[:nsamp]
-    # imported here: numba takes 0.4 s to import, and every simulator process imports this
-    # module (switching_io) whether or not a switching law flies
-    from aero_dva.flight.switched_kernel import fly_maps
-
     states, level, targets = fly_maps(
         steps, index, weight, est, g_in, g_state, sample_map, inputs, n, tau, lag.decay,
         lag.mean_factor, lag.c_lo, lag.c_hi, lag.per_level, lag.force_limit, lag.k2,
