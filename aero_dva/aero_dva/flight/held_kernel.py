@@ -14,6 +14,8 @@ machine (``cache=True``). Pure numerics.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
@@ -131,7 +133,7 @@ def expm_stack(m, taylor, out):
             for r in range(n):
                 col += abs(m[i, r, c])
             norm = max(norm, col)
-        s = max(0, int(np.ceil(np.log2(max(norm, 1e-300)))))
+        s = max(0, int(math.ceil(math.log2(max(norm, 1e-300)))))
         scale = 2.0 ** s
         for r in range(n):
             for c in range(n):
@@ -143,7 +145,8 @@ def expm_stack(m, taylor, out):
             for c in range(n):
                 acc[r, c] = taylor[17] * x[r, c] + taylor[18] * x2[r, c]
             acc[r, r] += taylor[16]
-        for j in (3, 2, 1, 0):
+        for jj in range(4):
+            j = 3 - jj
             _product(acc, x4, tmp)
             for r in range(n):
                 for c in range(n):
@@ -153,6 +156,10 @@ def expm_stack(m, taylor, out):
                 acc[r, r] += taylor[4 * j]
         for _ in range(s):
             _product(acc, acc, tmp)
-            acc[:, :] = tmp
-        out[i] = acc
+            for r in range(n):
+                for c in range(n):
+                    acc[r, c] = tmp[r, c]
+        for r in range(n):
+            for c in range(n):
+                out[i, r, c] = acc[r, c]
     return out
