@@ -295,8 +295,9 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
     force = np.asarray(force, dtype=float)
     single = force.ndim == 1
     force = np.atleast_2d(force)
-    if force.ndim != 2 or not np.all(np.isfinite(force)):
-        raise ValueError(f"force must be finite with shape (N,) or (F, N), got {force.shape}")
+    if force.ndim != 2 or force.size == 0 or not np.all(np.isfinite(force)):
+        raise ValueError(f"force must be finite with shape (N,) or (F, N), N and F >= 1, "
+                         f"got {force.shape}")
     nf, nsamp = force.shape
     speeds = np.broadcast_to(np.asarray(airspeed, dtype=float), (nsamp,))
     rhos = np.broadcast_to(np.asarray(density, dtype=float), (nsamp,))
@@ -331,7 +332,8 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
     raw = np.stack([speeds[starts], rhos[starts]], axis=-1)
     held = hold_rule(raw, np.full(2, np.nan), quantum, np.empty_like(raw))
     # held values come in runs: the distinct conditions of the runs' first periods
-    new_run = np.r_[True, np.any(held[1:] != held[:-1], axis=1)]
+    new_run = np.ones(len(held), dtype=bool)
+    new_run[1:] = np.any(held[1:] != held[:-1], axis=1)
     keys, run_key = np.unique(held[new_run], axis=0, return_inverse=True)
     period_map = run_key.ravel()[np.cumsum(new_run) - 1]
     steps, index, weight = interpolated_maps(

@@ -189,6 +189,8 @@ def test_bad_inputs_are_refused(wing):
         fly_switched(model, law, np.nan, 1.2, np.zeros(10))
     with pytest.raises(ValueError, match="time_constant"):
         fly_switched(model, law, 100.0, 1.2, np.zeros(10), time_constant=-1.0)
+    with pytest.raises(ValueError, match="force must be finite"):
+        fly_switched(model, law, 100.0, 1.2, np.zeros(0))
 
 
 def test_peak_limit_airspeed():
