@@ -370,19 +370,22 @@ def _run_compiled(cache, y, k, u, out):
     return end
 
 
-def _run_full(cache, y, rows, u, out, reference=False):
+def _run_full(cache, y, rows, u, out, reference=False, compiled=False):
     """Full hold periods: y (F, n), parameter rows (F, B, 3), u (F, B, h).
 
     Writes displacements and accelerations into ``out`` (F, B, h, p); returns the final
     state. The forced response at the end of each period from rest is computed for all periods
     at once, then the states at the period boundaries, then the outputs of all periods at once.
     Flights that share one parameter schedule share the matrices; fewer than
-    :data:`BATCH_COLUMNS` of them take :func:`_run_few` unless ``reference`` (the previous
-    route: :func:`_carry`, then stepping the periods' samples in parallel).
+    :data:`BATCH_COLUMNS` of them take :func:`_run_compiled` if ``compiled``, else
+    :func:`_run_few`, unless ``reference`` (the previous route: :func:`_carry`, then stepping
+    the periods' samples in parallel).
     """
     f, nb, h = u.shape
     arr = cache.arr
     shared = f == 1 or bool(np.all(rows == rows[:1]))
+    if shared and f < BATCH_COLUMNS and compiled:
+        return _run_compiled(cache, y, cache.lookup(rows[0]), u, out)
     if shared and f < BATCH_COLUMNS and not reference:
         return _run_few(cache, y, cache.lookup(rows[0], "period"), u, out)
     if shared:
@@ -431,11 +434,11 @@ class BatchStepper:
                  reference: bool = False, compiled: bool = False):
         self.wing = wing
         self.hold, self.quantum = wing.hold, wing.quantum
-        self.cache = _DiscreteCache(wing) if cache is None else cache
         self.reference = reference
         # The compiled sample loop for few flights on one schedule; off for the streaming
         # simulator, whose process should not wait for numba's import in mid-flight.
         self.compiled = compiled and not reference
+        self.cache = _DiscreteCache(wing, compiled=self.compiled) if cache is None else cache
 
     def prefetch(self, u, rho, c, level):
         """Held conditions of a whole flight from sample 0, discretised in one batch.
@@ -488,12 +491,8 @@ class BatchStepper:
             sl = slice(first, first + n_full * h)
             pb = np.broadcast_to(rows[:, :n_full], (f, n_full, 3))
             fb = force[:, sl].reshape(f, n_full, h)
-            outs = out[:, sl].reshape(f, n_full, h, N_OUTPUTS)
-            if self.compiled and f < BATCH_COLUMNS and (
-                    rows.shape[0] == 1 or bool(np.all(pb == pb[:1]))):
-                y = _run_compiled(self.cache, y, self.cache.lookup(pb[0]), fb, outs)
-            else:
-                y = _run_full(self.cache, y, pb, fb, outs, self.reference)
+            y = _run_full(self.cache, y, pb, fb, out[:, sl].reshape(f, n_full, h, N_OUTPUTS),
+                          self.reference, self.compiled)
             applied[:, sl] = np.repeat(rows[:nf, :n_full], h, axis=1)
             done = n_full
         else:
@@ -601,8 +600,8 @@ def _simulate(wing, absorber, aero, force, airspeed, density, damping, sample_ra
                               damping, x0, chunk)
     cache, lock = _shared_cache(dw)
     if not lock.acquire(blocking=False):  # in use by another thread: a private cache
-        return _simulate_with(BatchStepper(dw, _DiscreteCache(dw, compiled=True), compiled=True),
-                              force, airspeed, density, damping, x0, chunk)
+        return _simulate_with(BatchStepper(dw, compiled=True), force, airspeed, density,
+                              damping, x0, chunk)
     try:
         return _simulate_with(BatchStepper(dw, cache, compiled=True), force, airspeed, density,
                               damping, x0, chunk)

@@ -4,7 +4,7 @@ from __future__ import annotations
 import os
 import time
 
-from dva_ros_common.shared_memory import remove_unsized_ports
+from dva_ros_common.shared_memory import clear_dead_ports, remove_unsized_ports
 
 
 def _file(path, size: int, age: float):
@@ -32,3 +32,12 @@ def test_only_old_unsized_ports_and_their_mutex_are_removed(tmp_path):
 
 def test_a_missing_directory_removes_nothing(tmp_path):
     assert remove_unsized_ports(tmp_path / "absent") == []
+
+
+def test_each_removed_port_is_said_after_its_remover(tmp_path, capsys):
+    dead = _file(tmp_path / "fastrtps_port7913", 0, 120.0)
+    _file(tmp_path / "fastrtps_port7915", 4096, 120.0)
+    assert clear_dead_ports("[fixed_controller]", tmp_path) == [dead]
+    err = capsys.readouterr().err
+    assert err == (f"[fixed_controller] removed {dead}: an unsized Fast DDS port file a dead "
+                   "process left\n")

@@ -31,7 +31,7 @@ from aero_dva_sim.run_flight import (
     run_on_domain,
     stop_process,
 )
-from dva_ros_common.shared_memory import remove_unsized_ports
+from dva_ros_common.shared_memory import clear_dead_ports
 
 CONTROLLERS = ("rbf", "schedule", "fixed")
 INPUTS = tuple(c.absolute() for c in (ch.ACCELERATION, ch.DAMPER_STATE, ch.FLIGHT_CONDITION))
@@ -153,9 +153,7 @@ def run(args) -> dict:
     logs.mkdir(parents=True, exist_ok=True)
     env = dict(os.environ, ROS_DOMAIN_ID=str(args.domain_id), PYTHONUNBUFFERED="1")
     # Its watch is a DDS participant of its own (the nodes clear such files in run_node).
-    for port in remove_unsized_ports():
-        print(f"replay_flight: removed {port}: an unsized Fast DDS port file a dead process "
-              "left", file=sys.stderr)
+    clear_dead_ports("replay_flight:")
     processes: dict[str, subprocess.Popen] = {}
     started = time.monotonic()
     watch = OutputWatch(args.domain_id, watched_channels(args.controller))

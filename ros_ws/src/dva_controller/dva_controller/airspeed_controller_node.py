@@ -32,12 +32,7 @@ from dva_msgs.msg import DamperCommand, FlightCondition
 from dva_ros_common import conversions
 from dva_ros_common.held_publisher import HOLD_PARAM, HeldPublisher
 from dva_ros_common.node_params import NodeSpec, Param, declare_parameters
-from dva_ros_common.node_tools import (
-    INPUT_HEALTH_PARAMS,
-    InputHealth,
-    Status,
-    run_node,
-)
+from dva_ros_common.node_tools import INPUT_HEALTH_PARAMS, InputHealth, Status, run_node
 
 SPEC = NodeSpec(
     name="airspeed_controller",

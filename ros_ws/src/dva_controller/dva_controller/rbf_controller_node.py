@@ -46,12 +46,7 @@ from dva_msgs.msg import DamperCommand, ScaledSpectrum
 from dva_ros_common import conversions
 from dva_ros_common.held_publisher import HOLD_PARAM, HeldPublisher
 from dva_ros_common.node_params import NodeSpec, Param, declare_parameters
-from dva_ros_common.node_tools import (
-    INPUT_HEALTH_PARAMS,
-    InputHealth,
-    Status,
-    run_node,
-)
+from dva_ros_common.node_tools import INPUT_HEALTH_PARAMS, InputHealth, Status, run_node
 
 FREQUENCY_TOLERANCE = 1.0e-6  # [Hz] spectrum frequencies must match the training ones this well
 DURATION_TOLERANCE = 1.0e-6  # [s]

@@ -36,12 +36,7 @@ from dva_msgs.msg import AccelerationBlock, DamperState, ScaledSpectrum
 from dva_ros_common import conversions
 from dva_ros_common.held_publisher import HOLD_PARAM, HeldPublisher
 from dva_ros_common.node_params import NodeSpec, Param, declare_parameters
-from dva_ros_common.node_tools import (
-    INPUT_HEALTH_PARAMS,
-    InputHealth,
-    Status,
-    run_node,
-)
+from dva_ros_common.node_tools import INPUT_HEALTH_PARAMS, InputHealth, Status, run_node
 
 QOS_DEPTH = 100  # blocks of 10-50 ms: a few seconds of slack at 20x real time before a gap
 STATE_WAIT = 1.0  # [s] wall time a block waits for its damper state (1-2 ticks) before it is

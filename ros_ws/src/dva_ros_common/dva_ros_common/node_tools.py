@@ -41,7 +41,7 @@ from dva_ros_common.node_params import (
     command_line,
     declare_parameters,
 )
-from dva_ros_common.shared_memory import remove_unsized_ports
+from dva_ros_common.shared_memory import clear_dead_ports
 
 #: Keep-last depth of the writers of data a recorder must get whole (blocks, commands, spectra).
 #: A reader whose process is starved can overflow its transport buffers; a reliable writer then
@@ -252,9 +252,7 @@ def run_node(node_class: Callable[[], Node], spec: NodeSpec, args=None, *,
         return code
     node_name = spec.name
     signalled = _Signals()  # first: a signal while rclpy starts is noted too
-    for port in remove_unsized_ports():  # else the node could hang before its first line
-        print(f"[{node_name}] removed {port}: an unsized Fast DDS port file a dead process "
-              "left", file=sys.stderr)
+    clear_dead_ports(f"[{node_name}]")  # else the node could hang before its first line
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     node = None
     try:

@@ -11,6 +11,7 @@ before it starts DDS (``node_tools.run_node``).
 from __future__ import annotations
 
 import re
+import sys
 import time
 from pathlib import Path
 
@@ -38,4 +39,14 @@ def remove_unsized_ports(shm: Path = SHM, min_age: float = MIN_AGE) -> list[Path
         except OSError:
             continue
         removed.append(port)
+    return removed
+
+
+def clear_dead_ports(prefix: str, shm: Path = SHM) -> list[Path]:
+    """:func:`remove_unsized_ports`, each removal said on stderr after ``prefix`` (who removed
+    it); return the ports removed."""
+    removed = remove_unsized_ports(shm)
+    for port in removed:
+        print(f"{prefix} removed {port}: an unsized Fast DDS port file a dead process left",
+              file=sys.stderr)
     return removed
