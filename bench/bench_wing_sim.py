@@ -8,15 +8,17 @@ on a shared, busy machine the wall clock mostly measures the other processes.
 
 Prints (best of ``--repeats``):
 - the study's flight (30 s ramp 0.8 -> 1.2 U_cr at 1 kHz, Maxwell DVA) with c2 held (ch. 6) and
-  with a c2 schedule (ch. 7) by three routes timed alternately in this run: this revision
-  (the compiled sample loop), the previous revision's (the banded period carry and period
-  maps, ``BatchStepper`` without the compiled loop) and the reference
-  (``reference_simulate_flights``); each as a first flight (no condition discretised yet) and
-  a repeated one (the conditions kept from the previous call, as for the seeds of an
-  evaluation case); real-time factors (targets >= 10 000x held, >= 5 000x schedule), ratios
-  and the largest difference relative to each channel's peak;
-- a batch of flights vs a loop of single flights: flights per second and their ratio
-  (target >= 10x);
+  with a c2 schedule (ch. 7) by four routes timed alternately in this run: this revision (the
+  compiled loop over stacked (16, 8) maps), the previous revision's compiled loop (general
+  matrix-vector products, ``held_kernel.step_periods``), the banded period carry
+  (``BatchStepper`` without the compiled loop) and the reference
+  (``reference_simulate_flights``); each as a first flight (no condition discretised yet; the
+  kept conditions are dropped before the clock starts) and a repeated one (the conditions
+  kept from the previous call, as for the seeds of an evaluation case); real-time factors
+  (targets >= 10 000x held, >= 5 000x schedule), ratios and the largest difference relative
+  to each channel's peak;
+- a batch of flights vs a loop of single flights, both by the compiled loop: flights per
+  second and their ratio (the per-call cost a batch pays once);
 - a constant-airspeed flight vs scipy.signal.dlsim on the same discretised system;
 - the StreamingSimulator in 20-sample blocks (the simulator node's use).
 """
@@ -47,9 +49,11 @@ CLOCK = {"wall": time.perf_counter, "cpu": time.process_time}
 clock = CLOCK["wall"]
 
 
-def best(fn, repeats):
+def best(fn, repeats, setup=None):
     times = []
     for _ in range(repeats):
+        if setup is not None:  # not timed
+            setup()
         t = clock()
         fn()
         times.append(clock() - t)
@@ -76,54 +80,64 @@ def main() -> None:
     def one(i=0, damping=c2, route=simulate_flights):
         return route(wing, dva, force=force[i], airspeed=u, density=rho, damping=damping)
 
-    def first(damping):  # nothing discretised yet
-        forget_conditions()
-        return one(0, damping)
 
-    # The previous revision's route for one flight: the banded period carry and the period
-    # maps (BatchStepper without the compiled loop), its conditions kept between calls.
+    # Earlier routes for one flight, their conditions kept between calls: the banded period
+    # carry and the period maps (BatchStepper without the compiled loop), and the previous
+    # revision's compiled loop (general matrix-vector products, no stacked maps).
     dw = DiscreteWing(AeroelasticModel(wing, dva), 1000.0, hold=DEFAULT_HOLD, quantum=2e-3)
     kept = {}
 
-    def banded(wing_, dva_, *, damping, fresh=False, **kw):
-        key = damping is None
-        if fresh or key not in kept:
-            kept[key] = _DiscreteCache(dw)
-        stepper = BatchStepper(dw, kept[key])
+    def earlier(route, damping, **kw):
+        key = (route, damping is None)
+        if key not in kept:
+            kept[key] = (_DiscreteCache(dw) if route == "banded"
+                         else _DiscreteCache(dw, compiled=True, stacked=False))
+        stepper = BatchStepper(dw, kept[key], compiled=route == "general")
         return _simulate_with(stepper, kw["force"], kw["airspeed"], kw["density"], damping,
                               None, None)
 
+    def banded(wing_, dva_, *, damping, **kw):
+        return earlier("banded", damping, **kw)
+
+    def general(wing_, dva_, *, damping, **kw):
+        return earlier("general", damping, **kw)
+
     print("one 30 s flight: the routes timed alternately (first: nothing discretised yet;"
           " repeated: the conditions kept from the previous call)")
+    routes = {"banded": (banded, "banded carry"),
+              "previous": (general, "previous compiled loop")}
     for label, damping in (("c2 held", None), ("c2 schedule", c2)):
         ref = one(0, damping, reference_simulate_flights)
         new = one(0, damping)
-        old = one(0, damping, banded)
         diff = max(float(np.max(np.abs(a - b) / np.max(np.abs(a), axis=-1, keepdims=True)))
-                   for a, b in ((ref.displacements, new.displacements),
-                                (ref.accelerations, new.accelerations),
-                                (old.displacements, new.displacements),
-                                (old.accelerations, new.accelerations)))
-        times = {k: [] for k in ("reference", "banded first", "banded repeated",
-                                 "first", "repeated")}
+                   for other in [ref] + [one(0, damping, fn) for fn, _ in routes.values()]
+                   for a, b in ((other.displacements, new.displacements),
+                                (other.accelerations, new.accelerations)))
+        times = {"reference": []}
+        for k in ("first", "repeated"):
+            times.update({f"{r} {k}": [] for r in routes} | {k: []})
         for _ in range(args.repeats):
             times["reference"].append(
                 best(lambda d=damping: one(0, d, reference_simulate_flights), 1))
-            times["banded first"].append(best(
-                lambda d=damping: banded(wing, dva, force=force[0], airspeed=u, density=rho,
-                                         damping=d, fresh=True), 1))
-            times["banded repeated"].append(best(lambda d=damping: one(0, d, banded), 1))
-            times["first"].append(best(lambda d=damping: first(d), 1))
+            for r, (fn, _) in routes.items():
+                times[f"{r} first"].append(best(lambda d=damping, f=fn: one(0, d, f), 1,
+                                                setup=kept.clear))
+                times[f"{r} repeated"].append(best(lambda d=damping, f=fn: one(0, d, f), 1))
+            times["first"].append(best(lambda d=damping: one(0, d), 1,
+                                       setup=forget_conditions))
             times["repeated"].append(best(lambda d=damping: one(0, d), 1))
         t = {k: min(v) for k, v in times.items()}
-        print(f"  {label:12s} {'reference':16s} {t['reference'] * 1e3:6.2f} ms = "
+        print(f"  {label:12s} {'reference':17s} {t['reference'] * 1e3:6.2f} ms = "
               f"{duration / t['reference']:6.0f}x real time  (reference_simulate_flights)")
         for k in ("first", "repeated"):
-            print(f"  {label:12s} {'previous ' + k:16s} {t['banded ' + k] * 1e3:6.2f} ms = "
-                  f"{duration / t['banded ' + k]:6.0f}x real time  (banded carry)")
-            print(f"  {label:12s} {'this ' + k:16s} {t[k] * 1e3:6.2f} ms = "
-                  f"{duration / t[k]:6.0f}x real time  -> {t['banded ' + k] / t[k]:4.1f}x the "
-                  f"previous, {t['reference'] / t[k]:4.1f}x the reference")
+            for r, (_, name) in routes.items():
+                print(f"  {label:12s} {r + ' ' + k:17s} {t[f'{r} {k}'] * 1e3:6.2f} ms = "
+                      f"{duration / t[f'{r} {k}']:6.0f}x real time  ({name})")
+            print(f"  {label:12s} {'this ' + k:17s} {t[k] * 1e3:6.2f} ms = "
+                  f"{duration / t[k]:6.0f}x real time  -> "
+                  f"{t[f'previous {k}'] / t[k]:4.1f}x the previous compiled loop, "
+                  f"{t[f'banded {k}'] / t[k]:4.1f}x the banded carry, "
+                  f"{t['reference'] / t[k]:4.1f}x the reference")
         print(f"  {label:12s} largest difference / channel peak: {diff:.1e}")
 
     def loop():

@@ -5,14 +5,14 @@ periods (only a short loop over hold periods stays sequential), on the sampled w
 :class:`~aero_dva.flight.discrete_model.DiscreteWing` with its parameter hold. When all flights
 share one schedule, the held conditions of the whole flight are found first and discretised in
 one vectorised call (:meth:`BatchStepper.prefetch`) and kept between calls for the same model
-(repeated flights of a schedule skip the matrix exponentials). Fewer than
-:data:`BATCH_COLUMNS` such flights are then stepped sample by sample in a compiled loop
-(:mod:`~aero_dva.flight.held_kernel`, which also discretises them); eight or more carry the
-states at the period boundaries across periods (a two-level carry) and form the outputs by one
-period map per run of periods with one held condition. :class:`BatchStepper` also serves the
-streaming simulator's long calls, without the compiled loop (a node process does not import
-numba in mid-flight): few flights there carry their period starts by one banded solve
-(:mod:`~aero_dva.flight.period_carry`).
+(repeated flights of a schedule skip the matrix exponentials). Such flights are then stepped
+sample by sample in a compiled loop (:mod:`~aero_dva.flight.held_kernel`, which also
+discretises them). Flights with schedules of their own carry the states at the period
+boundaries across periods (a two-level carry) and form the outputs by one period map per
+period. :class:`BatchStepper` also serves the streaming simulator's long calls, without the
+compiled loop (a node process does not import numba in mid-flight): fewer than
+:data:`BATCH_COLUMNS` flights there carry their period starts by one banded solve
+(:mod:`~aero_dva.flight.period_carry`), more by the two-level carry and the period maps.
 :func:`reference_simulate_flights` is the previous route, kept as a baseline. Pure numerics.
 """
 
@@ -82,9 +82,11 @@ class _DiscreteCache:
               "period": ("period",)}
     RANK = {"basic": 0, "carry": 1, "period": 2}
 
-    def __init__(self, wing: DiscreteWing, max_size: int = 4096, compiled: bool = False):
+    def __init__(self, wing: DiscreteWing, max_size: int = 4096, compiled: bool = False,
+                 stacked: bool = True):
         self.wing, self.model, self.hold, self.max_size = wing, wing.model, wing.hold, max_size
         self.compiled = compiled  # matrix exponentials by the compiled loop (held_kernel)
+        self.stacked = stacked  # the compiled loop's stacked maps where the model fits them
         self.clear()
 
     def clear(self):
@@ -92,9 +94,16 @@ class _DiscreteCache:
         self.index: dict[tuple, int] = {}
         self.size = 0
         na = N_OUTPUTS - N_DISPLACEMENTS
-        shapes = {"phi": (n, n), "gam": (n,), "cacc": (na, n), "dacc": (na,), "phih": (n, n),
-                  "ctrb": (n, h), "period": (N_OUTPUTS * h, n + h)}
-        self.arr = {name: np.zeros((16,) + shape) for name, shape in shapes.items()}
+        self.shapes = {"phi": (n, n), "gam": (n,), "cacc": (na, n), "dacc": (na,),
+                       "phih": (n, n), "ctrb": (n, h), "period": (N_OUTPUTS * h, n + h)}
+        if self.compiled:
+            from aero_dva.flight.held_kernel import STACK_ROWS, STACK_STATES
+
+            if n <= STACK_STATES and self.stacked:  # the maps of held_kernel.step_stacked
+                self.shapes["stack"] = (STACK_STATES + 1, STACK_ROWS)
+        # a level's arrays are made when first needed (the compiled loop needs "basic" only)
+        self.arr = {name: np.zeros((16,) + shape) for name, shape in self.shapes.items()
+                    if name not in self.LEVELS["carry"] + self.LEVELS["period"]}
         self.done = {level: np.zeros(16, dtype=bool) for level in self.LEVELS}
         self._last = None  # (params, level, indices) of the last lookup
 
@@ -156,10 +165,23 @@ class _DiscreteCache:
         self._grow(k1)
         for name, value in (("phi", phi), ("gam", gam), ("cacc", cacc), ("dacc", dacc)):
             self.arr[name][k0:k1] = value
+        if "stack" in self.arr:
+            from aero_dva.flight.held_kernel import stack_maps
+
+            self.arr["stack"][k0:k1] = stack_maps(phi, gam, cacc, dacc,
+                                                  self.model.c_displacement)
         self.done["basic"][k0:k1] = True
         self.size = k1
 
+    def _made(self, level):
+        """Make the arrays of ``level`` if they do not exist yet."""
+        cap = len(self.done["basic"])
+        for name in self.LEVELS[level]:
+            if name not in self.arr:
+                self.arr[name] = np.zeros((cap,) + self.shapes[name])
+
     def _add_carry(self, idx):
+        self._made("carry")
         h = self.hold
         phi, gam = self.arr["phi"][idx], self.arr["gam"][idx][..., None]
         # Forced state at the end of a period from the force at sample j: phi^(h-1-j) gamma
@@ -175,6 +197,7 @@ class _DiscreteCache:
         self.done["carry"][idx] = True
 
     def _add_period(self, idx):
+        self._made("period")
         h, model = self.hold, self.model
         phi, gam = self.arr["phi"][idx], self.arr["gam"][idx]
         cacc, dacc = self.arr["cacc"][idx], self.arr["dacc"][idx]
@@ -314,11 +337,10 @@ def _period_outputs(period, keys, x, out):
 
 
 BATCH_COLUMNS = 8
-"""From this many flights sharing one schedule on, the period starts come from the two-level
-carry (:func:`_carry`, its products serve all flights at once) and the outputs from
-:func:`_period_outputs`; fewer flights take the compiled sample loop (:func:`_run_compiled`,
-:func:`simulate_flights`) or one banded solve per flight (:func:`_run_few`, the streaming
-simulator's long calls)."""
+"""Without the compiled loop (the streaming simulator's long calls, the reference route): from
+this many flights sharing one schedule on, the period starts come from the two-level carry
+(:func:`_carry`, its products serve all flights at once) and the outputs from
+:func:`_period_outputs`; fewer flights take one banded solve per flight (:func:`_run_few`)."""
 
 
 def _run_outputs(period, keys, x, out):
@@ -352,19 +374,26 @@ def _run_few(cache, y, k, u, out):
 
 
 def _run_compiled(cache, y, k, u, out):
-    """Full hold periods of fewer than :data:`BATCH_COLUMNS` flights sharing the cached
-    conditions ``k`` (B,), by the compiled sample loop (:mod:`~aero_dva.flight.held_kernel`):
+    """Full hold periods of flights sharing the cached conditions ``k`` (B,), by the
+    compiled sample loop (:mod:`~aero_dva.flight.held_kernel`):
     y (F, n), u (F, B, h), outputs into ``out`` (F, B, h, p); returns the final state."""
-    from aero_dva.flight.held_kernel import step_periods  # numba: imported when first used
+    from aero_dva.flight.held_kernel import step_periods, step_stacked  # numba: on first use
 
     f, nb, h = u.shape
     arr = cache.arr
     flat = out.reshape(f, nb * h, N_OUTPUTS)
     dest = flat if flat.flags.c_contiguous else np.empty(flat.shape)  # one compiled layout
-    end = step_periods(arr["phi"], arr["gam"], arr["cacc"], arr["dacc"],
-                       np.ascontiguousarray(cache.model.c_displacement),
-                       np.ascontiguousarray(k, dtype=np.intp), h, np.ascontiguousarray(y),
-                       np.ascontiguousarray(u.reshape(f, nb * h)), dest)
+    k = np.ascontiguousarray(k, dtype=np.intp)
+    force = np.ascontiguousarray(u.reshape(f, nb * h))
+    if "stack" in arr:  # a model of at most held_kernel.STACK_STATES states
+        n = y.shape[1]
+        start = np.zeros((f, arr["stack"].shape[1] - 1))
+        start[:, :n] = y
+        end = step_stacked(arr["stack"], k, h, start, force, dest)[:, :n]
+    else:
+        end = step_periods(arr["phi"], arr["gam"], arr["cacc"], arr["dacc"],
+                           np.ascontiguousarray(cache.model.c_displacement), k, h,
+                           np.ascontiguousarray(y), force, dest)
     if dest is not flat:
         flat[...] = dest
     return end
@@ -376,15 +405,15 @@ def _run_full(cache, y, rows, u, out, reference=False, compiled=False):
     Writes displacements and accelerations into ``out`` (F, B, h, p); returns the final
     state. The forced response at the end of each period from rest is computed for all periods
     at once, then the states at the period boundaries, then the outputs of all periods at once.
-    Flights that share one parameter schedule share the matrices; fewer than
-    :data:`BATCH_COLUMNS` of them take :func:`_run_compiled` if ``compiled``, else
+    Flights that share one parameter schedule share the matrices and take
+    :func:`_run_compiled` if ``compiled``; else fewer than :data:`BATCH_COLUMNS` of them take
     :func:`_run_few`, unless ``reference`` (the previous route: :func:`_carry`, then stepping
     the periods' samples in parallel).
     """
     f, nb, h = u.shape
     arr = cache.arr
     shared = f == 1 or bool(np.all(rows == rows[:1]))
-    if shared and f < BATCH_COLUMNS and compiled:
+    if shared and compiled:
         return _run_compiled(cache, y, cache.lookup(rows[0]), u, out)
     if shared and f < BATCH_COLUMNS and not reference:
         return _run_few(cache, y, cache.lookup(rows[0], "period"), u, out)
@@ -521,23 +550,37 @@ _shared: OrderedDict = OrderedDict()
 _shared_lock = threading.Lock()
 
 
-def _shared_cache(dw: DiscreteWing):
-    """The discretised conditions of ``dw``'s model kept between calls, and its lock.
+def _shared_wing(wing, absorber, aero, sample_rate, hold, quantum):
+    """The sampled wing of these arguments with its discretised conditions kept between
+    calls, and the lock of those: (DiscreteWing, _DiscreteCache, Lock).
 
     Flights of one wing repeat their conditions (the seeds of an evaluation case, the repeats
     of a benchmark); a condition's matrices depend only on the model, the sample rate, the hold
-    and the condition itself, which is the key here and in the cache.
+    and the condition itself, which is the key here and in the cache. The model and the
+    sampled wing are kept too: building and checking them costs as much as a short flight.
     """
-    m = dw.model
-    key = (m.wing, m.absorber, m.aero, dw.sample_rate, dw.hold)
-    with _shared_lock:
-        entry = _shared.get(key)
-        if entry is None:
-            entry = _shared[key] = (_DiscreteCache(dw, compiled=True), threading.Lock())
-            while len(_shared) > _SHARED_MODELS:
-                _shared.popitem(last=False)
-        _shared.move_to_end(key)
+    key = (wing, absorber, aero, sample_rate, hold, quantum)
+    plain = (type(sample_rate) in (int, float) and type(hold) is int
+             and type(quantum) in (int, float))
+    try:
+        with _shared_lock:
+            entry = _shared.get(key) if plain else None
+            if entry is not None:
+                _shared.move_to_end(key)
+                return entry
+    except TypeError:  # unhashable: not kept, and refused by name below
+        plain = False
+    model = AeroelasticModel(wing, absorber, aero)
+    dw = DiscreteWing(model, sample_rate, hold=hold, quantum=quantum)
+    entry = (dw, _DiscreteCache(dw, compiled=True), threading.Lock())
+    if not plain:
         return entry
+    with _shared_lock:
+        entry = _shared.setdefault(key, entry)
+        _shared.move_to_end(key)
+        while len(_shared) > _SHARED_MODELS:
+            _shared.popitem(last=False)
+    return entry
 
 
 def forget_conditions() -> None:
@@ -593,12 +636,12 @@ def reference_simulate_flights(wing, absorber=None, *, force, airspeed, density,
 
 def _simulate(wing, absorber, aero, force, airspeed, density, damping, sample_rate, x0, hold,
               quantum, chunk, reference):
-    model = AeroelasticModel(wing, absorber, aero)
-    dw = DiscreteWing(model, sample_rate, hold=hold, quantum=quantum)
     if reference:
+        dw = DiscreteWing(AeroelasticModel(wing, absorber, aero), sample_rate, hold=hold,
+                          quantum=quantum)
         return _simulate_with(BatchStepper(dw, reference=True), force, airspeed, density,
                               damping, x0, chunk)
-    cache, lock = _shared_cache(dw)
+    dw, cache, lock = _shared_wing(wing, absorber, aero, sample_rate, hold, quantum)
     if not lock.acquire(blocking=False):  # in use by another thread: a private cache
         return _simulate_with(BatchStepper(dw, compiled=True), force, airspeed, density,
                               damping, x0, chunk)
@@ -628,7 +671,7 @@ def _simulate_with(eng, force, airspeed, density, damping, x0, chunk) -> FlightT
     rows = None
     if shared and total >= 4 * eng.hold:
         maps = nf >= BATCH_COLUMNS or not eng.reference
-        level = ("basic" if eng.compiled and nf < BATCH_COLUMNS
+        level = ("basic" if eng.compiled
                  else "period" if maps else "carry")
         rows = eng.prefetch(u[0], rho[0], c[0], level)
     # sample-major: each hold period's outputs are contiguous

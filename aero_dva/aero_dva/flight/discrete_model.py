@@ -230,6 +230,7 @@ class DiscreteWing:
         self.max_conditions = int(max_conditions)
         self._probe = moment_probe(model) if "pitch_moment" in inputs else None
         self._conditions: dict[tuple, DiscreteCondition] = {}
+        self._sampling_passed: set[tuple] = set()
 
     # -- what it is ------------------------------------------------------------------------
     output_names = OUTPUT_NAMES
@@ -260,24 +261,28 @@ class DiscreteWing:
     def checked_inputs(self, airspeed, density, damping, shape):
         """Airspeed, density and damping broadcast to ``shape`` and checked (>= 0, no NaN;
         the damping may be inf, ``None``: :meth:`default_damping`)."""
-        u = np.broadcast_to(real_array(airspeed, "airspeed"), shape)
-        rho = np.broadcast_to(real_array(density, "density"), shape)
         if damping is None:
             damping = self.default_damping()
-        c = np.broadcast_to(real_array(damping, "damping", allow_inf=True), shape)
-        if np.any(u < 0):
-            raise ValueError("airspeed must be >= 0")
-        if np.any(rho < 0):
-            raise ValueError("density must be >= 0")
-        if np.any(c < 0):
-            raise ValueError("damping must be >= 0")
-        return u, rho, c
+        u = real_array(airspeed, "airspeed")
+        rho = real_array(density, "density")
+        c = real_array(damping, "damping", allow_inf=True)
+        for name, v in (("airspeed", u), ("density", rho), ("damping", c)):
+            if np.any(v < 0):  # checked before broadcasting: a scalar once, not per sample
+                raise ValueError(f"{name} must be >= 0")
+        return tuple(np.broadcast_to(v, shape) for v in (u, rho, c))
 
     def check_sampling(self, airspeed: float, density: float, damping: float) -> None:
-        """ValueError if a mode at this condition is at or above the Nyquist frequency."""
+        """ValueError if a mode at this condition is at or above the Nyquist frequency
+        (conditions that passed are remembered: repeated flights start at the same one)."""
+        key = (float(airspeed), float(density), float(damping))
+        if key in self._sampling_passed:
+            return
         a, _ = self.model.matrices(airspeed, density,
                                    damping if self.model.absorber is not None else None)
         check_sampling(a, self.dt)
+        if len(self._sampling_passed) >= 1024:
+            self._sampling_passed.clear()
+        self._sampling_passed.add(key)
 
     def held_sequence(self, raws, held: tuple) -> list[tuple]:
         """:func:`next_held` with this model's quantum over successive grid samples ``raws``

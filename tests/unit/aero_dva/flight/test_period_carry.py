@@ -6,12 +6,15 @@ import pytest
 from aero_dva.flight.batch_simulator import (
     _carry,
     _DiscreteCache,
+    _shared_wing,
     forget_conditions,
     reference_simulate_flights,
     simulate_flights,
 )
 from aero_dva.flight.discrete_model import DiscreteWing
 from aero_dva.flight.period_carry import period_starts
+from aero_dva.wing.absorbers import PassiveAbsorber
+from aero_dva.wing.aerodynamics import WagnerAero
 from aero_dva.wing.model import AeroelasticModel
 from aero_dva.wing.wing_io import load_wing
 
@@ -20,7 +23,8 @@ WING, DVA, RHO = CFG.wing, CFG.maxwell_design, CFG.air_density  # U_cr about 112
 
 
 def _peak_relative(got, ref):
-    return float(np.max(np.abs(got - ref) / np.max(np.abs(ref), axis=-1, keepdims=True)))
+    peak = np.max(np.abs(ref), axis=-1, keepdims=True)  # a channel may be all zero
+    return float(np.max(np.abs(got - ref) / np.maximum(peak, 1e-300)))
 
 
 @pytest.mark.parametrize("flights", [1, 3])
@@ -92,6 +96,39 @@ def test_compiled_route_with_a_start_state_partial_periods_and_chunks(flights):
         for name in ("displacements", "accelerations", "final_state"):
             assert _peak_relative(getattr(got, name), getattr(ref, name)) < 1e-9, name
         np.testing.assert_array_equal(got.damping, ref.damping)
+
+
+@pytest.mark.parametrize("absorber, aero, states, stacked", [
+    (None, None, 4, True), (PassiveAbsorber(40.0, 9e4, 800.0, 1.0), None, 6, True),
+    (DVA, None, 7, True), (DVA, WagnerAero(), 9, False)])
+def test_every_model_size_takes_a_compiled_route_equal_to_the_previous(absorber, aero, states,
+                                                                       stacked):
+    # Up to 7 states: the stacked (16, 8) maps, padded; the Wagner lag's 9: the general loop.
+    rng = np.random.default_rng(8)
+    n = 3005
+    u = np.linspace(40.0, 80.0, n)
+    kw = dict(force=200.0 * rng.standard_normal((2, n)), airspeed=u, density=RHO, aero=aero,
+              x0=1e-3 * rng.standard_normal(states))
+    ref = reference_simulate_flights(WING, absorber, **kw)
+    got = simulate_flights(WING, absorber, **kw)
+    for name in ("displacements", "accelerations", "final_state"):
+        assert _peak_relative(getattr(got, name), getattr(ref, name)) < 1e-9, name
+    assert got.final_state.shape == (2, states)
+    _, cache, _ = _shared_wing(WING, absorber, aero, 1000.0, 10, 2e-3)
+    assert ("stack" in cache.arr) is stacked
+    assert "period" not in cache.arr  # the compiled loop needs one-sample maps only
+
+
+def test_the_kept_model_is_reused_and_bad_arguments_are_still_refused():
+    first = _shared_wing(WING, DVA, None, 1000.0, 10, 2e-3)
+    assert _shared_wing(WING, DVA, None, 1000.0, 10, 2e-3) is first
+    assert _shared_wing(WING, DVA, None, 1000.0, 10, 0.0)[0] is not first[0]
+    with pytest.raises(ValueError, match="hold"):
+        _shared_wing(WING, DVA, None, 1000.0, True, 2e-3)  # equal to 1 as a key, not a hold
+    with pytest.raises(ValueError, match="sample_rate"):
+        _shared_wing(WING, DVA, None, -5.0, 10, 2e-3)
+    with pytest.raises(TypeError, match="absorber"):
+        _shared_wing(WING, [DVA], None, 1000.0, 10, 2e-3)  # unhashable: refused by name
 
 
 def test_a_repeated_schedule_reuses_its_lookup_and_a_cleared_cache_does_not():
