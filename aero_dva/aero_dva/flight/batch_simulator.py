@@ -31,7 +31,6 @@ from aero_dva.flight.discrete_model import (
     DiscreteWing,
     held_values,
 )
-from aero_dva.flight.discretize import TAYLOR
 from aero_dva.flight.period_carry import period_starts
 from aero_dva.wing.checks import real_array
 from aero_dva.wing.model import AeroelasticModel
@@ -158,7 +157,10 @@ class _DiscreteCache:
 
     def _add_basic(self, p: np.ndarray):
         # The parameters were checked where they entered (DiscreteWing.checked_inputs).
-        m = self.wing.discretise(p, _compiled_expm if self.compiled else None)
+        expm = None
+        if self.compiled:
+            from aero_dva.flight.held_kernel import compiled_expm as expm  # numba: on first use
+        m = self.wing.discretise(p, expm)
         phi, gam = m.ad, m.bd
         cacc, dacc = m.c[:, N_DISPLACEMENTS:], m.d[:, N_DISPLACEMENTS:]
         k0, k1 = self.size, self.size + len(p)
@@ -219,14 +221,6 @@ class _DiscreteCache:
         toep[:, np.arange(h), N_DISPLACEMENTS:, np.arange(h)] = dacc[None]
         self.arr["period"][idx] = period.reshape(k, N_OUTPUTS * h, n + h)
         self.done["period"][idx] = True
-
-
-def _compiled_expm(m: np.ndarray) -> np.ndarray:
-    """:func:`~aero_dva.flight.discretize.expm_batch` of a stack (K, n, n), compiled."""
-    from aero_dva.flight.held_kernel import expm_stack  # numba: imported when first used
-
-    m = np.ascontiguousarray(m, dtype=float)
-    return expm_stack(m, TAYLOR, np.empty_like(m))
 
 
 def _matrix_power(m: np.ndarray, power: int) -> np.ndarray:

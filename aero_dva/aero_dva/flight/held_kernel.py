@@ -23,7 +23,9 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["STACK_ROWS", "STACK_STATES", "expm_stack", "hold_rule", "stack_maps",
+from aero_dva.flight.discretize import TAYLOR
+
+__all__ = ["STACK_ROWS", "STACK_STATES", "compiled_expm", "expm_stack", "hold_rule", "stack_maps",
            "step_periods", "step_stacked"]
 
 STACK_STATES = 7
@@ -246,3 +248,10 @@ def expm_stack(m, taylor, out):
             for c in range(n):
                 out[i, r, c] = acc[r, c]
     return out
+
+
+def compiled_expm(m: np.ndarray) -> np.ndarray:
+    """:func:`~aero_dva.flight.discretize.expm_batch` of a stack (K, n, n), by
+    :func:`expm_stack` (an ``expm`` for :func:`~aero_dva.flight.discretize.zoh`)."""
+    m = np.ascontiguousarray(m, dtype=float)
+    return expm_stack(m, TAYLOR, np.empty_like(m))

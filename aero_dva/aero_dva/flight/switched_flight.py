@@ -181,10 +181,12 @@ def _measurement(model: AeroelasticModel, conditions: np.ndarray):
     return c, d
 
 
-def _steps(plant, observer_model, conditions: np.ndarray, levels: np.ndarray, dt: float):
+def _steps(plant, observer_model, conditions: np.ndarray, levels: np.ndarray, dt: float,
+           expm=None):
     """(K, L, S): per held condition and c2 level, the plant's ``[Ad | Bd]``, (when the
     observer's model is another) the observer's ``Ad``, and the plant's input column of a
-    unit rate on the Maxwell deflection (a yield force's offset), flattened."""
+    unit rate on the Maxwell deflection (a yield force's offset), flattened (``expm``: the
+    matrix exponential of a stack, as for :func:`~aero_dva.flight.discretize.zoh`)."""
     k, nl = conditions.shape[0], levels.size
     speeds = np.repeat(conditions[:, 0], nl)
     rhos = np.repeat(conditions[:, 1], nl)
@@ -193,13 +195,13 @@ def _steps(plant, observer_model, conditions: np.ndarray, levels: np.ndarray, dt
     inputs = np.zeros(b.shape + (2,))
     inputs[..., 0] = b
     inputs[..., maxwell_index(plant), 1] = 1.0
-    ad, gamma = zoh(a, inputs, dt)
+    ad, gamma = zoh(a, inputs, dt, expm)
     # [Ad | Bd] row by row, then Ao, then the deflection-rate column: the compiled loop's
     # layout.
     parts = [np.concatenate([ad, gamma[..., :1]], axis=-1).reshape(k, nl, -1)]
     if observer_model is not plant:
         a, b = observer_model.matrices_unchecked(speeds, rhos, np.tile(levels, k))
-        parts.append(zoh(a, b, dt)[0].reshape(k, nl, -1))
+        parts.append(zoh(a, b, dt, expm)[0].reshape(k, nl, -1))
     parts.append(gamma[..., 1].reshape(k, nl, n))
     return np.concatenate(parts, axis=-1)
 
@@ -326,6 +328,7 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
     starts = np.arange(0, nsamp, hold)
     # imported here: numba takes 0.4 s to import, and every simulator process imports this
     # module (switching_io) whether or not a switching law flies
+    from aero_dva.flight.held_kernel import compiled_expm as expm
     from aero_dva.flight.held_kernel import hold_rule
     from aero_dva.flight.switched_kernel import fly_maps
 
@@ -337,7 +340,7 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
     keys, run_key = np.unique(held[new_run], axis=0, return_inverse=True)
     period_map = run_key.ravel()[np.cumsum(new_run) - 1]
     steps, index, weight = interpolated_maps(
-        lambda cond, lev: _steps(plant, observer_model, cond, lev, dt), keys, table,
+        lambda cond, lev: _steps(plant, observer_model, cond, lev, dt, expm), keys, table,
         plant.absorber.series_stiffness)
     est, g_in, g_state = _condition_maps(plant, observer_model, law, keys)
     c_start = law.c_hi if initial_damping is None else min(
@@ -351,7 +354,7 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
     yield_force = float(yield_force)
     if not (math.isfinite(yield_force) and yield_force >= 0.0):
         raise ValueError(f"yield_force must be finite and >= 0 N, got {yield_force}")
-    locked = (_steps(plant, plant, keys, np.array([np.inf]), dt)[:, 0, :n * (n + 1)]
+    locked = (_steps(plant, plant, keys, np.array([np.inf]), dt, expm)[:, 0, :n * (n + 1)]
               if yield_force > 0 else np.zeros((1, n * (n + 1))))
     sample_map = np.repeat(period_map.astype(np.int64).ravel(), hold)[:nsamp]
     states, level, targets = fly_maps(

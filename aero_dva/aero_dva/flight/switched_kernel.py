@@ -4,7 +4,9 @@ relief valve, the observer and the plant's exact step (pure numerics).
 :func:`fly_maps` is what :func:`aero_dva.flight.switched_flight.fly_switched` runs once its
 maps are built. A sample costs a few small matrix-vector products and scalar operations, so in
 Python the interpreter's overhead per sample decided the flight's speed; the loop is compiled
-once per machine (``cache=True``) and runs as machine code.
+once per machine (``cache=True``) and runs as machine code. The wing with its Maxwell DVA
+(7 states, an observer of 7 or none) takes a copy of the loop written for those sizes
+(:func:`_fly_fixed`, equal to the bit), others the general one (:func:`_fly_general`).
 
 Per flight and sample ``i``, with ``x`` the plant's state, ``p`` the observer's prediction,
 ``u = [f; noise]`` and ``q`` the held condition, in this order:
@@ -31,18 +33,20 @@ __all__ = ["fly_maps"]
 
 
 @njit(cache=True)
-def _form(out, steps, index, weight, k):
-    """``out = sum_j weight[j] steps[index[j], k]`` (zero weights skipped)."""
-    out[:] = 0.0
-    for j in range(index.size):
-        w = weight[j]
+def _form(cur, steps, index, weight, q, k):
+    """``cur[k] = sum_j weight[q, j] steps[index[q, j], k]`` (zero weights skipped; indexed
+    directly, without views)."""
+    size = cur.shape[1]
+    for s in range(size):
+        cur[k, s] = 0.0
+    for j in range(index.shape[1]):
+        w = weight[q, j]
         if w != 0.0:
-            src = steps[index[j], k]
-            for s in range(out.size):
-                out[s] += w * src[s]
+            b = index[q, j]
+            for s in range(size):
+                cur[k, s] += w * steps[b, k, s]
 
 
-@njit(cache=True)
 def fly_maps(steps, index, weight, est, g_in, g_state, sample_map, inputs, n, tau, decay,
              mean_factor, c_lo, c_hi, per_level, force_limit, k2, d_col, every, first, z, c,
              target_hi, prev_fh, yield_force, locked, table):
@@ -63,7 +67,68 @@ def fly_maps(steps, index, weight, est, g_in, g_state, sample_map, inputs, n, ta
     prediction, ``c`` (F,) the lag's c2, ``target_hi`` (F,) and ``prev_fh`` (F,) the target in
     force and the last sample's F h. Returns the plant's states (F, N, n) at each sample's
     start, the levels flown (F, N) and the targets (F, N; True: c_hi).
+
+    A plant of :data:`FIXED_STATES` states with the four measured signals (the wing with its
+    Maxwell DVA and quasi-steady aerodynamics) flies :func:`_fly_fixed`: the same arithmetic
+    in the same order (equal to the bit), on transposed maps whose products the compiler
+    vectorises across rows. Other sizes fly :func:`_fly_general`.
     """
+    args = (tau, decay, mean_factor, c_lo, c_hi, per_level, force_limit, k2, d_col, every,
+            first, z, c, target_hi, prev_fh, yield_force)
+    m = est.shape[1]
+    if n != FIXED_STATES or inputs.shape[2] != FIXED_INPUTS or m not in (0, n):
+        return _fly_general(steps, index, weight, est, g_in, g_state, sample_map, inputs, n,
+                            *args, locked, table)
+    own_observer = steps.shape[2] > n * (n + 1) + n
+    order = _fixed_layout(n, own_observer)
+    steps_t = np.ascontiguousarray(steps[..., order])
+    steps_t[..., order < 0] = 0.0  # padding rows
+    est_t = np.zeros((est.shape[0], max(est.shape[2], 1), 8))
+    est_t[:, :, :m] = est.transpose(0, 2, 1)
+    g_t = np.ascontiguousarray(np.concatenate([g_state, g_in], axis=2).transpose(0, 2, 1))
+    plant = order[:8 * (n + 1)]
+    locked_t = np.zeros((locked.shape[0], 8 * (n + 1)))
+    if yield_force > 0.0:
+        locked_t = np.ascontiguousarray(locked[:, plant])
+        locked_t[:, plant < 0] = 0.0
+    return _fly_fixed(steps_t, index, weight, est_t, g_t, sample_map, inputs, m > 0,
+                      8 * (n + 1) if own_observer else 0, *args, locked_t, table)
+
+
+FIXED_STATES = 7
+"""Plant states of :func:`_fly_fixed` (its observer has as many, or none)."""
+FIXED_INPUTS = 5
+"""Inputs of :func:`_fly_fixed`: the force and the noise of the four measured signals."""
+
+
+def _fixed_layout(n, own_observer):
+    """Source entry of each entry of :func:`_fly_fixed`'s flattened maps (-1: padding).
+
+    The maps of :func:`_fly_general` hold ``[Ad | Bd]`` row by row, then (own observer) ``Ao``
+    row by row, then the column ``g``; :func:`_fly_fixed` takes each matrix column by
+    column, every column padded to 8 rows: ``[Ad | Bd]`` as 8 (n + 1) entries, ``Ao`` as
+    8 n, ``g`` as 8."""
+    rows = np.arange(8)
+    valid = rows < n
+
+    def columns(start, width, count):
+        idx = start + rows[None, :] * width + np.arange(count)[:, None]  # [column, row]
+        return np.where(valid[None, :], idx, -1).ravel()
+
+    parts = [columns(0, n + 1, n + 1)]
+    g_at = n * (n + 1)
+    if own_observer:
+        parts.append(columns(g_at, n, n))
+        g_at += n * n
+    parts.append(np.where(valid, g_at + rows, -1))
+    return np.concatenate(parts)
+
+
+@njit(cache=True)
+def _fly_general(steps, index, weight, est, g_in, g_state, sample_map, inputs, n, tau, decay,
+                 mean_factor, c_lo, c_hi, per_level, force_limit, k2, d_col, every, first, z,
+                 c, target_hi, prev_fh, yield_force, locked, table):
+    """:func:`fly_maps` with loops of the model's sizes."""
     nf, nsamp, nv = inputs.shape
     m = est.shape[1]
     nm = n + m
@@ -84,22 +149,19 @@ def fly_maps(steps, index, weight, est, g_in, g_state, sample_map, inputs, n, ta
         if q != q_prev:
             formed[:] = False
             q_prev = q
-        gs = g_state[q]
-        gi = g_in[q]
-        eq = est[q]
+        # Arrays are indexed directly, not through per-sample views: a view costs reference
+        # counting, which here cost more than the arithmetic.
         for f in range(nf):
-            x = z[f]
-            u = inputs[f, i]
             if first + i > 0 and (first + i) % every == 0:
                 target_hi[f] = prev_fh[f] > 0.0  # the decision of sample i-1 acts from i on
             fv = 0.0
             hv = 0.0
             for j in range(nm):
-                fv += gs[0, j] * x[j]
-                hv += gs[1, j] * x[j]
+                fv += g_state[q, 0, j] * z[f, j]
+                hv += g_state[q, 1, j] * z[f, j]
             for j in range(nv):
-                fv += gi[0, j] * u[j]
-                hv += gi[1, j] * u[j]
+                fv += g_in[q, 0, j] * inputs[f, i, j]
+                hv += g_in[q, 1, j] * inputs[f, i, j]
             prev_fh[f] = fv * hv
             if tau > 0.0:
                 target = c_hi if target_hi[f] else c_lo
@@ -108,44 +170,152 @@ def fly_maps(steps, index, weight, est, g_in, g_state, sample_map, inputs, n, ta
                 k = int((math.log(mean) - log_lo) / per_level + 0.5)
             else:
                 k = 1 if target_hi[f] else 0
-            if relief and abs(x[d_col]) * k2 > force_limit:
+            if relief and abs(z[f, d_col]) * k2 > force_limit:
                 k = 0
             if not formed[k]:
-                _form(cur[k], steps, index[q], weight[q], k)
+                _form(cur, steps, index, weight, q, k)
                 formed[k] = True
             level[f, i] = k
             targets[f, i] = target_hi[f]
             for j in range(n):
-                states[f, i, j] = x[j]
-            step = cur[k]
+                states[f, i, j] = z[f, j]
             if m > 0:
                 for r in range(m):
                     s = 0.0
                     for j in range(nm):
-                        s += eq[r, j] * x[j]
+                        s += est[q, r, j] * z[f, j]
                     for j in range(nv):
-                        s += eq[r, nm + j] * u[j]
+                        s += est[q, r, nm + j] * inputs[f, i, j]
                     e[r] = s
                 base = n * (n + 1) if own_observer else 0
                 width = m if own_observer else n + 1
                 for r in range(m):
                     s = 0.0
                     for j in range(m):
-                        s += step[base + r * width + j] * e[j]
-                    x[n + r] = s  # p: written after its last read (est above)
-            plant = step
-            offset = 0.0
-            if yield_force > 0.0:
-                force = k2 * x[d_col]
-                if abs(force) <= yield_force:
-                    plant = locked[q]
-                else:
-                    offset = yield_force / table[k] * (1.0 if force > 0.0 else -1.0)
+                        s += cur[k, base + r * width + j] * e[j]
+                    z[f, n + r] = s  # p: written after its last read (est above)
+            u0 = inputs[f, i, 0]
+            if yield_force > 0.0 and abs(k2 * z[f, d_col]) <= yield_force:
+                for r in range(n):  # locked
+                    s = locked[q, r * (n + 1) + n] * u0
+                    for j in range(n):
+                        s += locked[q, r * (n + 1) + j] * z[f, j]
+                    xn[r] = s
+            else:
+                offset = 0.0
+                if yield_force > 0.0:
+                    offset = yield_force / table[k] * (1.0 if k2 * z[f, d_col] > 0.0 else -1.0)
+                for r in range(n):
+                    s = cur[k, r * (n + 1) + n] * u0 + offset * cur[k, g_at + r]
+                    for j in range(n):
+                        s += cur[k, r * (n + 1) + j] * z[f, j]
+                    xn[r] = s
             for r in range(n):
-                s = plant[r * (n + 1) + n] * u[0] + offset * step[g_at + r]
-                for j in range(n):
-                    s += plant[r * (n + 1) + j] * x[j]
-                xn[r] = s
+                z[f, r] = xn[r]
+    return states, level, targets
+
+
+@njit(cache=True)
+def _fly_fixed(steps, index, weight, est, g, sample_map, inputs, observe, obs_base, tau,
+               decay, mean_factor, c_lo, c_hi, per_level, force_limit, k2, d_col, every,
+               first, z, c, target_hi, prev_fh, yield_force, locked, table):
+    """:func:`_fly_general` for 7 plant states, 5 inputs and an observer of 7 states
+    (``observe``) or none, on the column-major maps of :func:`_fixed_layout` (``steps``,
+    ``locked``), ``est`` (K, 19, 8) transposed and padded, ``g`` (K, 19, 2) the rows of F and
+    h transposed. Each sum runs over its terms in the order of :func:`_fly_general` (from
+    0.0, state before input), so the result is the same to the bit; the rows of a product
+    are the 8 lanes of one expression."""
+    nf, nsamp = inputs.shape[0], inputs.shape[1]
+    n = 7
+    nm = 14 if observe else 7
+    g_at = obs_base + 8 * n if obs_base else 8 * (n + 1)
+    states = np.empty((nf, nsamp, n))
+    level = np.empty((nf, nsamp), np.int64)
+    targets = np.empty((nf, nsamp), np.bool_)
+    relief = force_limit < math.inf
+    log_lo = math.log(c_lo)
+    e = np.empty(8)
+    pn = np.empty(8)
+    xn = np.empty(8)
+    cur = np.empty(steps.shape[1:])
+    formed = np.zeros(steps.shape[1], np.bool_)
+    q_prev = -1
+    for i in range(nsamp):
+        q = sample_map[i]
+        if q != q_prev:
+            formed[:] = False
+            q_prev = q
+        for f in range(nf):
+            if first + i > 0 and (first + i) % every == 0:
+                target_hi[f] = prev_fh[f] > 0.0
+            fv = 0.0
+            hv = 0.0
+            for j in range(nm):
+                fv += g[q, j, 0] * z[f, j]
+                hv += g[q, j, 1] * z[f, j]
+            for j in range(5):
+                fv += g[q, nm + j, 0] * inputs[f, i, j]
+                hv += g[q, nm + j, 1] * inputs[f, i, j]
+            prev_fh[f] = fv * hv
+            if tau > 0.0:
+                target = c_hi if target_hi[f] else c_lo
+                mean = target + (c[f] - target) * mean_factor
+                c[f] = target + (c[f] - target) * decay
+                k = int((math.log(mean) - log_lo) / per_level + 0.5)
+            else:
+                k = 1 if target_hi[f] else 0
+            if relief and abs(z[f, d_col]) * k2 > force_limit:
+                k = 0
+            if not formed[k]:
+                _form(cur, steps, index, weight, q, k)
+                formed[k] = True
+            level[f, i] = k
+            targets[f, i] = target_hi[f]
+            x0, x1, x2, x3, x4, x5, x6 = (z[f, 0], z[f, 1], z[f, 2], z[f, 3], z[f, 4],
+                                          z[f, 5], z[f, 6])
+            for j in range(n):
+                states[f, i, j] = z[f, j]
+            u0, u1, u2, u3, u4 = (inputs[f, i, 0], inputs[f, i, 1], inputs[f, i, 2],
+                                  inputs[f, i, 3], inputs[f, i, 4])
+            if observe:
+                p0, p1, p2, p3, p4, p5, p6 = (z[f, 7], z[f, 8], z[f, 9], z[f, 10], z[f, 11],
+                                              z[f, 12], z[f, 13])
+                for r in range(8):
+                    e[r] = (((((((((((((((((((0.0 + est[q, 0, r] * x0) + est[q, 1, r] * x1)
+                                            + est[q, 2, r] * x2) + est[q, 3, r] * x3)
+                                          + est[q, 4, r] * x4) + est[q, 5, r] * x5)
+                                        + est[q, 6, r] * x6) + est[q, 7, r] * p0)
+                                      + est[q, 8, r] * p1) + est[q, 9, r] * p2)
+                                    + est[q, 10, r] * p3) + est[q, 11, r] * p4)
+                                  + est[q, 12, r] * p5) + est[q, 13, r] * p6)
+                                + est[q, 14, r] * u0) + est[q, 15, r] * u1)
+                              + est[q, 16, r] * u2) + est[q, 17, r] * u3)
+                            + est[q, 18, r] * u4)
+                e0, e1, e2, e3, e4, e5, e6 = e[0], e[1], e[2], e[3], e[4], e[5], e[6]
+                b = obs_base
+                for r in range(8):
+                    pn[r] = (((((((0.0 + cur[k, b + r] * e0) + cur[k, b + 8 + r] * e1)
+                                 + cur[k, b + 16 + r] * e2) + cur[k, b + 24 + r] * e3)
+                               + cur[k, b + 32 + r] * e4) + cur[k, b + 40 + r] * e5)
+                             + cur[k, b + 48 + r] * e6)
+                for r in range(n):
+                    z[f, n + r] = pn[r]
+            if yield_force > 0.0 and abs(k2 * z[f, d_col]) <= yield_force:
+                for r in range(8):  # locked
+                    xn[r] = (((((((locked[q, 56 + r] * u0 + locked[q, r] * x0)
+                                  + locked[q, 8 + r] * x1) + locked[q, 16 + r] * x2)
+                                + locked[q, 24 + r] * x3) + locked[q, 32 + r] * x4)
+                              + locked[q, 40 + r] * x5) + locked[q, 48 + r] * x6)
+            else:
+                offset = 0.0
+                if yield_force > 0.0:
+                    offset = yield_force / table[k] * (1.0 if k2 * z[f, d_col] > 0.0 else -1.0)
+                for r in range(8):
+                    xn[r] = ((((((((cur[k, 56 + r] * u0 + offset * cur[k, g_at + r])
+                                   + cur[k, r] * x0) + cur[k, 8 + r] * x1)
+                                 + cur[k, 16 + r] * x2) + cur[k, 24 + r] * x3)
+                               + cur[k, 32 + r] * x4) + cur[k, 40 + r] * x5)
+                             + cur[k, 48 + r] * x6)
             for r in range(n):
-                x[r] = xn[r]
+                z[f, r] = xn[r]
     return states, level, targets

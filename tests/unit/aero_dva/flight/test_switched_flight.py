@@ -267,3 +267,42 @@ def test_a_yield_force_above_every_force_locks_the_damper(wing):
     np.testing.assert_allclose(flight.leading_edge, locked, rtol=1e-6,
                                atol=1e-9 * np.abs(locked).max())
     assert np.all(flight.damper_power == 0.0)  # a locked damper dissipates nothing
+
+
+@pytest.mark.parametrize("case", ["observer", "other observer model", "true state",
+                                  "yield and valve", "slow loop, no lag"])
+def test_the_fixed_size_loop_equals_the_general_loop_to_the_bit(wing, monkeypatch, case):
+    # The wing with its Maxwell DVA flies switched_kernel._fly_fixed; with FIXED_STATES
+    # unmatched the same flight takes _fly_general. Same sums in the same order: equal.
+    from aero_dva.flight import switched_kernel
+
+    cfg, model = wing
+    stiffer = dataclasses.replace(cfg.wing, plunge_stiffness=1.05 * cfg.wing.plunge_stiffness)
+    other = AeroelasticModel(stiffer, cfg.absorber, cfg.aero)
+    rng = np.random.default_rng(11)
+    speed = np.linspace(90.0, 120.0, 3000)
+    force = rng.normal(0, 1000.0, (2, speed.size))
+    scale = measured_rms(model, U_CR, 1.2, 624.7, 1000.0, 1000.0)
+    noise = rng.normal(0, 1.0, (speed.size, 4)) * 0.05 * scale
+    observer = kalman_filter_gain(model, 110.0, 1.2, 500.0, 1000.0, 1000.0, 0.05 * scale)
+    gain = law_gain(model, 115.0, 1.2, C_LO, C_HI)
+    kw = dict(time_constant=0.01)
+    if case == "true state":
+        law = SwitchingLaw(gain, C_LO, C_HI)
+    else:
+        law = SwitchingLaw(gain, C_LO, C_HI, observer)
+        kw["noise"] = noise
+    if case == "other observer model":
+        kw["observer_model"] = other
+    if case == "yield and valve":
+        kw.update(yield_force=300.0, force_limit=3000.0)
+    if case == "slow loop, no lag":
+        kw.update(time_constant=0.0, update_every=7)
+    fixed = fly_switched(model, law, speed, 1.2, force, **kw)
+    monkeypatch.setattr(switched_kernel, "FIXED_STATES", -1)
+    general = fly_switched(model, law, speed, 1.2, force, **kw)
+    for name in ("leading_edge", "stroke", "damping", "target", "damper_power"):
+        np.testing.assert_array_equal(getattr(fixed, name), getattr(general, name), name)
+    assert np.count_nonzero(np.diff(fixed.target, axis=1)) > 50  # the law did switch
+    if case == "yield and valve":
+        assert np.any(fixed.damper_power == 0.0) and np.any(fixed.damping == C_LO)
