@@ -30,6 +30,8 @@ numerics.
 from __future__ import annotations
 
 import math
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
@@ -339,10 +341,8 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
     new_run[1:] = np.any(held[1:] != held[:-1], axis=1)
     keys, run_key = np.unique(held[new_run], axis=0, return_inverse=True)
     period_map = run_key.ravel()[np.cumsum(new_run) - 1]
-    steps, index, weight = interpolated_maps(
-        lambda cond, lev: _steps(plant, observer_model, cond, lev, dt, expm), keys, table,
-        plant.absorber.series_stiffness)
-    est, g_in, g_state = _condition_maps(plant, observer_model, law, keys)
+    steps, index, weight, est, g_in, g_state = _flight_maps(plant, observer_model, law, keys,
+                                                            table, dt, expm)
     c_start = law.c_hi if initial_damping is None else min(
         max(float(initial_damping), law.c_lo), law.c_hi)
     if not float(force_limit) > 0:
@@ -376,6 +376,42 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
         return SwitchedFlight(*(getattr(out, f)[0] for f in (
             "leading_edge", "stroke", "damping", "target", "damper_power")), 1.0 / dt)
     return out
+
+
+_KEPT_MAPS = 2
+"""Flights whose maps :func:`_flight_maps` keeps (the last ones flown)."""
+_kept: OrderedDict = OrderedDict()
+_kept_lock = threading.Lock()
+
+
+def _models_key(model: AeroelasticModel) -> tuple:
+    return (model.wing, model.absorber, model.aero)
+
+
+def _flight_maps(plant, observer_model, law, keys, table, dt, expm):
+    """The interpolated steps (:func:`~aero_dva.flight.smooth_tables.interpolated_maps`) and
+    the condition maps (:func:`_condition_maps`) of a flight, kept for the next flights with
+    the same models, law, held conditions, c2 table and sample interval (the seeds of a case
+    and the repeats of a benchmark). The arrays are shared: nothing writes into them."""
+    def raw(a):
+        return None if a is None else (a.shape, a.tobytes())
+
+    key = (_models_key(plant), _models_key(observer_model), observer_model is plant,
+           raw(law.gain), law.c_lo,
+           law.c_hi, raw(law.observer), raw(law.force_gain), raw(keys), raw(table), dt)
+    with _kept_lock:
+        if key in _kept:
+            _kept.move_to_end(key)
+            return _kept[key]
+    steps, index, weight = interpolated_maps(
+        lambda cond, lev: _steps(plant, observer_model, cond, lev, dt, expm), keys, table,
+        plant.absorber.series_stiffness)
+    maps = (steps, index, weight) + _condition_maps(plant, observer_model, law, keys)
+    with _kept_lock:
+        _kept[key] = maps
+        while len(_kept) > _KEPT_MAPS:
+            _kept.popitem(last=False)
+    return maps
 
 
 @dataclass(frozen=True)

@@ -83,15 +83,16 @@ def fly_maps(steps, index, weight, est, g_in, g_state, sample_map, inputs, n, ta
     order = _fixed_layout(n, own_observer)
     steps_t = np.ascontiguousarray(steps[..., order])
     steps_t[..., order < 0] = 0.0  # padding rows
-    est_t = np.zeros((est.shape[0], max(est.shape[2], 1), 8))
-    est_t[:, :, :m] = est.transpose(0, 2, 1)
-    g_t = np.ascontiguousarray(np.concatenate([g_state, g_in], axis=2).transpose(0, 2, 1))
+    # the rows read from [x; p; u] at a sample's start: the estimate (m), then F and h
+    reads = np.zeros((est.shape[0], n + m + inputs.shape[2], 16))
+    reads[:, :, :m] = est.transpose(0, 2, 1)
+    reads[:, :, 7:9] = np.concatenate([g_state, g_in], axis=2).transpose(0, 2, 1)
     plant = order[:8 * (n + 1)]
     locked_t = np.zeros((locked.shape[0], 8 * (n + 1)))
     if yield_force > 0.0:
         locked_t = np.ascontiguousarray(locked[:, plant])
         locked_t[:, plant < 0] = 0.0
-    return _fly_fixed(steps_t, index, weight, est_t, g_t, sample_map, inputs, m > 0,
+    return _fly_fixed(steps_t, index, weight, reads, sample_map, inputs, m > 0,
                       8 * (n + 1) if own_observer else 0, *args, locked_t, table)
 
 
@@ -216,25 +217,25 @@ def _fly_general(steps, index, weight, est, g_in, g_state, sample_map, inputs, n
 
 
 @njit(cache=True)
-def _fly_fixed(steps, index, weight, est, g, sample_map, inputs, observe, obs_base, tau,
+def _fly_fixed(steps, index, weight, reads, sample_map, inputs, observe, obs_base, tau,
                decay, mean_factor, c_lo, c_hi, per_level, force_limit, k2, d_col, every,
                first, z, c, target_hi, prev_fh, yield_force, locked, table):
     """:func:`_fly_general` for 7 plant states, 5 inputs and an observer of 7 states
     (``observe``) or none, on the column-major maps of :func:`_fixed_layout` (``steps``,
-    ``locked``), ``est`` (K, 19, 8) transposed and padded, ``g`` (K, 19, 2) the rows of F and
-    h transposed. Each sum runs over its terms in the order of :func:`_fly_general` (from
-    0.0, state before input), so the result is the same to the bit; the rows of a product
-    are the 8 lanes of one expression."""
+    ``locked``) and ``reads`` (K, 19 or 12, 16): column j of the rows read from
+    ``[x; p; u]``, the estimate's 7 (``est``) then F and h (``g_state``, ``g_in``), zero
+    padded to 16 rows, so that the compiler vectorises the product across them. Each sum
+    runs over its terms in the order of :func:`_fly_general` (from 0.0, state before input),
+    so the result is the same to the bit."""
     nf, nsamp = inputs.shape[0], inputs.shape[1]
     n = 7
-    nm = 14 if observe else 7
     g_at = obs_base + 8 * n if obs_base else 8 * (n + 1)
     states = np.empty((nf, nsamp, n))
     level = np.empty((nf, nsamp), np.int64)
     targets = np.empty((nf, nsamp), np.bool_)
     relief = force_limit < math.inf
     log_lo = math.log(c_lo)
-    e = np.empty(8)
+    e = np.empty(16)
     pn = np.empty(8)
     xn = np.empty(8)
     cur = np.empty(steps.shape[1:])
@@ -248,15 +249,33 @@ def _fly_fixed(steps, index, weight, est, g, sample_map, inputs, observe, obs_ba
         for f in range(nf):
             if first + i > 0 and (first + i) % every == 0:
                 target_hi[f] = prev_fh[f] > 0.0
-            fv = 0.0
-            hv = 0.0
-            for j in range(nm):
-                fv += g[q, j, 0] * z[f, j]
-                hv += g[q, j, 1] * z[f, j]
-            for j in range(5):
-                fv += g[q, nm + j, 0] * inputs[f, i, j]
-                hv += g[q, nm + j, 1] * inputs[f, i, j]
-            prev_fh[f] = fv * hv
+            x0, x1, x2, x3, x4, x5, x6 = (z[f, 0], z[f, 1], z[f, 2], z[f, 3], z[f, 4],
+                                          z[f, 5], z[f, 6])
+            u0, u1, u2, u3, u4 = (inputs[f, i, 0], inputs[f, i, 1], inputs[f, i, 2],
+                                  inputs[f, i, 3], inputs[f, i, 4])
+            if observe:
+                p0, p1, p2, p3, p4, p5, p6 = (z[f, 7], z[f, 8], z[f, 9], z[f, 10], z[f, 11],
+                                              z[f, 12], z[f, 13])
+                for r in range(16):
+                    e[r] = (((((((((((((((((((0.0 + reads[q, 0, r] * x0)
+                                              + reads[q, 1, r] * x1) + reads[q, 2, r] * x2)
+                                            + reads[q, 3, r] * x3) + reads[q, 4, r] * x4)
+                                          + reads[q, 5, r] * x5) + reads[q, 6, r] * x6)
+                                        + reads[q, 7, r] * p0) + reads[q, 8, r] * p1)
+                                      + reads[q, 9, r] * p2) + reads[q, 10, r] * p3)
+                                    + reads[q, 11, r] * p4) + reads[q, 12, r] * p5)
+                                  + reads[q, 13, r] * p6) + reads[q, 14, r] * u0)
+                                + reads[q, 15, r] * u1) + reads[q, 16, r] * u2)
+                              + reads[q, 17, r] * u3) + reads[q, 18, r] * u4)
+            else:
+                for r in range(16):
+                    e[r] = ((((((((((((0.0 + reads[q, 0, r] * x0) + reads[q, 1, r] * x1)
+                                      + reads[q, 2, r] * x2) + reads[q, 3, r] * x3)
+                                    + reads[q, 4, r] * x4) + reads[q, 5, r] * x5)
+                                  + reads[q, 6, r] * x6) + reads[q, 7, r] * u0)
+                                + reads[q, 8, r] * u1) + reads[q, 9, r] * u2)
+                              + reads[q, 10, r] * u3) + reads[q, 11, r] * u4)
+            prev_fh[f] = e[7] * e[8]
             if tau > 0.0:
                 target = c_hi if target_hi[f] else c_lo
                 mean = target + (c[f] - target) * mean_factor
@@ -271,26 +290,9 @@ def _fly_fixed(steps, index, weight, est, g, sample_map, inputs, observe, obs_ba
                 formed[k] = True
             level[f, i] = k
             targets[f, i] = target_hi[f]
-            x0, x1, x2, x3, x4, x5, x6 = (z[f, 0], z[f, 1], z[f, 2], z[f, 3], z[f, 4],
-                                          z[f, 5], z[f, 6])
             for j in range(n):
                 states[f, i, j] = z[f, j]
-            u0, u1, u2, u3, u4 = (inputs[f, i, 0], inputs[f, i, 1], inputs[f, i, 2],
-                                  inputs[f, i, 3], inputs[f, i, 4])
             if observe:
-                p0, p1, p2, p3, p4, p5, p6 = (z[f, 7], z[f, 8], z[f, 9], z[f, 10], z[f, 11],
-                                              z[f, 12], z[f, 13])
-                for r in range(8):
-                    e[r] = (((((((((((((((((((0.0 + est[q, 0, r] * x0) + est[q, 1, r] * x1)
-                                            + est[q, 2, r] * x2) + est[q, 3, r] * x3)
-                                          + est[q, 4, r] * x4) + est[q, 5, r] * x5)
-                                        + est[q, 6, r] * x6) + est[q, 7, r] * p0)
-                                      + est[q, 8, r] * p1) + est[q, 9, r] * p2)
-                                    + est[q, 10, r] * p3) + est[q, 11, r] * p4)
-                                  + est[q, 12, r] * p5) + est[q, 13, r] * p6)
-                                + est[q, 14, r] * u0) + est[q, 15, r] * u1)
-                              + est[q, 16, r] * u2) + est[q, 17, r] * u3)
-                            + est[q, 18, r] * u4)
                 e0, e1, e2, e3, e4, e5, e6 = e[0], e[1], e[2], e[3], e[4], e[5], e[6]
                 b = obs_base
                 for r in range(8):

@@ -306,3 +306,29 @@ def test_the_fixed_size_loop_equals_the_general_loop_to_the_bit(wing, monkeypatc
     assert np.count_nonzero(np.diff(fixed.target, axis=1)) > 50  # the law did switch
     if case == "yield and valve":
         assert np.any(fixed.damper_power == 0.0) and np.any(fixed.damping == C_LO)
+
+
+def test_a_repeated_flight_reuses_its_maps_and_another_law_or_wing_does_not(wing):
+    from aero_dva.flight import switched_flight
+
+    cfg, model = wing
+    force = np.random.default_rng(12).normal(0, 1000.0, 3000)
+    speed = np.linspace(95.0, 110.0, 3000)
+    law = SwitchingLaw(law_gain(model, 115.0, 1.2, C_LO, C_HI), C_LO, C_HI)
+    first = fly_switched(model, law, speed, 1.2, force)
+    kept = next(reversed(switched_flight._kept.values()))
+    again = fly_switched(model, law, speed, 1.2, force)
+    assert next(reversed(switched_flight._kept.values()))[0] is kept[0]  # reused
+    np.testing.assert_array_equal(again.leading_edge, first.leading_edge)
+    # another gain (not a multiple: F h > 0 does not see a positive factor) and a stiffer
+    # wing each get maps of their own, equal to a fresh build
+    other_law = SwitchingLaw(law_gain(model, 100.0, 1.2, C_LO, C_HI), C_LO, C_HI)
+    stiffer = AeroelasticModel(dataclasses.replace(
+        cfg.wing, plunge_stiffness=1.05 * cfg.wing.plunge_stiffness), cfg.absorber, cfg.aero)
+    for m, lw in ((model, other_law), (stiffer, law)):
+        got = fly_switched(m, lw, speed, 1.2, force)
+        assert next(reversed(switched_flight._kept.values()))[0] is not kept[0]
+        switched_flight._kept.clear()
+        fresh = fly_switched(m, lw, speed, 1.2, force)
+        np.testing.assert_array_equal(got.leading_edge, fresh.leading_edge)
+        assert not np.array_equal(got.leading_edge, first.leading_edge)
