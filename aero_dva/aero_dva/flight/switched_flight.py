@@ -366,12 +366,15 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
     le = states @ plant.c_displacement[2]
     stroke = states @ plant.c_displacement[3]
     damping = table[level]
-    spring_force = np.abs(plant.absorber.series_stiffness * states[..., maxwell_index(plant)])
+    spring_force = states[..., maxwell_index(plant)] * plant.absorber.series_stiffness
+    np.abs(spring_force, out=spring_force)
     # F v_damper: F^2 / c2 for the linear damper; F (|F| - yield) / c2 while a Bingham
-    # damper flows, 0 while it is locked
-    flowing = np.maximum(spring_force - yield_force, 0.0)
+    # damper flows, 0 while it is locked (fewer temporaries: each costs page faults here)
+    flowing = np.maximum(spring_force - yield_force, 0.0) if yield_force > 0 else spring_force
+    power = spring_force * flowing
+    power /= damping
     out = SwitchedFlight(leading_edge=le, stroke=stroke, damping=damping, target=targets,
-                         damper_power=spring_force * flowing / damping, sample_rate=1.0 / dt)
+                         damper_power=power, sample_rate=1.0 / dt)
     if single:
         return SwitchedFlight(*(getattr(out, f)[0] for f in (
             "leading_edge", "stroke", "damping", "target", "damper_power")), 1.0 / dt)
