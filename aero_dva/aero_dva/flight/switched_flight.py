@@ -332,7 +332,7 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
     # module (switching_io) whether or not a switching law flies
     from aero_dva.flight.held_kernel import compiled_expm as expm
     from aero_dva.flight.held_kernel import hold_rule
-    from aero_dva.flight.switched_kernel import fly_maps
+    from aero_dva.flight.switched_kernel import fly_fixed, fly_maps
 
     raw = np.stack([speeds[starts], rhos[starts]], axis=-1)
     held = hold_rule(raw, np.full(2, np.nan), quantum, np.empty_like(raw))
@@ -341,8 +341,8 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
     new_run[1:] = np.any(held[1:] != held[:-1], axis=1)
     keys, run_key = np.unique(held[new_run], axis=0, return_inverse=True)
     period_map = run_key.ravel()[np.cumsum(new_run) - 1]
-    steps, index, weight, est, g_in, g_state = _flight_maps(plant, observer_model, law, keys,
-                                                            table, dt, expm)
+    steps, index, weight, est, g_in, g_state, fixed = _flight_maps(
+        plant, observer_model, law, keys, table, dt, expm)
     c_start = law.c_hi if initial_damping is None else min(
         max(float(initial_damping), law.c_lo), law.c_hi)
     if not float(force_limit) > 0:
@@ -357,12 +357,16 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
     locked = (_steps(plant, plant, keys, np.array([np.inf]), dt, expm)[:, 0, :n * (n + 1)]
               if yield_force > 0 else np.zeros((1, n * (n + 1))))
     sample_map = np.repeat(period_map.astype(np.int64).ravel(), hold)[:nsamp]
-    states, level, targets = fly_maps(
-        steps, index, weight, est, g_in, g_state, sample_map, inputs, n, tau, lag.decay,
-        lag.mean_factor, lag.c_lo, lag.c_hi, lag.per_level, lag.force_limit, lag.k2,
-        lag.deflection, lag.every, 0, np.zeros((nf, n + est.shape[1])), np.full(nf, c_start),
-        np.full(nf, c_start >= math.sqrt(law.c_lo * law.c_hi)), np.zeros(nf), yield_force,
-        np.ascontiguousarray(locked), table)
+    loop = (lag.tau, lag.decay, lag.mean_factor, lag.c_lo, lag.c_hi, lag.per_level,
+            lag.force_limit, lag.k2, lag.deflection, lag.every, 0,
+            np.zeros((nf, n + est.shape[1])), np.full(nf, c_start),
+            np.full(nf, c_start >= math.sqrt(law.c_lo * law.c_hi)), np.zeros(nf), yield_force,
+            np.ascontiguousarray(locked), table)
+    if fixed is not None:  # the wing's sizes: every level of every condition formed
+        states, level, targets = fly_fixed(fixed, sample_map, inputs, *loop)
+    else:
+        states, level, targets = fly_maps(steps, index, weight, est, g_in, g_state,
+                                          sample_map, inputs, n, *loop)
     le = states @ plant.c_displacement[2]
     stroke = states @ plant.c_displacement[3]
     damping = table[level]
@@ -395,7 +399,9 @@ def _flight_maps(plant, observer_model, law, keys, table, dt, expm):
     """The interpolated steps (:func:`~aero_dva.flight.smooth_tables.interpolated_maps`) and
     the condition maps (:func:`_condition_maps`) of a flight, kept for the next flights with
     the same models, law, held conditions, c2 table and sample interval (the seeds of a case
-    and the repeats of a benchmark). The arrays are shared: nothing writes into them."""
+    and the repeats of a benchmark); last, the maps of the fixed-size loop with every level
+    formed (:func:`~aero_dva.flight.switched_kernel.fixed_maps`; None for other sizes). The
+    arrays are shared: nothing writes into them."""
     def raw(a):
         return None if a is None else (a.shape, a.tobytes())
 
@@ -410,6 +416,9 @@ def _flight_maps(plant, observer_model, law, keys, table, dt, expm):
         lambda cond, lev: _steps(plant, observer_model, cond, lev, dt, expm), keys, table,
         plant.absorber.series_stiffness)
     maps = (steps, index, weight) + _condition_maps(plant, observer_model, law, keys)
+    from aero_dva.flight.switched_kernel import fixed_maps
+
+    maps += (fixed_maps(*maps, plant.n_states, 1 + len(MEASURED_OUTPUTS)),)
     with _kept_lock:
         _kept[key] = maps
         while len(_kept) > _KEPT_MAPS:

@@ -25,11 +25,12 @@ The steps of condition q at a level are ``sum_j weight[q, j] steps[index[q, j], 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
-__all__ = ["fly_maps"]
+__all__ = ["FixedMaps", "fixed_maps", "fly_fixed", "fly_maps"]
 
 
 @njit(cache=True)
@@ -73,27 +74,74 @@ def fly_maps(steps, index, weight, est, g_in, g_state, sample_map, inputs, n, ta
     in the same order (equal to the bit), on transposed maps whose products the compiler
     vectorises across rows. Other sizes fly :func:`_fly_general`.
     """
-    args = (tau, decay, mean_factor, c_lo, c_hi, per_level, force_limit, k2, d_col, every,
-            first, z, c, target_hi, prev_fh, yield_force)
-    m = est.shape[1]
-    if n != FIXED_STATES or inputs.shape[2] != FIXED_INPUTS or m not in (0, n):
+    fixed = fixed_maps(steps, index, weight, est, g_in, g_state, n, inputs.shape[2],
+                       whole=False)
+    if fixed is None:
         return _fly_general(steps, index, weight, est, g_in, g_state, sample_map, inputs, n,
-                            *args, locked, table)
+                            tau, decay, mean_factor, c_lo, c_hi, per_level, force_limit, k2,
+                            d_col, every, first, z, c, target_hi, prev_fh, yield_force,
+                            locked, table)
+    return fly_fixed(fixed, sample_map, inputs, tau, decay, mean_factor, c_lo, c_hi,
+                     per_level, force_limit, k2, d_col, every, first, z, c, target_hi,
+                     prev_fh, yield_force, locked, table)
+
+
+class FixedMaps(NamedTuple):
+    """The maps of :func:`_fly_fixed` (:func:`fixed_maps`)."""
+
+    steps: np.ndarray  # (B, L, S) the interpolation's base maps, column-major
+    index: np.ndarray
+    weight: np.ndarray
+    whole: np.ndarray  # (K, L, S) every condition's maps at every level, or (0, L, S)
+    reads: np.ndarray  # (K, n + m + v, 16)
+    observe: bool
+    obs_base: int
+    plant: np.ndarray  # the entries of [Ad | Bd] in the column-major layout (-1: padding)
+
+
+def fixed_maps(steps, index, weight, est, g_in, g_state, n, nv, whole=True):
+    """The maps of :func:`fly_fixed` from those of :func:`fly_maps`, or None if the sizes
+    are not :func:`_fly_fixed`'s. ``whole``: form every condition's maps at every level now
+    (kept with a flight's maps, a repeated flight forms none), else as flown."""
+    m = est.shape[1]
+    if n != FIXED_STATES or nv != FIXED_INPUTS or m not in (0, n):
+        return None
     own_observer = steps.shape[2] > n * (n + 1) + n
     order = _fixed_layout(n, own_observer)
     steps_t = np.ascontiguousarray(steps[..., order])
     steps_t[..., order < 0] = 0.0  # padding rows
     # the rows read from [x; p; u] at a sample's start: the estimate (m), then F and h
-    reads = np.zeros((est.shape[0], n + m + inputs.shape[2], 16))
+    reads = np.zeros((est.shape[0], n + m + nv, 16))
     reads[:, :, :m] = est.transpose(0, 2, 1)
     reads[:, :, 7:9] = np.concatenate([g_state, g_in], axis=2).transpose(0, 2, 1)
-    plant = order[:8 * (n + 1)]
-    locked_t = np.zeros((locked.shape[0], 8 * (n + 1)))
+    count = est.shape[0] if whole else 0
+    formed = _form_all(np.empty((count,) + steps_t.shape[1:]), steps_t, index, weight)
+    return FixedMaps(steps_t, index, weight, formed, reads, m > 0,
+                     8 * (n + 1) if own_observer else 0, order[:8 * (n + 1)])
+
+
+def fly_fixed(fixed: FixedMaps, sample_map, inputs, tau, decay, mean_factor, c_lo, c_hi,
+              per_level, force_limit, k2, d_col, every, first, z, c, target_hi, prev_fh,
+              yield_force, locked, table):
+    """:func:`fly_maps` on maps from :func:`fixed_maps` (``locked`` as for fly_maps)."""
+    plant = fixed.plant
+    locked_t = np.zeros((1, plant.size))
     if yield_force > 0.0:
         locked_t = np.ascontiguousarray(locked[:, plant])
         locked_t[:, plant < 0] = 0.0
-    return _fly_fixed(steps_t, index, weight, reads, sample_map, inputs, m > 0,
-                      8 * (n + 1) if own_observer else 0, *args, locked_t, table)
+    return _fly_fixed(fixed.steps, fixed.index, fixed.weight, fixed.whole, fixed.reads,
+                      sample_map, inputs, fixed.observe, fixed.obs_base, tau, decay,
+                      mean_factor, c_lo, c_hi, per_level, force_limit, k2, d_col, every,
+                      first, z, c, target_hi, prev_fh, yield_force, locked_t, table)
+
+
+@njit(cache=True)
+def _form_all(out, steps, index, weight):
+    """``out[q]`` the maps of condition q at every level (:func:`_form`), for q < len(out)."""
+    for q in range(out.shape[0]):
+        for k in range(out.shape[1]):
+            _form(out[q], steps, index, weight, q, k)
+    return out
 
 
 FIXED_STATES = 7
@@ -217,16 +265,17 @@ def _fly_general(steps, index, weight, est, g_in, g_state, sample_map, inputs, n
 
 
 @njit(cache=True)
-def _fly_fixed(steps, index, weight, reads, sample_map, inputs, observe, obs_base, tau,
+def _fly_fixed(steps, index, weight, whole, reads, sample_map, inputs, observe, obs_base, tau,
                decay, mean_factor, c_lo, c_hi, per_level, force_limit, k2, d_col, every,
                first, z, c, target_hi, prev_fh, yield_force, locked, table):
     """:func:`_fly_general` for 7 plant states, 5 inputs and an observer of 7 states
     (``observe``) or none, on the column-major maps of :func:`_fixed_layout` (``steps``,
     ``locked``) and ``reads`` (K, 19 or 12, 16): column j of the rows read from
     ``[x; p; u]``, the estimate's 7 (``est``) then F and h (``g_state``, ``g_in``), zero
-    padded to 16 rows, so that the compiler vectorises the product across them. Each sum
-    runs over its terms in the order of :func:`_fly_general` (from 0.0, state before input),
-    so the result is the same to the bit."""
+    padded to 16 rows, so that the compiler vectorises the product across them; ``whole``
+    (K, L, S) every condition's maps formed at every level, or (0, L, S): formed as flown.
+    Each sum runs over its terms in the order of :func:`_fly_general` (from 0.0, state
+    before input), so the result is the same to the bit."""
     nf, nsamp = inputs.shape[0], inputs.shape[1]
     n = 7
     g_at = obs_base + 8 * n if obs_base else 8 * (n + 1)
@@ -244,7 +293,11 @@ def _fly_fixed(steps, index, weight, reads, sample_map, inputs, observe, obs_bas
     for i in range(nsamp):
         q = sample_map[i]
         if q != q_prev:
-            formed[:] = False
+            if whole.shape[0]:  # every level formed already
+                cur = whole[q]
+                formed[:] = True
+            else:
+                formed[:] = False
             q_prev = q
         for f in range(nf):
             if first + i > 0 and (first + i) % every == 0:

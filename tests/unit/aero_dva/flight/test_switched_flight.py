@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections import OrderedDict
 
 import numpy as np
 import pytest
@@ -274,7 +275,7 @@ def test_a_yield_force_above_every_force_locks_the_damper(wing):
 def test_the_fixed_size_loop_equals_the_general_loop_to_the_bit(wing, monkeypatch, case):
     # The wing with its Maxwell DVA flies switched_kernel._fly_fixed; with FIXED_STATES
     # unmatched the same flight takes _fly_general. Same sums in the same order: equal.
-    from aero_dva.flight import switched_kernel
+    from aero_dva.flight import switched_flight, switched_kernel
 
     cfg, model = wing
     stiffer = dataclasses.replace(cfg.wing, plunge_stiffness=1.05 * cfg.wing.plunge_stiffness)
@@ -299,8 +300,19 @@ def test_the_fixed_size_loop_equals_the_general_loop_to_the_bit(wing, monkeypatc
     if case == "slow loop, no lag":
         kw.update(time_constant=0.0, update_every=7)
     fixed = fly_switched(model, law, speed, 1.2, force, **kw)
+    kept = next(reversed(switched_flight._kept.values()))
+    assert kept[-1] is not None and kept[-1].whole.shape[0] > 0  # every level formed
     monkeypatch.setattr(switched_kernel, "FIXED_STATES", -1)
+    monkeypatch.setattr(switched_flight, "_kept", OrderedDict())  # maps built afresh
     general = fly_switched(model, law, speed, 1.2, force, **kw)
+    assert next(reversed(switched_flight._kept.values()))[-1] is None  # the general loop
+    # and the fixed loop forming its maps as flown (fly_maps, as the streaming flight)
+    monkeypatch.setattr(switched_kernel, "FIXED_STATES", 7)
+    maps = kept[:6]
+    n = model.n_states
+    for whole in (True, False):
+        fixed_maps = switched_kernel.fixed_maps(*maps, n, 5, whole=whole)
+        assert (fixed_maps.whole.shape[0] > 0) is whole
     for name in ("leading_edge", "stroke", "damping", "target", "damper_power"):
         np.testing.assert_array_equal(getattr(fixed, name), getattr(general, name), name)
     assert np.count_nonzero(np.diff(fixed.target, axis=1)) > 50  # the law did switch
