@@ -20,7 +20,8 @@ Per flight and sample ``i``, with ``x`` the plant's state, ``p`` the observer's 
    ``x <- Ad[level] @ x + Bd[level] f``.
 
 The steps of condition q at a level are ``sum_j weight[q, j] steps[index[q, j], level]``
-(:func:`aero_dva.flight.smooth_tables.interpolated_maps`), formed when first flown.
+(:func:`aero_dva.flight.smooth_tables.interpolated_maps`), formed when first flown, or all
+at once by :func:`fixed_maps` for a flight that keeps them.
 """
 from __future__ import annotations
 
