@@ -553,9 +553,12 @@ def _shared_wing(wing, absorber, aero, sample_rate, hold, quantum):
     and the condition itself, which is the key here and in the cache. The model and the
     sampled wing are kept too: building and checking them costs as much as a short flight.
     """
-    key = (wing, absorber, aero, sample_rate, hold, quantum)
-    plain = (type(sample_rate) in (int, float) and type(hold) is int
-             and type(quantum) in (int, float))
+    real = (int, float, np.integer, np.floating)
+    plain = (isinstance(sample_rate, real) and isinstance(quantum, real)
+             and isinstance(hold, (int, np.integer))
+             and not any(isinstance(v, (bool, np.bool_)) for v in (sample_rate, hold, quantum)))
+    key = (wing, absorber, aero, float(sample_rate), int(hold), float(quantum)) if plain \
+        else None  # other types: built (and refused, if they are wrong) below, not kept
     try:
         with _shared_lock:
             entry = _shared.get(key) if plain else None

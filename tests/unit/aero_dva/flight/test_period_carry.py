@@ -123,6 +123,8 @@ def test_the_kept_model_is_reused_and_bad_arguments_are_still_refused():
     first = _shared_wing(WING, DVA, None, 1000.0, 10, 2e-3)
     assert _shared_wing(WING, DVA, None, 1000.0, 10, 2e-3) is first
     assert _shared_wing(WING, DVA, None, 1000.0, 10, 0.0)[0] is not first[0]
+    first = _shared_wing(WING, DVA, None, 1000.0, 10, 2e-3)
+    assert _shared_wing(WING, DVA, None, np.float64(1000.0), np.int64(10), 2e-3) is first
     with pytest.raises(ValueError, match="hold"):
         _shared_wing(WING, DVA, None, 1000.0, True, 2e-3)  # equal to 1 as a key, not a hold
     with pytest.raises(ValueError, match="sample_rate"):
