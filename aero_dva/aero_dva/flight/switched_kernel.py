@@ -49,6 +49,24 @@ def _form(cur, steps, index, weight, q, k):
                 cur[k, s] += w * steps[b, k, s]
 
 
+@njit(cache=True)
+def _damper_level(hi, c, f, tau, decay, mean_factor, c_lo, c_hi, log_lo, per_level, relief,
+                  spring_force, force_limit):
+    """The table level flown over a sample with the target ``hi`` (True: c_hi): the level
+    nearest in log c2 to the lag's mean over the sample (``c[f]`` becomes the lag's c2 at its
+    end), the target itself without lag, the lowest while the relief valve is open."""
+    if tau > 0.0:
+        target = c_hi if hi else c_lo
+        mean = target + (c[f] - target) * mean_factor
+        c[f] = target + (c[f] - target) * decay
+        k = int((math.log(mean) - log_lo) / per_level + 0.5)
+    else:
+        k = 1 if hi else 0
+    if relief and spring_force > force_limit:
+        k = 0
+    return k
+
+
 def fly_maps(steps, index, weight, est, g_in, g_state, sample_map, inputs, n, tau, decay,
              mean_factor, c_lo, c_hi, per_level, force_limit, k2, d_col, every, first, z, c,
              target_hi, prev_fh, yield_force, locked, table):
@@ -213,15 +231,8 @@ def _fly_general(steps, index, weight, est, g_in, g_state, sample_map, inputs, n
                 fv += g_in[q, 0, j] * inputs[f, i, j]
                 hv += g_in[q, 1, j] * inputs[f, i, j]
             prev_fh[f] = fv * hv
-            if tau > 0.0:
-                target = c_hi if target_hi[f] else c_lo
-                mean = target + (c[f] - target) * mean_factor
-                c[f] = target + (c[f] - target) * decay
-                k = int((math.log(mean) - log_lo) / per_level + 0.5)
-            else:
-                k = 1 if target_hi[f] else 0
-            if relief and abs(z[f, d_col]) * k2 > force_limit:
-                k = 0
+            k = _damper_level(target_hi[f], c, f, tau, decay, mean_factor, c_lo, c_hi, log_lo,
+                              per_level, relief, abs(z[f, d_col]) * k2, force_limit)
             if not formed[k]:
                 _form(cur, steps, index, weight, q, k)
                 formed[k] = True
@@ -330,15 +341,8 @@ def _fly_fixed(steps, index, weight, whole, reads, sample_map, inputs, observe, 
                                 + reads[q, 8, r] * u1) + reads[q, 9, r] * u2)
                               + reads[q, 10, r] * u3) + reads[q, 11, r] * u4)
             prev_fh[f] = e[7] * e[8]
-            if tau > 0.0:
-                target = c_hi if target_hi[f] else c_lo
-                mean = target + (c[f] - target) * mean_factor
-                c[f] = target + (c[f] - target) * decay
-                k = int((math.log(mean) - log_lo) / per_level + 0.5)
-            else:
-                k = 1 if target_hi[f] else 0
-            if relief and abs(z[f, d_col]) * k2 > force_limit:
-                k = 0
+            k = _damper_level(target_hi[f], c, f, tau, decay, mean_factor, c_lo, c_hi, log_lo,
+                              per_level, relief, abs(z[f, d_col]) * k2, force_limit)
             if not formed[k]:
                 _form(cur, steps, index, weight, q, k)
                 formed[k] = True
