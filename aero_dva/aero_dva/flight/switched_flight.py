@@ -373,7 +373,7 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
     spring_force = states[..., maxwell_index(plant)] * plant.absorber.series_stiffness
     np.abs(spring_force, out=spring_force)
     # F v_damper: F^2 / c2 for the linear damper; F (|F| - yield) / c2 while a Bingham
-    # damper flows, 0 while it is locked (fewer temporaries: each costs page faults here)
+    # damper flows, 0 while it is locked
     flowing = np.maximum(spring_force - yield_force, 0.0) if yield_force > 0 else spring_force
     power = spring_force * flowing
     power /= damping
@@ -406,8 +406,8 @@ def _flight_maps(plant, observer_model, law, keys, table, dt, expm):
         return None if a is None else (a.shape, a.tobytes())
 
     key = (_models_key(plant), _models_key(observer_model), observer_model is plant,
-           raw(law.gain), law.c_lo,
-           law.c_hi, raw(law.observer), raw(law.force_gain), raw(keys), raw(table), dt)
+           raw(law.gain), law.c_lo, law.c_hi, raw(law.observer), raw(law.force_gain),
+           raw(keys), raw(table), dt)
     with _kept_lock:
         if key in _kept:
             _kept.move_to_end(key)
@@ -416,7 +416,7 @@ def _flight_maps(plant, observer_model, law, keys, table, dt, expm):
         lambda cond, lev: _steps(plant, observer_model, cond, lev, dt, expm), keys, table,
         plant.absorber.series_stiffness)
     maps = (steps, index, weight) + _condition_maps(plant, observer_model, law, keys)
-    from aero_dva.flight.switched_kernel import fixed_maps
+    from aero_dva.flight.switched_kernel import fixed_maps  # numba: as in fly_switched
 
     maps += (fixed_maps(*maps, plant.n_states, 1 + len(MEASURED_OUTPUTS)),)
     with _kept_lock:
