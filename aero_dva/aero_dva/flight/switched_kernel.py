@@ -133,8 +133,10 @@ def fixed_maps(steps, index, weight, est, g_in, g_state, n, nv, whole=True):
     reads = np.zeros((est.shape[0], n + m + nv, 16))
     reads[:, :, :m] = est.transpose(0, 2, 1)
     reads[:, :, 7:9] = np.concatenate([g_state, g_in], axis=2).transpose(0, 2, 1)
-    count = est.shape[0] if whole else 0
-    formed = _form_all(np.empty((count,) + steps_t.shape[1:]), steps_t, index, weight)
+    formed = np.empty((0,) + steps_t.shape[1:])  # none: the loop forms levels as flown
+    if whole:
+        formed = _form_all(np.empty((est.shape[0],) + steps_t.shape[1:]), steps_t, index,
+                           weight)
     return FixedMaps(steps_t, index, weight, formed, reads, m > 0,
                      8 * (n + 1) if own_observer else 0, order[:8 * (n + 1)])
 
