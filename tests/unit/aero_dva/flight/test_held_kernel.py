@@ -34,3 +34,19 @@ def test_the_compiled_exponential_equals_expm_batch_and_scipy():
         scale = np.abs(ref).max(axis=(1, 2), keepdims=True)
         assert np.all(np.abs(got - ref) <= 1e-12 * scale)
         assert np.all(np.abs(got - expm_batch(m)) <= 1e-13 * scale)
+
+
+def test_the_compiled_exponential_keeps_every_scale_of_a_graded_stack():
+    # States of very different sizes (a stroke in metres beside a pitch in radians) make
+    # D B D^-1 with a graded D; expm of it is D expm(B) D^-1, each entry on its own scale.
+    # The balancing undoes D exactly, so each entry is right to its own scale, and an entry
+    # 2^40 smaller than the largest is not lost in the largest's rounding.
+    rng = np.random.default_rng(11)
+    d = 2.0 ** rng.integers(-20, 21, 8)
+    b = rng.standard_normal((30, 8, 8)) * 0.3
+    m = b * d[:, None] / d[None, :]
+    got = expm_stack(np.ascontiguousarray(m), TAYLOR, np.empty_like(m))
+    eb = np.array([expm(x) for x in b])
+    ref = eb * d[:, None] / d[None, :]
+    bound = 1e-13 * np.abs(eb).max(axis=(1, 2), keepdims=True) * d[:, None] / d[None, :]
+    assert np.all(np.abs(got - ref) <= bound)

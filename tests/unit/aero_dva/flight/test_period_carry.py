@@ -150,3 +150,22 @@ def test_a_repeated_schedule_reuses_its_lookup_and_a_cleared_cache_does_not():
     cache.clear()
     again = cache.lookup(rows)
     assert again is not first and cache.size == len(np.unique(again))
+
+
+def test_lookups_find_kept_conditions_and_add_only_the_new_ones():
+    dw = DiscreteWing(AeroelasticModel(WING, DVA), 1000.0)
+    cache = _DiscreteCache(dw, compiled=True)
+    u = np.repeat(np.linspace(60.0, 70.0, 40), 3)  # runs of three periods
+    rows = np.stack([u, np.full(u.size, RHO), np.linspace(300.0, 900.0, u.size)], -1)
+    rows[:, 2] = np.repeat(rows[::3, 2], 3)
+    first = cache.lookup(rows[:60])
+    assert cache.size == 20
+    # half kept, half new, the schedule out of order, and one condition twice
+    mixed = np.concatenate([rows[90:], rows[30:60], rows[:3]])
+    idx = cache.lookup(mixed)
+    assert cache.size == 30  # ten new; rows 60-89 stay unasked
+    np.testing.assert_array_equal(idx[30:60], first[30:60])
+    ref = dw.discretise(mixed)
+    np.testing.assert_allclose(cache.arr["phi"][idx], ref.ad, rtol=0, atol=1e-13)
+    np.testing.assert_allclose(cache.arr["gam"][idx], ref.bd, rtol=0, atol=1e-13)
+    assert len(np.unique(idx)) == 21 and cache.lookup(rows[:3]).tolist() == idx[-3:].tolist()
