@@ -20,7 +20,8 @@ from aero_dva.control.schedule_io import save_schedule
 from .conftest import ros2_run_path
 
 RECORD = ("divergence_ratio", "leading_edge_rms", "mean_damping", "commands_recorded",
-          "commands_received", "blocks_startup", "blocks_fallback")
+          "commands_received", "blocks_startup", "blocks_fallback", "data_published",
+          "data_missing", "end_report_recorded")
 BUSY_LOOP = "while True:\n    pass\n"
 
 
@@ -68,14 +69,29 @@ def test_same_record_idle_and_beside_busy_loops(tmp_path):
     assert record["blocks_startup"] == 1 and record["blocks_fallback"] == 0
     assert record["commands_received"] == 59 and record["commands_recorded"] == 60
     assert record["divergence_ratio"] is None
+    # every data message the simulator published is in the bag: one per block and topic
+    assert record["end_report_recorded"] and record["data_missing"] == 0
+    assert record["data_published"] == 60 * 5
 
 
 def test_a_flight_mostly_on_the_fallback_fails_and_says_why(tmp_path):
-    scenario, _ = _files(tmp_path)
-    # Commands every 50 ms of sim time, stale after 10 ms: some blocks start on the fallback.
+    # The fixed controller commands every 50 ms of sim time (its timer runs on the flight's
+    # clock, so no command can come sooner) and each command is stale 10 ms later. In blocks
+    # of 20 ms at most one block in two and a half can start on a fresh command, however
+    # fast or slow the processes are; the flight runs free (no lockstep: the simulator would
+    # wait for the first command at 20 ms, before the controller's first tick) in real time.
+    # (Blocks of 50 ms each start on the command just sent when the controller keeps up,
+    # which made the outcome depend on the machine's speed.)
+    scenario = tmp_path / "short_blocks.yaml"
+    scenario.write_text("name: short_blocks\nduration: 3.0\nblock_size: 20\n"
+                        "airspeed: {kind: ramp, start_ratio: 0.8, end_ratio: 0.9}\n"
+                        "excitation: {force_std: 1000.0, seed: 5}\n")
     result = _fly(tmp_path, "stale", "--scenario", str(scenario), "--controller", "fixed",
-                  "--damping", "900", "--damper-timeout", "0.01")
+                  "--damping", "900", "--damper-timeout", "0.01", "--max-command-lag", "0",
+                  "--real-time-factor", "1")
     assert result.returncode == 1, result.stdout + result.stderr
     summary = json.loads(result.stdout)  # the summary is still printed, with the counts
+    assert summary["blocks"] == 150 and summary["blocks_controlled"] > 0
+    assert summary["blocks_controlled"] <= summary["commands_accepted"]
     assert summary["blocks_fallback"] > 0.02 * summary["blocks"]
     assert "were flown on the fallback c2" in result.stderr.splitlines()[-1]

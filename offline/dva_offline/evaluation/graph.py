@@ -22,7 +22,7 @@ import sys
 import time
 from pathlib import Path
 
-__all__ = ["GRAPH_CONTROLLERS", "evaluate_graph"]
+__all__ = ["GRAPH_CONTROLLERS", "bag_problem", "evaluate_graph"]
 
 GRAPH_CONTROLLERS = ("none", "fixed", "schedule", "rbf")
 
@@ -66,6 +66,20 @@ def _sliding_divergence(bag: Path, u_cr) -> dict:
             "divergence_ratio_sliding": ratio}
 
 
+def bag_problem(summary: dict) -> str | None:
+    """Why a flight's bag cannot be judged (run_flight's summary ``summary``), or None: its
+    divergence is read from the bag's last seconds, which a recorder starved of CPU can lose
+    (such a flight counts as failed and is flown again, ``--retries``)."""
+    if not summary.get("end_report_recorded"):
+        return ("the bag lacks the simulator's end-of-flight report (its last messages were "
+                "lost on the way to the recorder)")
+    missing = summary.get("data_missing")
+    if missing:
+        return (f"the bag lacks {missing} of the {summary.get('data_published')} data messages "
+                "the simulator published (lost on the way to the recorder)")
+    return None
+
+
 def _fly(case, scenario: Path, out: Path, made: dict, args) -> dict:
     """One flight through run_flight; the record (never raises for a failed flight)."""
     from dva_offline.evaluation.graph_io import flight_bag
@@ -82,8 +96,12 @@ def _fly(case, scenario: Path, out: Path, made: dict, args) -> dict:
                                 capture_output=True, text=True, timeout=args.timeout + 120)
         if result.returncode == 0:
             record.update(json.loads(result.stdout))
-            record.update(_sliding_divergence(bag, record.get("critical_airspeed")))
-            record["ok"] = True
+            incomplete = bag_problem(record)
+            if incomplete:
+                record.update(ok=False, error=incomplete)
+            else:
+                record.update(_sliding_divergence(bag, record.get("critical_airspeed")))
+                record["ok"] = True
         else:
             lines = (result.stderr or "").strip().splitlines()
             record.update(ok=False, error=f"run_flight exited {result.returncode}: "

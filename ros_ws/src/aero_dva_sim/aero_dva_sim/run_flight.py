@@ -238,6 +238,7 @@ def applied_control(args, final: dict, bag: Path) -> dict:
         "commands_received", "commands_accepted", "controller_wait_timeouts",
         "blocks_switching")}
     out["switching_rate_mean"] = float(final.get("switching_rate_mean", 0.0))
+    out.update(bag_completeness(final, counts))
     out.update(
         commands_expected=expected_commands(args.controller, blocks, block_duration,
                                             counts.get(SPECTRUM.absolute(), 0), FIXED_RATE),
@@ -245,6 +246,24 @@ def applied_control(args, final: dict, bag: Path) -> dict:
         control_problem=None if args.controller == "none" else control_problem(
             blocks, out["blocks_controlled"], out["blocks_fallback"], args.max_fallback_share))
     return out
+
+
+def bag_completeness(final: dict, counts: dict) -> dict:
+    """Whether the bag holds every data message the simulator published: ``end_report_recorded``
+    (the simulator's end-of-flight report, which carries its counts, is in the bag),
+    ``data_published``, ``data_recorded`` and ``data_missing`` (None without the report).
+    A recorder starved of CPU can lose the last messages a writer sent before it exited; a
+    flight's divergence is judged from its last seconds, so such a bag must not pass as whole."""
+    from aero_dva.bag import channels as ch
+
+    data = [c for c in ch.SIMULATOR_BLOCK if c != ch.CLOCK]
+    recorded = sum(counts.get(c.absolute(), 0) for c in data)
+    if not final:
+        return {"end_report_recorded": False, "data_published": None,
+                "data_recorded": recorded, "data_missing": None}
+    published = sum(int(final.get(f"published:{c.name}", 0)) for c in data)
+    return {"end_report_recorded": True, "data_published": published,
+            "data_recorded": recorded, "data_missing": max(0, published - recorded)}
 
 
 def _format(summary: dict) -> str:
@@ -278,6 +297,12 @@ def _format(summary: dict) -> str:
         f"{summary['blocks_fallback']}",
         f"commands             {summary['commands_received']} received of "
         f"{summary['commands_expected']} expected, {summary['commands_recorded']} recorded",
+        "bag data             " + (
+            f"{summary['data_recorded']} of the {summary['data_published']} messages the "
+            f"simulator published ({summary['data_missing']} missing)"
+            if summary.get("end_report_recorded") else
+            f"{summary.get('data_recorded')} messages; the simulator's end-of-flight report is "
+            "missing (the bag may lack its last messages)"),
         f"bag (MCAP)           {summary['bag']}",
         f"node logs            {summary['node_logs']}",
     ]

@@ -218,3 +218,17 @@ def test_missing_inputs_are_made_with_the_project_commands(tmp_path):
     with pytest.raises(FileNotFoundError, match="--network"):
         _inputs(Namespace(schedule=None, fixed_c2=None, network=str(tmp_path / "x.npz"),
                           sweep_bag=None), ("rbf",), tmp_path / "inputs", said.append)
+
+
+def test_a_bag_that_lost_messages_is_not_judged():
+    from dva_offline.evaluation.graph import bag_problem
+
+    whole = {"end_report_recorded": True, "data_published": 3000, "data_recorded": 3000,
+             "data_missing": 0}
+    assert bag_problem(whole) is None
+    short = dict(whole, data_recorded=2990, data_missing=10)
+    assert "lacks 10 of the 3000 data messages" in bag_problem(short)
+    no_report = {"end_report_recorded": False, "data_published": None, "data_recorded": 2950,
+                 "data_missing": None}
+    assert "end-of-flight report" in bag_problem(no_report)
+    assert "end-of-flight report" in bag_problem({})  # a summary from before the check
