@@ -14,8 +14,13 @@ import subprocess
 import sys
 from concurrent.futures import ThreadPoolExecutor
 
+import numpy as np
+
+from aero_dva.bag.flight_log_io import load_flight_log
+from aero_dva.bag.reader import read_messages
 from aero_dva.control.airspeed_schedule import AirspeedSchedule
 from aero_dva.control.schedule_io import save_schedule
+from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
 
 from .conftest import ros2_run_path
 
@@ -34,6 +39,10 @@ def _files(tmp_path):
                                               damping_range=(0.0, 2500.0)),
                              tmp_path / "schedule.json")
     return scenario, schedule
+
+
+def stamp_seconds(stamp) -> float:
+    return stamp.sec + 1e-9 * stamp.nanosec
 
 
 def _fly(tmp_path, name: str, *args: str) -> subprocess.CompletedProcess:
@@ -72,6 +81,24 @@ def test_same_record_idle_and_beside_busy_loops(tmp_path):
     # every data message the simulator published is in the bag: one per block and topic
     assert record["end_report_recorded"] and record["data_missing"] == 0
     assert record["data_published"] == 60 * 5
+    # The bag's c2 at each sample is the c2 that sample was flown with: the bag's commands,
+    # handed to the flight runtime before the block each answered, give its samples bit for
+    # bit, and the c2 of the replay is the bag's (the damper state of a block's start).
+    log = load_flight_log(tmp_path / "idle")
+    runtime = FlightRuntime(load_runtime_config({"scenario": str(scenario)}))
+    commands = [(m.message.header.stamp, m.message) for m in read_messages(
+        tmp_path / "idle", ["/dva/damper_command"])]
+    blocks, k = [], 0
+    while not runtime.done:
+        while k < len(commands) and stamp_seconds(commands[k][0]) < runtime.time - 1e-9:
+            runtime.command(commands[k][1].damping, commands[k][1].source)
+            k += 1
+        blocks.append(runtime.step())
+    np.testing.assert_array_equal(np.concatenate([b.displacements for b in blocks], axis=1),
+                                  log.displacements)
+    flown = np.concatenate([b.damping for b in blocks])
+    np.testing.assert_array_equal(log.applied_damping, flown)
+    assert len(np.unique(flown)) == 60  # a new c2 every block
 
 
 def test_a_flight_mostly_on_the_fallback_fails_and_says_why(tmp_path):

@@ -163,7 +163,7 @@ def record_runtime(bag_dir, runtime, progress: Callable[[int, int], None] | None
         outcome = "completed"
         while not runtime.done:
             block = runtime.step()
-            snapshot = runtime.damper_snapshot()
+            snapshot = runtime.flown_damper  # stamped at the block's start
             batch.append(block)
             snaps.append(snapshot)
             blocks_done += 1

@@ -33,6 +33,7 @@ __all__ = ["SpectrumStream", "StreamEvent", "StreamSpectrum"]
 
 _NS = 1_000_000_000
 MAX_HELD_BLOCKS = 200  # a stalled damper-state topic costs at most this many blocks of memory
+FIRST_STATE_BLOCKS = 2  # blocks held for the first damper state before states count as absent
 
 
 @dataclass(frozen=True)
@@ -100,6 +101,7 @@ class SpectrumStream:
         self._state_stamps: list[int] = []  # [ns] damper states by stamp, ascending
         self._state_values: list[float] = []  # [N s/m] their applied c2
         self._held: list[tuple] = []  # blocks waiting for their damper state, in arrival order
+        self._states_absent = False  # blocks came and no damper state: do not wait for one
         self._ready: tuple[list, list] = ([], [])  # analysed, not yet handed out by release
         self.counts = dict.fromkeys(
             ("blocks", "rejected", "resets", "spectra", "empty_windows", "damper_states"), 0)
@@ -121,6 +123,7 @@ class SpectrumStream:
             self._state_values.clear()
         self._state_stamps.append(int(stamp_ns))
         self._state_values.append(float(applied))
+        self._states_absent = False
         self.counts["damper_states"] += 1
         return True
 
@@ -180,10 +183,18 @@ class SpectrumStream:
         return spectra, events
 
     def _waits_for_state(self, stamp_ns: int, sample_rate: float) -> bool:
-        """True while damper states flow but none stamped at or after the block's start has
-        arrived (an earlier one could still be on its way)."""
-        if not self._state_stamps or not (math.isfinite(sample_rate) and sample_rate > 0.0):
+        """True while no damper state stamped at or after the block's start has arrived (an
+        earlier one could still be on its way). Before the first state a block waits only
+        while at most :data:`FIRST_STATE_BLOCKS` are held: the simulator publishes a block's
+        state with the block, so more blocks without one mean a source without states (a
+        replayed measurement), whose blocks then go out at once with no c2."""
+        if not (math.isfinite(sample_rate) and sample_rate > 0.0):
             return False
+        if not self._state_stamps:
+            if self._states_absent or len(self._held) > FIRST_STATE_BLOCKS:
+                self._states_absent = True
+                return False
+            return True
         slack = round(0.5 * _NS / sample_rate)
         return self._state_stamps[-1] + slack < stamp_ns
 

@@ -10,7 +10,7 @@ the damper state) stays the same in kind, so the log does not reveal the plant o
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -185,6 +185,7 @@ class FlightRuntime:
         self._sweep = self.scenario.airspeed.kind == "steps"
         self._law = None  # the switching law's damper path, built when first armed
         self.applied = AppliedControl()  # blocks by the source of the c2 they were flown with
+        self._flown: DamperSnapshot | None = None  # the damper over the last block
 
     @property
     def sweeps_damping(self) -> bool:
@@ -207,7 +208,16 @@ class FlightRuntime:
         return self._damper.command(damping, self.time, source)
 
     def damper_snapshot(self) -> DamperSnapshot:
+        """The damper now (after the last block: a command may still come before the next)."""
         return self._damper.snapshot()
+
+    @property
+    def flown_damper(self) -> DamperSnapshot | None:
+        """The damper the last block was flown with: its state at the block's start (time,
+        applied c2, status, source), with the block's mode and switching rate. This is what
+        ``dva/damper_state`` records, so a bag's c2 at a sample is the c2 that sample had (the
+        state at the block's end is the next block's only if no command comes between)."""
+        return self._flown
 
     def step(self) -> FlightBlock:
         """Simulate the next block (shorter at the end of the flight)."""
@@ -226,7 +236,8 @@ class FlightRuntime:
         else:
             # The damper is updated once per block: commands arrive between blocks.
             damping = np.full(n, self._damper.update(float(t[0])))
-        self.applied.count(self._damper.snapshot().source)
+        start = self._damper.snapshot()
+        self.applied.count(start.source)
         force = self.scenario.force_std * self._rng.standard_normal(n)
         if self.scenario.force_levels:
             force *= force_scale_at(self.scenario, t)
@@ -264,6 +275,7 @@ class FlightRuntime:
         if not self._sweep:
             self._damper.update(block.t_end)
         self._damper.record_mode(mode, rate, law_c2)
+        self._flown = replace(start, mode=DamperMode(mode), switching_rate=float(rate))
         return block
 
     def law_problem(self) -> str | None:

@@ -348,7 +348,7 @@ class Simulator(Node):
         return math.isfinite(due) and due >= self.runtime.time + self.runtime.block_duration
 
     def _check_damper_status(self) -> None:
-        snapshot = self.runtime.damper_snapshot()
+        snapshot = self.runtime.flown_damper  # what the block just published was flown with
         status = snapshot.status
         if status != self._last_status and status in (DamperStatus.FALLBACK_STALE,):
             ended = (" (the switching law is disarmed)" if self._last_mode == DamperMode.SWITCHING
@@ -391,7 +391,7 @@ class Simulator(Node):
             ch.EXCITATION.name: conversions.force_block(t0, fs, i0, block.force),
             ch.FLIGHT_CONDITION.name: conversions.flight_condition(
                 t0, block.airspeed[0], block.density[0]),
-            ch.DAMPER_STATE.name: conversions.damper_state(self.runtime.damper_snapshot()),
+            ch.DAMPER_STATE.name: conversions.damper_state(self.runtime.flown_damper),
         }
         for topic, msg in outgoing.items():
             self._pub[topic].publish(msg)

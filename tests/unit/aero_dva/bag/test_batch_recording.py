@@ -363,7 +363,7 @@ def test_record_runtime_records_the_same_flight_as_stepping_it(tmp_path):
     blocks, states = [], []
     while not twin.done:
         blocks.append(twin.step())
-        states.append(twin.damper_snapshot())
+        states.append(twin.flown_damper)
     log = load_flight_log(tmp_path / "bag")
     np.testing.assert_array_equal(log.displacements,
                                   np.concatenate([b.displacements for b in blocks], axis=1))
@@ -439,7 +439,8 @@ class _FakeRuntime:
         self._k += 1
         return self._blocks[self._k - 1]
 
-    def damper_snapshot(self):
+    @property
+    def flown_damper(self):
         state = self._states[self._k - 1]
         if self._k >= 4:
             return replace(state, status=DamperStatus.FALLBACK_STALE, source="fallback",
@@ -485,7 +486,7 @@ def _stepped(runtime):
     blocks, states = [], []
     while not runtime.done:
         blocks.append(runtime.step())
-        states.append(runtime.damper_snapshot())
+        states.append(runtime.flown_damper)
     return blocks, states
 
 

@@ -31,18 +31,23 @@ def _stream(hop: float = 0.5) -> SpectrumStream:
 
 
 def _feed(stream, samples, applied, states_first: bool):
-    """Blocks with the simulator's damper state after each (stamped with the next block's
-    start); the state of step k-1 arrives before or after block k's neighbours."""
+    """Blocks with the simulator's damper state of each (stamped at its start, its c2); with
+    ``states_first`` the state of block k + 1 arrives before block k (too new for it)."""
     out = []
-    for k, start in enumerate(range(0, samples.shape[1], BLOCK)):
-        state = (_stamp(start + BLOCK), applied(k))
-        if states_first:
-            stream.damper_state(*state)  # state k before block k: too new for block k
+    starts = list(range(0, samples.shape[1], BLOCK))
+    if states_first:
+        stream.damper_state(_stamp(0), applied(0))
+    for k, start in enumerate(starts):
+        if states_first and k + 1 < len(starts):
+            stream.damper_state(_stamp(start + BLOCK), applied(k + 1))
         spectra, events = stream.block(_stamp(start), start, FS, samples[:, start:start + BLOCK])
         assert not events
         out += spectra
         if not states_first:
-            stream.damper_state(*state)
+            stream.damper_state(_stamp(start), applied(k))
+            spectra, events = stream.release()
+            assert not events
+            out += spectra
     return out
 
 
@@ -57,20 +62,20 @@ def test_windows_stamps_and_magnitudes_are_the_pure_function_of_the_window():
         expected = scaled_spectrum(samples[:, first:first + 2000], FS, FREQS)
         np.testing.assert_allclose(s.spectrum.magnitudes, expected.magnitudes, rtol=1e-12)
         assert s.hop == 0.5
-    # before the first state the first block had no c2: the completing block's c2 is used
-    assert spectra[0].damping == 800.0
+    assert all(s.damping == 800.0 for s in spectra)  # the first block waited for its c2
 
 
 def test_c2_is_chosen_by_stamp_whatever_the_arrival_order():
-    """Block k uses the state stamped at its start (the simulator's state after block k-1);
-    a state of the same step that arrives early does not leak into the block."""
+    """Block k uses the state stamped at its start (the c2 it was flown with); the next
+    block's state arriving early does not leak into it."""
     samples = _signals(4000)
     c2 = lambda k: 300.0 + 10.0 * k  # noqa: E731 - a new c2 every block
     late = _feed(_stream(), samples, c2, states_first=False)
     early = _feed(_stream(), samples, c2, states_first=True)
     assert [s.damping for s in late] == [s.damping for s in early]
-    # window 1 (samples 500..2499 = blocks 10..49) used the states of blocks 9..48
-    assert late[1].damping == pytest.approx(np.mean([c2(k - 1) for k in range(10, 50)]))
+    # window 1 (samples 500..2499 = blocks 10..49) used the states of blocks 10..49
+    assert late[1].damping == pytest.approx(np.mean([c2(k) for k in range(10, 50)]))
+    assert late[0].damping == pytest.approx(np.mean([c2(k) for k in range(0, 40)]))
 
 
 def test_state_stamp_rounding_is_tolerated_and_time_going_back_starts_over():
@@ -86,6 +91,7 @@ def test_state_stamp_rounding_is_tolerated_and_time_going_back_starts_over():
 
 def test_bad_blocks_are_reported_not_raised():
     stream = _stream()
+    stream.damper_state(T0, 500.0)
     spectra, events = stream.block(T0, 0, 0.0, np.zeros((2, BLOCK)))
     assert not spectra and events[0].event == "bad_sample_rate"
     spectra, events = stream.block(T0, 0, 333.0, np.zeros((2, BLOCK)))
@@ -99,23 +105,40 @@ def test_bad_blocks_are_reported_not_raised():
 def test_a_block_waits_for_the_state_stamped_at_its_start():
     """A busy replay hands over block k before the state stamped at its start (DDS orders
     topics separately): the block is held until that state arrives, so the spectra and their
-    c2 are those of the in-order feed."""
+    c2 are those of the in-order feed. The first block waits for the first state too."""
     samples = _signals(4000)
     c2 = lambda k: 300.0 + 10.0 * k  # noqa: E731
-    reference = _feed(_stream(), samples, c2, states_first=False)
+    reference = _feed(_stream(), samples, c2, states_first=True)
     stream, out = _stream(), []
     for k, start in enumerate(range(0, samples.shape[1], BLOCK)):
         spectra, events = stream.block(_stamp(start), start, FS,
                                        samples[:, start:start + BLOCK])
         out += spectra
-        assert not events
-        assert stream.held_blocks == (1 if k > 1 else 0)  # no state flows before block 1
-        if k > 0:  # block k's own state (the one after block k-1) arrives after block k
-            stream.damper_state(_stamp(start), c2(k - 1))
-            out += stream.release()[0]
-            assert stream.held_blocks == 0
+        assert not events and stream.held_blocks == 1
+        stream.damper_state(_stamp(start), c2(k))  # block k's own state, after block k
+        out += stream.release()[0]
+        assert stream.held_blocks == 0
     assert [(s.stamp_ns, s.damping) for s in out] == \
         [(s.stamp_ns, s.damping) for s in reference]
+
+
+def test_without_any_state_blocks_wait_briefly_then_go_out_with_no_c2():
+    """A replayed measurement has no damper states: after FIRST_STATE_BLOCKS held blocks the
+    stream stops waiting for them (and waits again once a state comes)."""
+    samples = _signals(3000)
+    stream = _stream()
+    out = []
+    for start in range(0, 2500, BLOCK):
+        spectra, events = stream.block(_stamp(start), start, FS,
+                                       samples[:, start:start + BLOCK])
+        assert not events
+        out += spectra
+    assert stream.held_blocks == 0 and out and all(math.isnan(s.damping) for s in out)
+    stream.damper_state(_stamp(2500), 700.0)
+    stream.block(_stamp(2500), 2500, FS, samples[:, 2500:2550])  # its state is there
+    assert stream.held_blocks == 0
+    stream.block(_stamp(2550), 2550, FS, samples[:, 2550:2600])  # states flow: waits again
+    assert stream.held_blocks == 1
 
 
 def test_without_its_state_a_held_block_goes_out_when_forced_and_says_so():

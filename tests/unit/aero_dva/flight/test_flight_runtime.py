@@ -78,3 +78,26 @@ def test_commands_pass_through_the_damper_model():
     while not runtime.done:
         runtime.step()
     assert runtime.damper_snapshot().status == DamperStatus.FALLBACK_STALE
+
+
+def test_the_flown_damper_is_the_state_each_block_was_flown_with():
+    # A new command before every block, and one that goes stale inside a block: the state
+    # at a block's end is not the next block's (a command comes between), so what the bag
+    # records (flown_damper) must be each block's own start, stamped t0.
+    scenario = Scenario("c", 1.0, block_size=50, airspeed=AirspeedProfile("constant", (80.0,)))
+    runtime = _runtime(scenario, damper_timeout=0.03)
+    seen = []
+    while not runtime.done:
+        k = len(seen)
+        if k < 10 or k % 4 == 0:  # then one block in four commanded
+            runtime.command(400.0 + 10.0 * k, "x")
+        block = runtime.step()
+        seen.append((block, runtime.flown_damper, runtime.damper_snapshot()))
+    for block, flown, _ in seen:
+        assert flown.time == block.t0 and flown.applied_damping == block.damping[0]
+    sources = [flown.source for _, flown, _ in seen]
+    assert sources[:10] == ["x"] * 10 and sources[10:13] == ["fallback", "fallback", "x"]
+    # the state at the end differs from the block's: every block (a command is 0.05 s old,
+    # stale after 0.03 s)
+    assert all(end.status == DamperStatus.FALLBACK_STALE for _, _, end in seen)
+    assert runtime.applied.fallback == sources.count("fallback") == 8

@@ -25,8 +25,8 @@ def _header(t_ns: int, frame: str = "wing") -> dict:
 
 @pytest.fixture(scope="module")
 def flight(tmp_path_factory):
-    """A 3.5 s flight in blocks of 50 samples, with the damper state after each block stamped
-    with the next block's start (as the simulator publishes them), and the c2 commands of a
+    """A 3.5 s flight in blocks of 50 samples, with the damper state each block was flown
+    with, stamped at its start (as the simulator publishes them), and the c2 commands of a
     network ``net_a`` on the offline spectra recorded as if it had flown."""
     root = tmp_path_factory.mktemp("replay")
     scenario = root / "hold.yaml"
@@ -42,7 +42,7 @@ def flight(tmp_path_factory):
             runtime.command(400.0 + 100.0 * round(runtime.time * 10) % 3, "test")
         block = runtime.step()
         blocks.append(block)
-        snap = runtime.damper_snapshot()
+        snap = runtime.flown_damper
         states.append((round(snap.time * NS), snap.applied_damping))
     bag = root / "flight"
     with BagWriter(bag) as writer:
@@ -79,11 +79,10 @@ def test_offline_spectra_are_the_windows_of_the_recorded_samples(flight):
         assert s.stamp_ns == round((start + 1999) * 1e6)
         window = scaled_spectrum(flight["samples"][:, start:start + 2000], 1000.0, FREQS)
         np.testing.assert_allclose(s.magnitudes, window.magnitudes, rtol=1e-12)
-        # c2 of each block = the state stamped at its start (the state after the block before)
+        # c2 of each block = the state stamped at its start
         blocks = range(start // 50, (start + 2000) // 50)
-        held = [flight["states"][k - 1][1] if k > 0 else flight["states"][0][1] for k in blocks]
-        if start > 0:
-            assert s.damping == pytest.approx(np.mean(held), rel=1e-12)
+        held = [flight["states"][k][1] for k in blocks]
+        assert s.damping == pytest.approx(np.mean(held), rel=1e-12)
 
 
 def test_dva_replay_offline_writes_a_bag_and_compares(flight, tmp_path, capsys):
