@@ -104,12 +104,30 @@ def simulator_command(args, others: list[str]) -> list[str]:
                  wait_for_command_publishers=0 if args.controller == "none" else 1,
                  wait_timeout=args.wait_timeout, wait_timeout_fails=True,
                  max_command_lag=lag,
-                 first_input_time=SPECTRUM_WINDOW if args.controller == "rbf" else 0.0,
+                 first_input_time=first_input_time(args),
                  first_command_timeout=args.wait_timeout,
                  command_wait_timeout=args.command_wait_timeout,
                  damper_timeout=1e9 if args.controller == "none" else args.damper_timeout,
                  **switching_params(args)),
     ]
+
+
+def first_input_time(args) -> float:
+    """[s] sim time of the controller's first input: the flight flies the block holding it,
+    then holds until the first command has come. The RBF network's is its first spectrum
+    window (2 s). The fixed controller (and the switching supervisor) command on a timer of the
+    flight's clock, first at 1/FIXED_RATE, which the clock reaches only after the sample before
+    it: that sample is the input. (With 0, blocks shorter than the timer's period held at the
+    first block's end for a command that could never come.) The schedule answers each block."""
+    if args.controller == "rbf":
+        return SPECTRUM_WINDOW
+    if args.controller in ("fixed", "switching"):
+        from aero_dva import data_files
+        from aero_dva.flight.scenario_io import load_scenario
+
+        path = args.scenario or data_files.data_file("scenario_ramp.yaml")
+        return 1.0 / FIXED_RATE - 1.0 / load_scenario(path).sample_rate
+    return 0.0
 
 
 def switching_params(args) -> dict:
