@@ -19,7 +19,6 @@ compiled loop (a node process does not import numba in mid-flight): fewer than
 from __future__ import annotations
 
 import threading
-from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
@@ -31,6 +30,7 @@ from aero_dva.flight.discrete_model import (
     DiscreteWing,
     held_values,
 )
+from aero_dva.flight.kept import KeptByKey
 from aero_dva.flight.period_carry import period_starts
 from aero_dva.wing.checks import real_array
 from aero_dva.wing.model import AeroelasticModel
@@ -556,8 +556,7 @@ _SHARED_MODELS = 2
 """Models whose discretised conditions :func:`simulate_flights` keeps between calls."""
 _SHARED_CONDITIONS = 2048
 """A model's kept conditions (~13 kB each) are dropped after a call that left more."""
-_shared: OrderedDict = OrderedDict()
-_shared_lock = threading.Lock()
+_shared = KeptByKey(_SHARED_MODELS)
 
 
 def _shared_wing(wing, absorber, aero, sample_rate, hold, quantum):
@@ -576,30 +575,20 @@ def _shared_wing(wing, absorber, aero, sample_rate, hold, quantum):
     key = (wing, absorber, aero, float(sample_rate), int(hold), float(quantum)) if plain \
         else None  # other types: built (and refused, if they are wrong) below, not kept
     try:
-        with _shared_lock:
-            entry = _shared.get(key) if plain else None
-            if entry is not None:
-                _shared.move_to_end(key)
-                return entry
+        entry = _shared.get(key) if plain else None
+        if entry is not None:
+            return entry
     except TypeError:  # unhashable: not kept, and refused by name below
         plain = False
     model = AeroelasticModel(wing, absorber, aero)
     dw = DiscreteWing(model, sample_rate, hold=hold, quantum=quantum)
     entry = (dw, _DiscreteCache(dw, compiled=True), threading.Lock())
-    if not plain:
-        return entry
-    with _shared_lock:
-        entry = _shared.setdefault(key, entry)
-        _shared.move_to_end(key)
-        while len(_shared) > _SHARED_MODELS:
-            _shared.popitem(last=False)
-    return entry
+    return _shared.keep(key, entry) if plain else entry
 
 
 def forget_conditions() -> None:
     """Drop the discretised conditions :func:`simulate_flights` keeps between calls."""
-    with _shared_lock:
-        _shared.clear()
+    _shared.clear()
 
 
 def simulate_flights(wing, absorber=None, *, force, airspeed, density, damping=None,

@@ -30,14 +30,13 @@ numerics.
 from __future__ import annotations
 
 import math
-import threading
-from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
 
 from aero_dva.flight.discrete_model import DEFAULT_HOLD
 from aero_dva.flight.discretize import zoh
+from aero_dva.flight.kept import KeptByKey
 from aero_dva.flight.smooth_tables import interpolated_maps
 from aero_dva.wing.absorbers import MaxwellAbsorber
 from aero_dva.wing.checks import positive
@@ -387,8 +386,7 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
 
 _KEPT_MAPS = 2
 """Flights whose maps :func:`_flight_maps` keeps (the last ones flown)."""
-_kept: OrderedDict = OrderedDict()
-_kept_lock = threading.Lock()
+_kept = KeptByKey(_KEPT_MAPS)
 
 
 def _models_key(model: AeroelasticModel) -> tuple:
@@ -408,10 +406,9 @@ def _flight_maps(plant, observer_model, law, keys, table, dt, expm):
     key = (_models_key(plant), _models_key(observer_model), observer_model is plant,
            raw(law.gain), law.c_lo, law.c_hi, raw(law.observer), raw(law.force_gain),
            raw(keys), raw(table), dt)
-    with _kept_lock:
-        if key in _kept:
-            _kept.move_to_end(key)
-            return _kept[key]
+    kept = _kept.get(key)
+    if kept is not None:
+        return kept
     steps, index, weight = interpolated_maps(
         lambda cond, lev: _steps(plant, observer_model, cond, lev, dt, expm), keys, table,
         plant.absorber.series_stiffness)
@@ -419,11 +416,7 @@ def _flight_maps(plant, observer_model, law, keys, table, dt, expm):
     from aero_dva.flight.switched_kernel import fixed_maps  # numba: as in fly_switched
 
     maps += (fixed_maps(*maps, plant.n_states, 1 + len(MEASURED_OUTPUTS)),)
-    with _kept_lock:
-        _kept[key] = maps
-        while len(_kept) > _KEPT_MAPS:
-            _kept.popitem(last=False)
-    return maps
+    return _kept.keep(key, maps)
 
 
 @dataclass(frozen=True)

@@ -5,7 +5,6 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
-from collections import OrderedDict
 
 import numpy as np
 import pytest
@@ -13,6 +12,7 @@ from scipy import linalg
 
 from aero_dva.control.switching_design import kalman_filter_gain, law_gain, measured_rms
 from aero_dva.flight.batch_simulator import simulate_flights
+from aero_dva.flight.kept import KeptByKey
 from aero_dva.flight.peak_limit import peak_limit_airspeed
 from aero_dva.flight.switched_flight import (
     SwitchingLaw,
@@ -301,19 +301,19 @@ def test_the_fixed_size_loop_equals_the_general_loop_to_the_bit(wing, monkeypatc
     if case == "slow loop, no lag":
         kw.update(time_constant=0.0, update_every=7)
     fixed = fly_switched(model, law, speed, 1.2, force, **kw)
-    kept = next(reversed(switched_flight._kept.values()))
+    kept = switched_flight._kept.latest()
     assert kept[-1] is not None and kept[-1].whole.shape[0] > 0  # every level formed
     monkeypatch.setattr(switched_kernel, "FIXED_STATES", -1)
-    monkeypatch.setattr(switched_flight, "_kept", OrderedDict())  # maps built afresh
+    monkeypatch.setattr(switched_flight, "_kept", KeptByKey(2))  # maps built afresh
     general = fly_switched(model, law, speed, 1.2, force, **kw)
-    assert next(reversed(switched_flight._kept.values()))[-1] is None  # the general loop
+    assert switched_flight._kept.latest()[-1] is None  # the general loop
     # and the fixed loop forming each level as it is flown (as the streaming flight does)
     monkeypatch.setattr(switched_kernel, "FIXED_STATES", 7)
-    monkeypatch.setattr(switched_flight, "_kept", OrderedDict())
+    monkeypatch.setattr(switched_flight, "_kept", KeptByKey(2))
     monkeypatch.setattr(switched_kernel, "fixed_maps",
                         functools.partial(switched_kernel.fixed_maps, whole=False))
     as_flown = fly_switched(model, law, speed, 1.2, force, **kw)
-    assert next(reversed(switched_flight._kept.values()))[-1].whole.shape[0] == 0
+    assert switched_flight._kept.latest()[-1].whole.shape[0] == 0
     for name in ("leading_edge", "stroke", "damping", "target", "damper_power"):
         np.testing.assert_array_equal(getattr(fixed, name), getattr(general, name), name)
         np.testing.assert_array_equal(getattr(fixed, name), getattr(as_flown, name), name)
@@ -330,9 +330,9 @@ def test_a_repeated_flight_reuses_its_maps_and_another_law_or_wing_does_not(wing
     speed = np.linspace(95.0, 110.0, 3000)
     law = SwitchingLaw(law_gain(model, 115.0, 1.2, C_LO, C_HI), C_LO, C_HI)
     first = fly_switched(model, law, speed, 1.2, force)
-    kept = next(reversed(switched_flight._kept.values()))
+    kept = switched_flight._kept.latest()
     again = fly_switched(model, law, speed, 1.2, force)
-    assert next(reversed(switched_flight._kept.values()))[0] is kept[0]  # reused
+    assert switched_flight._kept.latest()[0] is kept[0]  # reused
     np.testing.assert_array_equal(again.leading_edge, first.leading_edge)
     # another gain (not a multiple: F h > 0 does not see a positive factor) and a stiffer
     # wing each get maps of their own, equal to a fresh build
@@ -341,7 +341,7 @@ def test_a_repeated_flight_reuses_its_maps_and_another_law_or_wing_does_not(wing
         cfg.wing, plunge_stiffness=1.05 * cfg.wing.plunge_stiffness), cfg.absorber, cfg.aero)
     for m, lw in ((model, other_law), (stiffer, law)):
         got = fly_switched(m, lw, speed, 1.2, force)
-        assert next(reversed(switched_flight._kept.values()))[0] is not kept[0]
+        assert switched_flight._kept.latest()[0] is not kept[0]
         switched_flight._kept.clear()
         fresh = fly_switched(m, lw, speed, 1.2, force)
         np.testing.assert_array_equal(got.leading_edge, fresh.leading_edge)
