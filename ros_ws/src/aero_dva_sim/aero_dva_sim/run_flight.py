@@ -113,21 +113,23 @@ def simulator_command(args, others: list[str]) -> list[str]:
 
 
 def first_input_time(args) -> float:
-    """[s] sim time of the controller's first input: the flight flies the block holding it,
-    then holds until the first command has come. The RBF network's is its first spectrum
-    window (2 s). The fixed controller (and the switching supervisor) command on a timer of the
-    flight's clock, first at 1/FIXED_RATE, which the clock reaches only after the sample before
-    it: that sample is the input. (With 0, blocks shorter than the timer's period held at the
-    first block's end for a command that could never come.) The schedule answers each block."""
-    if args.controller == "rbf":
-        return SPECTRUM_WINDOW
-    if args.controller in ("fixed", "switching"):
-        from aero_dva import data_files
-        from aero_dva.flight.scenario_io import load_scenario
+    """[s] sim time of the controller's first input: the flight flies the block holding that
+    sample, then holds until the first command has come, which then acts from the next block
+    on (as in process, docs/evaluation.md). The RBF network's first input is the last sample of
+    its first 2 s spectrum window. The fixed controller (and the switching supervisor) command
+    on a timer of the flight's clock, first at 1/FIXED_RATE, which the clock reaches only
+    after the sample before it: that sample. (The window's end itself, 2 s, let the flight fly
+    one more block before it held; 0 for the timers held blocks shorter than their period at
+    the first block's end, for a command that could never come.) The schedule answers each
+    block: its first input is the first block's."""
+    if args.controller not in ("rbf", "fixed", "switching"):
+        return 0.0
+    from aero_dva import data_files
+    from aero_dva.flight.scenario_io import load_scenario
 
-        path = args.scenario or data_files.data_file("scenario_ramp.yaml")
-        return 1.0 / FIXED_RATE - 1.0 / load_scenario(path).sample_rate
-    return 0.0
+    path = args.scenario or data_files.data_file("scenario_ramp.yaml")
+    sample = 1.0 / load_scenario(path).sample_rate
+    return (SPECTRUM_WINDOW if args.controller == "rbf" else 1.0 / FIXED_RATE) - sample
 
 
 def switching_params(args) -> dict:
