@@ -82,8 +82,9 @@ def test_same_record_idle_and_beside_busy_loops(tmp_path):
     assert record["end_report_recorded"] and record["data_missing"] == 0
     assert record["data_published"] == 60 * 5
     # The bag's c2 at each sample is the c2 that sample was flown with: the bag's commands,
-    # handed to the flight runtime before the block each answered, give its samples bit for
-    # bit, and the c2 of the replay is the bag's (the damper state of a block's start).
+    # each handed to the flight runtime before the block after the one it answered (lockstep),
+    # give its samples bit for bit, and the replay's c2 is the bag's (the damper state of
+    # each block's start).
     log = load_flight_log(tmp_path / "idle")
     runtime = FlightRuntime(load_runtime_config({"scenario": str(scenario)}))
     commands = [(m.message.header.stamp, m.message) for m in read_messages(
