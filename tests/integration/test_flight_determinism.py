@@ -21,6 +21,7 @@ from aero_dva.bag.reader import read_messages
 from aero_dva.control.airspeed_schedule import AirspeedSchedule
 from aero_dva.control.schedule_io import save_schedule
 from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
+from dva_ros_common.conversions import time_to_seconds
 
 from .conftest import ros2_run_path
 
@@ -39,10 +40,6 @@ def _files(tmp_path):
                                               damping_range=(0.0, 2500.0)),
                              tmp_path / "schedule.json")
     return scenario, schedule
-
-
-def stamp_seconds(stamp) -> float:
-    return stamp.sec + 1e-9 * stamp.nanosec
 
 
 def _fly(tmp_path, name: str, *args: str) -> subprocess.CompletedProcess:
@@ -91,7 +88,7 @@ def test_same_record_idle_and_beside_busy_loops(tmp_path):
         tmp_path / "idle", ["/dva/damper_command"])]
     blocks, k = [], 0
     while not runtime.done:
-        while k < len(commands) and stamp_seconds(commands[k][0]) < runtime.time - 1e-9:
+        while k < len(commands) and time_to_seconds(commands[k][0]) < runtime.time - 1e-9:
             runtime.command(commands[k][1].damping, commands[k][1].source)
             k += 1
         blocks.append(runtime.step())
