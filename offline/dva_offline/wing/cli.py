@@ -28,7 +28,8 @@ __all__ = ["register"]
 def _absorber_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("absorber (SI units)")
     g.add_argument("--absorber", choices=("file", "none", "passive", "maxwell"), default="file",
-                   help="absorber to attach (default: the one in the wing file, if any)")
+                   help="absorber to attach (default: the one in the wing file, if any; the "
+                        "options below then change that absorber's fields)")
     g.add_argument("--m1", type=float, help="absorber mass [kg] (default 0.04 x wing mass)")
     g.add_argument("--k1", type=float, help="parallel spring k1 [N/m]")
     g.add_argument("--c1", type=float, help="passive damper c1 [N s/m]")
@@ -131,22 +132,52 @@ def _setup(args, allow_section=True):
     return wing, absorber, aero, rho, source
 
 
+# Each absorber option and the absorber fields it sets; an option the chosen absorber has no
+# field for is refused, never ignored.
+_FIELDS = {"m1": "mass", "k1": "stiffness", "c1": "damping", "k2": "series_stiffness",
+           "c2": "damping", "position": "position"}
+_KIND_OPTIONS = {"passive": ("m1", "k1", "c1", "position"),
+                 "maxwell": ("m1", "k1", "k2", "c2", "position")}
+_TUNED = {"passive": ("k1", "c1"), "maxwell": ("c2",)}  # what --tune chooses
+
+
 def _absorber(args, wing, file_absorber):
+    """The absorber the arguments ask for; refuses an option it would not use."""
     from aero_dva.wing.absorbers import MaxwellAbsorber, PassiveAbsorber
 
+    given = [o for o in _FIELDS if getattr(args, o) is not None]
     kind = args.absorber
-    if kind == "file":
-        if args.tune and file_absorber is None:
-            raise ValueError("--tune needs an absorber (--absorber passive|maxwell)")
-        return file_absorber
-    if kind == "none":
+    if args.c_max is not None and not args.tune:
+        raise ValueError("--c-max bounds the tuned damper: it needs --tune")
+    if kind == "none" or (kind == "file" and file_absorber is None):
         if args.tune:
-            raise ValueError("--tune needs an absorber")
+            raise ValueError("--tune needs an absorber (--absorber passive|maxwell)")
+        if given:
+            why = "--absorber none" if kind == "none" else "the wing file has no absorber"
+            raise ValueError(f"--{given[0]} sets an absorber, but {why}: give "
+                             "--absorber passive|maxwell with its parameters")
         return None
+    if kind == "file":
+        kind = "maxwell" if isinstance(file_absorber, MaxwellAbsorber) else "passive"
+        source = f"the wing file's {kind} absorber"
+    else:
+        source = f"--absorber {kind}"
+    for o in given:
+        if o not in _KIND_OPTIONS[kind]:
+            raise ValueError(f"--{o} does not apply to {source} (its options: "
+                             + ", ".join(f"--{k}" for k in _KIND_OPTIONS[kind]) + ")")
+        if args.tune and o in _TUNED[kind]:
+            raise ValueError(f"--{o} and --tune: --tune chooses "
+                             + " and ".join(_TUNED[kind]) + " itself; drop one of them")
+    changes = {_FIELDS[o]: getattr(args, o) for o in given}
+    if args.absorber == "file":
+        return file_absorber.replace(**changes)
+
     m1 = 0.04 * wing.mass if args.m1 is None else args.m1
     pos = wing.leading_edge if args.position is None else args.position
 
-    def need(name, value, unless_tuned=False):
+    def need(name, unless_tuned=False):
+        value = getattr(args, name)
         if value is None:
             if unless_tuned and args.tune:
                 return 1.0  # placeholder, replaced by the tuned value
@@ -154,9 +185,8 @@ def _absorber(args, wing, file_absorber):
         return value
 
     if kind == "passive":
-        return PassiveAbsorber(m1, need("k1", args.k1, True), need("c1", args.c1, True), pos)
-    return MaxwellAbsorber(m1, need("k1", args.k1), need("k2", args.k2),
-                           need("c2", args.c2, True), pos)
+        return PassiveAbsorber(m1, need("k1", True), need("c1", True), pos)
+    return MaxwellAbsorber(m1, need("k1"), need("k2"), need("c2", True), pos)
 
 
 def _absorber_json(absorber):

@@ -49,6 +49,42 @@ def test_flutter_with_si_absorbers_and_tuning(capsys):
     assert 0 < tuned["tuned_setting"]["damping"] <= 1200
 
 
+def test_absorber_options_change_the_wing_files_absorber(capsys):
+    """``--c2`` alone changes the file's Maxwell absorber: the same answer as the whole absorber
+    given with that c2, and not the default c2's."""
+    def flutter(*argv):
+        code, out, _ = run(capsys, "flutter", "--json", *argv)
+        assert code == 0
+        return json.loads(out)
+
+    default = flutter()
+    alone = flutter("--c2", "624.7")
+    whole = flutter("--absorber", "maxwell", "--m1", "40", "--k1", "90000", "--k2", "70000",
+                    "--position", "1.53", "--c2", "624.7")
+    assert alone["absorber"]["damping"] == 624.7
+    assert alone["critical_airspeed"] == pytest.approx(whole["critical_airspeed"], rel=1e-12)
+    assert round(alone["critical_airspeed"], 3) == 115.048
+    assert abs(alone["critical_airspeed"] - default["critical_airspeed"]) > 1.0
+
+
+@pytest.mark.parametrize("argv,match", [
+    (["flutter", "--c1", "5"], "--c1 does not apply to the wing file's maxwell absorber"),
+    (["flutter", "--tune", "--c2", "5"], "--c2 and --tune"),
+    (["flutter", "--c-max", "3"], "--c-max bounds the tuned damper"),
+    (["flutter", "--absorber", "none", "--k1", "4"], "--k1 sets an absorber"),
+    (["flutter", "--absorber", "passive", "--k1", "1e5", "--c1", "3", "--k2", "4"],
+     "--k2 does not apply to --absorber passive"),
+    (["flutter", "--absorber", "maxwell", "--k1", "1e5", "--k2", "1e5", "--c2", "9",
+      "--c1", "3"], "--c1 does not apply to --absorber maxwell"),
+    (["modal", "--absorber", "passive", "--k1", "1e5", "--c1", "3", "--tune", "--c1", "4"],
+     "--k1 and --tune"),
+])
+def test_unused_absorber_options_are_refused(capsys, argv, match):
+    code, out, err = run(capsys, *argv)
+    assert code == 2 and out == ""
+    assert match in err and len(err.strip().splitlines()) == 1
+
+
 @pytest.mark.parametrize("argv,match", [
     (["flutter", "--absorber", "passive", "--k1", "1e5"], "--c1"),
     (["flutter", "--absorber", "passive", "--k1", "1e5", "--c1", "10", "--position", "5"],
