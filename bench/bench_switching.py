@@ -27,7 +27,8 @@ from aero_dva.control.switching_io import load_gains
 from aero_dva.data_files import data_file
 from aero_dva.flight.batch_simulator import simulate_flights
 from aero_dva.flight.divergence import ramp_airspeed
-from aero_dva.flight.switched_flight import SwitchingLaw, _kept, fly_switched
+from aero_dva.flight.per_sample.flight import _kept, fly_switched
+from aero_dva.flight.per_sample.switching_law import SwitchingLaw
 from aero_dva.wing.model import AeroelasticModel
 from aero_dva.wing.wing_io import load_wing
 

@@ -1,8 +1,8 @@
 """Gains of the per-sample switching c2 law and of its observer, from the model (no ROS).
 
-The law (:mod:`aero_dva.flight.switched_flight`) sets c2 = c_hi when ``F h(x) > 0``, F = k2 delta
-the damper force and ``h = gain @ x``. Two designs give the gain, both from an LQR problem at a
-design airspeed that weights the leading-edge displacement:
+The law (:mod:`aero_dva.flight.per_sample.switching_law`) sets c2 = c_hi when ``F h(x) > 0``,
+F = k2 delta the damper force and ``h = gain @ x``. Two designs give the gain, both from an LQR
+problem at a design airspeed that weights the leading-edge displacement:
 
 - ``lyapunov``: c2 enters the model only through the Maxwell rate r = k2 / c2 in
   ``delta' = (stroke rate) - r delta``. Around ``r_mid`` (the geometric mean of the two rates)
@@ -28,7 +28,7 @@ import numpy as np
 from scipy import linalg
 
 from aero_dva.flight.discretize import zoh
-from aero_dva.flight.switched_flight import maxwell_index, measurement_matrices
+from aero_dva.flight.per_sample.switching_law import maxwell_index, measurement_matrices
 from aero_dva.wing.model import AeroelasticModel
 
 __all__ = ["DESIGNS", "kalman_filter_gain", "law_gain", "middle_damping"]

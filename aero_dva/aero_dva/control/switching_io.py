@@ -23,7 +23,7 @@ import numpy as np
 
 from aero_dva.atomic_io import atomic_output
 from aero_dva.control.switching_design import DESIGNS
-from aero_dva.flight.switched_flight import MEASURED_OUTPUTS, SwitchingLaw
+from aero_dva.flight.per_sample.switching_law import MEASURED_OUTPUTS, SwitchingLaw
 from aero_dva.safe_files import check_file_header, parse_json
 from aero_dva.text_input import read_text_input
 

@@ -14,7 +14,7 @@ the simulator passes every command through :class:`DamperModel`:
 - a per-sample law slot: a command from the source ``"switching"`` asks the damper's own
   controller to run the switching c2 law every sample (its ``damping`` is the constant c2 to
   hold when the law cannot run). The flight runs the law
-  (:mod:`aero_dva.flight.switched_stream`) and tells the model what it did
+  (:mod:`aero_dva.flight.per_sample.stream`) and tells the model what it did
   (:meth:`DamperModel.record_mode`: the mode, the switching rate and the c2 the lag reached);
   a stale command ends it like any other.
 

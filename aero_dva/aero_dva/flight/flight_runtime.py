@@ -293,7 +293,7 @@ class FlightRuntime:
 
     def _switched_path(self):
         if self._law is None:
-            from aero_dva.flight.switched_stream import SwitchedStream
+            from aero_dva.flight.per_sample.stream import SwitchedStream
 
             self._law = SwitchedStream(self._sim.model, self.config.switching.law,
                                        self.sample_rate, self.config.damper.time_constant,

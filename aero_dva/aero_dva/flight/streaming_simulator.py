@@ -154,7 +154,7 @@ class StreamingSimulator:
 
     def continue_from(self, state, samples: int, diverged: bool) -> None:
         """Go on after ``samples`` samples flown outside this simulator (the switching law's
-        damper path, :mod:`aero_dva.flight.switched_stream`) that ended in ``state``;
+        damper path, :mod:`aero_dva.flight.per_sample.stream`) that ended in ``state``;
         ``diverged`` is sticky as here."""
         y = real_array(state, "state", allow_inf=True)
         if y.shape != (self.model.n_states,):

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from aero_dva.flight.divergence import ramp_airspeed
-from aero_dva.flight.switched_flight import fly_switched
+from aero_dva.flight.per_sample.flight import fly_switched
 from dva_offline.switching.study import FORCE_STD, RAMP, SAMPLE_RATE, fixed_law
 
 __all__ = ["plot_switching"]

@@ -1,6 +1,6 @@
 """Design and in-process evaluation of the per-sample switching c2 law (`dva switching`).
 
-Flights (all in process, :func:`aero_dva.flight.switched_flight.fly_switched`, exact ZOH per
+Flights (all in process, :func:`aero_dva.flight.per_sample.flight.fly_switched`, exact ZOH per
 1 ms sample, 1 kN white aileron force, seeds shared by both controllers):
 
 - ramp 0.8 -> 1.4 U_cr in 45 s (the study's slope, 0.4 U_cr in 30 s, carried further because
@@ -32,7 +32,8 @@ from aero_dva.control.switching_design import (
 from aero_dva.control.switching_io import SwitchingGains
 from aero_dva.flight.divergence import divergence_airspeed, ramp_airspeed
 from aero_dva.flight.peak_limit import peak_limit_airspeed
-from aero_dva.flight.switched_flight import SwitchingLaw, fly_switched
+from aero_dva.flight.per_sample.flight import fly_switched
+from aero_dva.flight.per_sample.switching_law import SwitchingLaw
 from aero_dva.wing.aerodynamics import WagnerAero
 from aero_dva.wing.flutter import NoFlutterError, flutter_speed
 from aero_dva.wing.model import AeroelasticModel

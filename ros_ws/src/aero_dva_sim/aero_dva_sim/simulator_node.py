@@ -6,7 +6,7 @@ time (``use_sim_time:=true``). The damper applies the latest accepted ``dva/damp
 through :class:`~aero_dva.flight.damper.DamperModel` (range, lag, stale fallback, rejection of
 absurd commands). A command from the source ``"switching"`` arms the per-sample switching c2 law
 in the damper path (gains from the ``switching_gains`` file, checked on load): every sample of
-the block then runs the law (:mod:`aero_dva.flight.switched_stream`); dva/damper_state reports
+the block then runs the law (:mod:`aero_dva.flight.per_sample.stream`); dva/damper_state reports
 the mode and switching rate, and /diagnostics each change of mode with its reason. A
 stepped-sweep scenario applies its own c2 values and ignores commands.
 

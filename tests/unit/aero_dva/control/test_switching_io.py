@@ -17,7 +17,7 @@ from aero_dva.control.switching_io import (
     save_gains,
     wing_problem,
 )
-from aero_dva.flight.switched_flight import SwitchingLaw
+from aero_dva.flight.per_sample.switching_law import SwitchingLaw
 from aero_dva.wing.model import AeroelasticModel
 from aero_dva.wing.wing_io import load_wing, wing_fingerprint
 

@@ -1,7 +1,7 @@
 """The per-sample loop of the switched flight, compiled (numba): the law, the damper's lag and
 relief valve, the observer and the plant's exact step (pure numerics).
 
-:func:`fly_maps` is what :func:`aero_dva.flight.switched_flight.fly_switched` runs once its
+:func:`fly_maps` is what :func:`aero_dva.flight.per_sample.flight.fly_switched` runs once its
 maps are built. A sample costs a few small matrix-vector products and scalar operations, so in
 Python the interpreter's overhead per sample decided the flight's speed; the loop is compiled
 once per machine (``cache=True``) and runs as machine code. The wing with its Maxwell DVA
@@ -20,8 +20,8 @@ Per flight and sample ``i``, with ``x`` the plant's state, ``p`` the observer's 
    ``x <- Ad[level] @ x + Bd[level] f``.
 
 The steps of condition q at a level are ``sum_j weight[q, j] steps[index[q, j], level]``
-(:func:`aero_dva.flight.smooth_tables.interpolated_maps`), formed when first flown, or all
-at once by :func:`fixed_maps` for a flight that keeps them.
+(:func:`aero_dva.flight.per_sample.smooth_tables.interpolated_maps`), formed when first flown,
+or all at once by :func:`fixed_maps` for a flight that keeps them.
 """
 from __future__ import annotations
 

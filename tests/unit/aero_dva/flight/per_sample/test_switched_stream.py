@@ -7,9 +7,10 @@ import pytest
 
 from aero_dva.control.switching_design import law_gain
 from aero_dva.flight.discrete_model import FLIGHT_QUANTUM
+from aero_dva.flight.per_sample.flight import fly_switched
+from aero_dva.flight.per_sample.stream import SwitchedStream
+from aero_dva.flight.per_sample.switching_law import SwitchingLaw
 from aero_dva.flight.streaming_simulator import StreamingSimulator
-from aero_dva.flight.switched_flight import SwitchingLaw, fly_switched
-from aero_dva.flight.switched_stream import SwitchedStream
 from aero_dva.wing.model import AeroelasticModel
 from aero_dva.wing.wing_io import load_wing
 

@@ -3,7 +3,7 @@ simulator runs every sample while the law is armed (pure numerics, no ROS).
 
 :class:`SwitchedStream` steps the wing, the damper's Kalman observer, the law and the damper's
 first-order lag sample by sample with the same compiled loop as
-:func:`~aero_dva.flight.switched_flight.fly_switched` (each sample an exact zero-order-hold step
+:func:`~aero_dva.flight.per_sample.flight.fly_switched` (each sample an exact zero-order-hold step
 at the c2 table level acting over it). It takes the plant state from the flight when the law
 is armed and hands it back when it is disarmed; in between it keeps the observer's prediction,
 the lag's c2 and the last decision, so a flight cut into blocks is flown as one.
@@ -21,17 +21,19 @@ from dataclasses import dataclass
 import numpy as np
 
 from aero_dva.flight.discrete_model import DEFAULT_HOLD, FLIGHT_QUANTUM, next_held
-from aero_dva.flight.switched_flight import (
-    MEASURED_OUTPUTS,
-    SwitchingLaw,
+from aero_dva.flight.per_sample.flight import (
     _condition_maps,
     _Damper,
     _measurement,
     _steps,
     c2_levels,
+)
+from aero_dva.flight.per_sample.kernel import fly_maps
+from aero_dva.flight.per_sample.switching_law import (
+    MEASURED_OUTPUTS,
+    SwitchingLaw,
     maxwell_index,
 )
-from aero_dva.flight.switched_kernel import fly_maps
 from aero_dva.wing.model import AeroelasticModel
 
 __all__ = ["SwitchedBlock", "SwitchedStream"]

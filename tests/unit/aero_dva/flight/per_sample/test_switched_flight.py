@@ -14,10 +14,9 @@ from aero_dva.control.switching_design import kalman_filter_gain, law_gain, meas
 from aero_dva.flight.batch_simulator import simulate_flights
 from aero_dva.flight.kept import KeptByKey
 from aero_dva.flight.peak_limit import peak_limit_airspeed
-from aero_dva.flight.switched_flight import (
+from aero_dva.flight.per_sample.flight import c2_levels, fly_switched
+from aero_dva.flight.per_sample.switching_law import (
     SwitchingLaw,
-    c2_levels,
-    fly_switched,
     maxwell_index,
     measurement_matrices,
 )
@@ -235,8 +234,8 @@ def test_a_slower_loop_changes_its_target_only_at_block_starts(wing):
 def test_interpolated_steps_match_the_exact_steps_of_every_condition_and_level(wing):
     # A ramp's held airspeeds and the 65-level table, interpolated from Chebyshev nodes in
     # airspeed and in k2 / c2, against the exact ZOH steps at a sample of conditions.
-    from aero_dva.flight.smooth_tables import SPEED_NODES, interpolated_maps
-    from aero_dva.flight.switched_flight import _steps
+    from aero_dva.flight.per_sample.flight import _steps
+    from aero_dva.flight.per_sample.smooth_tables import SPEED_NODES, interpolated_maps
 
     cfg, model = wing
     stiffer = dataclasses.replace(cfg.wing, plunge_stiffness=1.05 * cfg.wing.plunge_stiffness)
@@ -274,9 +273,10 @@ def test_a_yield_force_above_every_force_locks_the_damper(wing):
 @pytest.mark.parametrize("case", ["observer", "other observer model", "true state",
                                   "yield and valve", "slow loop, no lag"])
 def test_the_fixed_size_loop_equals_the_general_loop_to_the_bit(wing, monkeypatch, case):
-    # The wing with its Maxwell DVA flies switched_kernel._fly_fixed; with FIXED_STATES
+    # The wing with its Maxwell DVA flies per_sample.kernel._fly_fixed; with FIXED_STATES
     # unmatched the same flight takes _fly_general. Same sums in the same order: equal.
-    from aero_dva.flight import switched_flight, switched_kernel
+    from aero_dva.flight.per_sample import flight as switched_flight
+    from aero_dva.flight.per_sample import kernel as switched_kernel
 
     cfg, model = wing
     stiffer = dataclasses.replace(cfg.wing, plunge_stiffness=1.05 * cfg.wing.plunge_stiffness)
@@ -323,7 +323,7 @@ def test_the_fixed_size_loop_equals_the_general_loop_to_the_bit(wing, monkeypatc
 
 
 def test_a_repeated_flight_reuses_its_maps_and_another_law_or_wing_does_not(wing):
-    from aero_dva.flight import switched_flight
+    from aero_dva.flight.per_sample import flight as switched_flight
 
     cfg, model = wing
     force = np.random.default_rng(12).normal(0, 1000.0, 3000)

@@ -1,13 +1,9 @@
-"""A flight with the Maxwell DVA's c2 switched every sample by state feedback (no ROS).
+"""A whole flight with the Maxwell DVA's c2 switched every sample by state feedback (no ROS).
 
-The law runs where a real semi-active damper runs it, in the damper's own controller, once per
-sample: from an estimate ``x`` of the state it sets the target
-
-    c2 = c_hi  when  F(x) h(x) > 0,  else c_lo,      F = k2 delta (the damper force),
-
-with ``h = gain @ x`` linear in the state (:mod:`aero_dva.control.switching_design` designs the
-gain). The damper follows its target through a first-order lag ``tau`` (exact for a target held
-over a sample); the command acts from the sample after the one it was computed on.
+The law (:mod:`.switching_law`) runs where a real semi-active damper runs it, in the damper's
+own controller, once per sample. The damper follows its target through a first-order lag
+``tau`` (exact for a target held over a sample); the command acts from the sample after the one
+it was computed on.
 
 Stepping exactly with a c2 that changes every sample. ``c2`` enters the model only through the
 Maxwell relaxation rate ``k2 / c2``, so each sample is an exact zero-order-hold step of the
@@ -18,12 +14,12 @@ nearest (in log c2) to the lag's mean over the sample: with the default 65 level
 and 2500 N s/m the c2 acting is within 2.5 % of the lagged c2, far inside the accuracy of the
 damper's model. The steps of a ramp's many held airspeeds and the table's levels are
 interpolated from a few Chebyshev nodes, to rounding accuracy
-(:mod:`aero_dva.flight.smooth_tables`).
+(:mod:`aero_dva.flight.per_sample.smooth_tables`).
 
 The estimate comes from a fixed-gain Kalman filter of the measured signals (the absorber stroke
 and the three accelerations, with sensor noise), run on an observer model that may differ from
 the flown plant (model mismatch). The loop over samples is compiled
-(:mod:`aero_dva.flight.switched_kernel`); airspeed and density are held every ``hold`` samples
+(:mod:`aero_dva.flight.per_sample.kernel`); airspeed and density are held every ``hold`` samples
 as the other simulators hold them (:func:`~aero_dva.flight.discrete_model.next_held`). Pure
 numerics.
 """
@@ -37,85 +33,21 @@ import numpy as np
 from aero_dva.flight.discrete_model import DEFAULT_HOLD
 from aero_dva.flight.discretize import zoh
 from aero_dva.flight.kept import KeptByKey
-from aero_dva.flight.smooth_tables import interpolated_maps
-from aero_dva.wing.absorbers import MaxwellAbsorber
+from aero_dva.flight.per_sample.smooth_tables import interpolated_maps
+from aero_dva.flight.per_sample.switching_law import (
+    MEASURED_OUTPUTS,
+    SwitchingLaw,
+    maxwell_index,
+)
 from aero_dva.wing.checks import positive
 from aero_dva.wing.model import AeroelasticModel
 
-__all__ = [
-    "MEASURED_OUTPUTS",
-    "SwitchedFlight",
-    "SwitchingLaw",
-    "c2_levels",
-    "fly_switched",
-    "maxwell_index",
-    "measurement_matrices",
-]
+__all__ = ["SwitchedFlight", "c2_levels", "fly_switched"]
 
-#: Rows of the discrete model's outputs the damper's controller measures: the absorber stroke
-#: [m] and the plunge [m/s^2], pitch [rad/s^2] and leading-edge [m/s^2] accelerations.
-MEASURED_OUTPUTS = ("absorber_stroke", "plunge_acceleration", "pitch_acceleration",
-                    "leading_edge_acceleration")
 DEFAULT_LEVELS = 65
 #: Relative airspeed and density change below which a held value is kept, the batch
 #: simulator's (0.2 m/s at 100 m/s): each held condition costs a c2 table of discretisations.
 BATCH_QUANTUM = 2e-3
-
-
-@dataclass(frozen=True)
-class SwitchingLaw:
-    """The per-sample law and its observer, as the damper's controller holds them.
-
-    Attributes
-    ----------
-    gain : (n,)
-        ``h = gain @ x`` on the observer model's state.
-    c_lo, c_hi : float
-        [N s/m] the two targets, ``0 < c_lo < c_hi``.
-    observer : (n, 4) or None
-        Filter gain on :data:`MEASURED_OUTPUTS` (``x = x_pred + observer (y - C x_pred)``);
-        None: the law sees the plant's true state (the plant and observer models must then be
-        the same).
-    force_gain : (n,) or None
-        ``F = force_gain @ x``; None: the damper force k2 delta. A design that leads the
-        damper's lag evaluates F and h on the state predicted ahead (both rows times the
-        model's transition matrix over the lead).
-    """
-
-    gain: np.ndarray
-    c_lo: float
-    c_hi: float
-    observer: np.ndarray | None = None
-    force_gain: np.ndarray | None = None
-
-    def __post_init__(self):
-        gain = np.asarray(self.gain, dtype=float)
-        if gain.ndim != 1 or not np.all(np.isfinite(gain)):
-            raise ValueError("gain must be a finite vector")
-        lo, hi = float(self.c_lo), float(self.c_hi)
-        if not (math.isfinite(hi) and 0.0 < lo < hi):
-            raise ValueError(f"need 0 < c_lo < c_hi (finite), got ({lo}, {hi}) N s/m")
-        object.__setattr__(self, "gain", gain)
-        object.__setattr__(self, "c_lo", lo)
-        object.__setattr__(self, "c_hi", hi)
-        if self.observer is not None:
-            obs = np.asarray(self.observer, dtype=float)
-            if obs.shape != (gain.size, len(MEASURED_OUTPUTS)) or not np.all(np.isfinite(obs)):
-                raise ValueError(f"observer must be a finite ({gain.size}, "
-                                 f"{len(MEASURED_OUTPUTS)}) matrix")
-            object.__setattr__(self, "observer", obs)
-        if self.force_gain is not None:
-            fg = np.asarray(self.force_gain, dtype=float)
-            if fg.shape != gain.shape or not np.all(np.isfinite(fg)):
-                raise ValueError(f"force_gain must be a finite vector of {gain.size} entries")
-            object.__setattr__(self, "force_gain", fg)
-
-
-def maxwell_index(model: AeroelasticModel) -> int:
-    """State index of the Maxwell spring deflection ``delta`` (F = k2 delta)."""
-    if not isinstance(model.absorber, MaxwellAbsorber):
-        raise ValueError("the switching law needs a Maxwell absorber")
-    return model.state_names.index("maxwell_deflection")
 
 
 def c2_levels(c_lo: float, c_hi: float, time_constant: float,
@@ -127,16 +59,6 @@ def c2_levels(c_lo: float, c_hi: float, time_constant: float,
     if int(levels) < 2:
         raise ValueError(f"levels must be >= 2, got {levels}")
     return np.geomspace(c_lo, c_hi, int(levels))
-
-
-def measurement_matrices(model: AeroelasticModel, airspeed, density, damping):
-    """``C`` (..., 4, n) and ``D`` (..., 4) of :data:`MEASURED_OUTPUTS` (force input)."""
-    a, b = model.matrices(airspeed, density, damping)
-    c_acc, d_acc = model.acceleration_output(a, b)
-    stroke = np.broadcast_to(model.c_displacement[3], a.shape[:-2] + (1, a.shape[-1]))
-    c = np.concatenate([stroke, c_acc], axis=-2)
-    d = np.concatenate([np.zeros(a.shape[:-2] + (1,)), d_acc], axis=-1)
-    return c, d
 
 
 @dataclass(frozen=True)
@@ -278,7 +200,7 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
     yield_force : float
         [N] a Bingham damper's yield force (0: none, the damper force is c2 times its
         velocity): locked while the spring force is at most it, else the force is c2 times
-        the velocity plus the yield force (:func:`~aero_dva.flight.switched_kernel.fly_maps`;
+        the velocity plus the yield force (:func:`~aero_dva.flight.per_sample.kernel.fly_maps`;
         the lock and the sign are held over each sample). The law and its observer still
         assume the linear damper.
 
@@ -331,7 +253,7 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
     # module (switching_io) whether or not a switching law flies
     from aero_dva.flight.held_kernel import compiled_expm as expm
     from aero_dva.flight.held_kernel import hold_rule
-    from aero_dva.flight.switched_kernel import fly_fixed, fly_maps
+    from aero_dva.flight.per_sample.kernel import fly_fixed, fly_maps
 
     raw = np.stack([speeds[starts], rhos[starts]], axis=-1)
     held = hold_rule(raw, np.full(2, np.nan), quantum, np.empty_like(raw))
@@ -394,12 +316,12 @@ def _models_key(model: AeroelasticModel) -> tuple:
 
 
 def _flight_maps(plant, observer_model, law, keys, table, dt, expm):
-    """The interpolated steps (:func:`~aero_dva.flight.smooth_tables.interpolated_maps`) and
-    the condition maps (:func:`_condition_maps`) of a flight, kept for the next flights with
-    the same models, law, held conditions, c2 table and sample interval (the seeds of a case
-    and the repeats of a benchmark); last, the maps of the fixed-size loop with every level
-    formed (:func:`~aero_dva.flight.switched_kernel.fixed_maps`; None for other sizes). The
-    arrays are shared: nothing writes into them."""
+    """The interpolated steps (:func:`.smooth_tables.interpolated_maps`) and the condition
+    maps (:func:`_condition_maps`) of a flight, kept for the next flights with the same
+    models, law, held conditions, c2 table and sample interval (the seeds of a case and the
+    repeats of a benchmark); last, the maps of the fixed-size loop with every level formed
+    (:func:`.kernel.fixed_maps`; None for other sizes). The arrays are shared: nothing writes
+    into them."""
     def raw(a):
         return None if a is None else (a.shape, a.tobytes())
 
@@ -413,7 +335,7 @@ def _flight_maps(plant, observer_model, law, keys, table, dt, expm):
         lambda cond, lev: _steps(plant, observer_model, cond, lev, dt, expm), keys, table,
         plant.absorber.series_stiffness)
     maps = (steps, index, weight) + _condition_maps(plant, observer_model, law, keys)
-    from aero_dva.flight.switched_kernel import fixed_maps  # numba: as in fly_switched
+    from aero_dva.flight.per_sample.kernel import fixed_maps  # numba: as in fly_switched
 
     maps += (fixed_maps(*maps, plant.n_states, 1 + len(MEASURED_OUTPUTS)),)
     return _kept.keep(key, maps)
