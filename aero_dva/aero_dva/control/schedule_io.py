@@ -1,7 +1,8 @@
 """JSON file of the airspeed schedule (Zhang (2006) eq. 7.1), read by the airspeed controller.
 
 Example (SI units; the units object is checked on load so a file written in the study's
-N-s/mm is refused rather than misread)::
+N-s/mm is refused rather than misread; the damping range must lie inside the damper's,
+:data:`~aero_dva.flight.damper.DAMPER_RANGE`, or the file is neither written nor read)::
 
     {
       "format": "dva_airspeed_schedule",
@@ -12,7 +13,7 @@ N-s/mm is refused rather than misread)::
       "airspeed_min": 115.0,
       "airspeed_max": 120.0,
       "damping_min": 0.0,
-      "damping_max": 5000.0,
+      "damping_max": 2500.0,
       "units": {"a0": "N s/m", "a1": "N s^2/m^2", "airspeed": "m/s", "damping": "N s/m"},
       "description": "free text, e.g. how the fit was made and its residual"
     }
@@ -26,6 +27,7 @@ from pathlib import Path
 
 from aero_dva.atomic_io import atomic_output
 from aero_dva.control.airspeed_schedule import AirspeedSchedule
+from aero_dva.flight.damper import damping_problem
 from aero_dva.safe_files import check_file_header, parse_json
 from aero_dva.text_input import read_text_input
 
@@ -56,6 +58,9 @@ def schedule_to_dict(schedule: AirspeedSchedule, description: str = "") -> dict:
         raise TypeError(f"schedule must be an AirspeedSchedule, got {type(schedule).__name__}")
     if not isinstance(description, str):
         raise TypeError("description must be a string")
+    problem = damping_problem(schedule.damping_range, "airspeed schedule damping range")
+    if problem is not None:
+        raise ScheduleFileError(problem)
     return {
         "format": FILE_FORMAT,
         "version": FILE_VERSION,
@@ -88,6 +93,10 @@ def schedule_from_dict(data: dict, source: str = "<dict>") -> AirspeedSchedule:
         if not math.isfinite(value):
             raise fail(f"field {key!r} must be finite, got {value}")
         values[key] = float(value)
+    problem = damping_problem((values["damping_min"], values["damping_max"]),
+                              "fields 'damping_min' and 'damping_max'")
+    if problem is not None:
+        raise fail(problem)
     try:
         return AirspeedSchedule(
             a0=values["a0"],

@@ -3,7 +3,9 @@
 What the damper's controller needs (law gain, observer gain, c2 levels, the wing it was
 designed for) plus how the design was chosen. Checked on load: format, version, units, every
 number finite, shapes consistent, 0 < c_lo < c_hi; the wing fingerprint lets a user refuse a
-file made for another wing. Example (abridged)::
+file made for another wing. c_lo and c_hi must lie inside the damper's range (by default
+:data:`~aero_dva.flight.damper.DAMPER_RANGE`; a flight checks its own damper's): such a file
+is neither written nor read. Example (abridged)::
 
     {"format": "dva_switching_gains", "version": 1, "design": "lyapunov",
      "wing_fingerprint": "3f0c...", "design_airspeed": 115.0, "density": 1.2,
@@ -23,6 +25,7 @@ import numpy as np
 
 from aero_dva.atomic_io import atomic_output
 from aero_dva.control.switching_design import DESIGNS
+from aero_dva.flight.damper import DAMPER_RANGE, damping_problem
 from aero_dva.flight.per_sample.switching_law import MEASURED_OUTPUTS, SwitchingLaw
 from aero_dva.safe_files import check_file_header, parse_json
 from aero_dva.text_input import read_text_input
@@ -61,7 +64,11 @@ class SwitchingGains:
 
 
 def gains_to_dict(g: SwitchingGains) -> dict:
-    """The JSON object of ``g``."""
+    """The JSON object of ``g``; SwitchingGainsError when its c2 levels leave the damper's
+    default range."""
+    problem = damping_problem((g.law.c_lo, g.law.c_hi), "switching gains c_lo and c_hi")
+    if problem is not None:
+        raise SwitchingGainsError(problem)
     return {
         "format": FILE_FORMAT, "version": FILE_VERSION, "design": g.design,
         "wing_fingerprint": g.wing_fingerprint, "design_airspeed": g.design_airspeed,
@@ -74,8 +81,10 @@ def gains_to_dict(g: SwitchingGains) -> dict:
     }
 
 
-def gains_from_dict(data, source: str = "<dict>") -> SwitchingGains:
-    """Validate a JSON object; errors name ``source`` and the field."""
+def gains_from_dict(data, source: str = "<dict>",
+                    damping_range=DAMPER_RANGE) -> SwitchingGains:
+    """Validate a JSON object; errors name ``source`` and the field. ``c_lo`` and ``c_hi``
+    must lie inside ``damping_range`` [N s/m], the damper's."""
 
     def fail(what: str) -> SwitchingGainsError:
         return SwitchingGainsError(f"switching gains {source}: {what}")
@@ -115,6 +124,10 @@ def gains_from_dict(data, source: str = "<dict>") -> SwitchingGains:
     if gain.shape != (len(names),):
         raise fail(f"field 'gain' must have {len(names)} entries (one per state), "
                    f"got shape {gain.shape}")
+    problem = damping_problem((values["c_lo"], values["c_hi"]), "fields 'c_lo' and 'c_hi'",
+                              damping_range)
+    if problem is not None:
+        raise fail(problem)
     try:
         law = SwitchingLaw(gain, values["c_lo"], values["c_hi"], observer, force_gain)
     except ValueError as exc:
@@ -142,13 +155,14 @@ def save_gains(gains: SwitchingGains, path) -> Path:
     return path
 
 
-def load_gains(path) -> SwitchingGains:
-    """Read and validate a gains file (:class:`SwitchingGainsError` naming what is wrong)."""
+def load_gains(path, damping_range=DAMPER_RANGE) -> SwitchingGains:
+    """Read and validate a gains file (:class:`SwitchingGainsError` naming what is wrong);
+    its c2 levels must lie inside ``damping_range`` [N s/m]."""
     path = Path(path)
     text = read_text_input(path, "switching gains", error=SwitchingGainsError)
     data = parse_json(text, f"switching gains {str(path)!r}", SwitchingGainsError,
                       nonfinite=True)  # each field is checked by name
-    return gains_from_dict(data, repr(str(path)))
+    return gains_from_dict(data, repr(str(path)), damping_range)
 
 
 def with_switching(config, path: str, wing: str | None = None):
@@ -167,7 +181,7 @@ def with_switching(config, path: str, wing: str | None = None):
 
     if not path:
         return problem("no switching gains file (parameter switching_gains)")
-    gains, text = _read_gains(path)
+    gains, text = _read_gains(path, config.damper.damping_range)
     if gains is None:
         return problem(text)
     wing_file = load_wing(wing or None)
@@ -206,9 +220,10 @@ def wing_problem(gains: SwitchingGains, path, fingerprint: str,
     return None
 
 
-def _read_gains(path) -> tuple[SwitchingGains | None, str | None]:
+def _read_gains(path, damping_range=DAMPER_RANGE
+                ) -> tuple[SwitchingGains | None, str | None]:
     try:
-        return load_gains(path), None
+        return load_gains(path, damping_range), None
     except SwitchingGainsError as exc:
         return None, f"invalid switching gains: {exc}"
 

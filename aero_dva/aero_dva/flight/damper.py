@@ -11,6 +11,10 @@ the simulator passes every command through :class:`DamperModel`:
   ``fallback_damping`` until the next accepted command;
 - optional first-order lag ``tau dc/dt = target - c``, integrated exactly for a piecewise
   constant target: ``c(t + dt) = target + (c(t) - target) exp(-dt / tau)``;
+- one range for every route: whatever sets c2 (a command, the per-sample law, a sweep, a
+  training plan, a replay) is checked against the damper's range by
+  :func:`damping_problem` / :meth:`DamperConfig.range_problem`, and the model itself never
+  holds a c2 outside it (:meth:`DamperModel.record_mode` included);
 - a per-sample law slot: a command from the source ``"switching"`` asks the damper's own
   controller to run the switching c2 law every sample (its ``damping`` is the constant c2 to
   hold when the law cannot run). The flight runs the law
@@ -40,6 +44,8 @@ __all__ = [
     "DamperStatus",
     "Rejection",
     "SWITCHING_SOURCE",
+    "check_damping",
+    "damping_problem",
 ]
 
 #: ``DamperCommand.source`` that asks for the per-sample switching law
@@ -48,6 +54,29 @@ SWITCHING_SOURCE = "switching"
 
 #: [N s/m] the damper's default range of c2 (the simulator's, and the controllers' clamp).
 DAMPER_RANGE = (0.0, 2500.0)
+
+
+def damping_problem(values, what: str, damping_range=DAMPER_RANGE) -> str | None:
+    """Why the c2 value(s) ``values`` [N s/m] cannot be given to the damper of
+    ``damping_range`` (NaN, infinite or outside the range), in one line naming ``what``; None
+    when every value lies inside it. Every loader and command that carries a c2 asks this."""
+    low, high = (float(v) for v in damping_range)
+    try:
+        array = np.asarray(values, dtype=float).ravel()
+    except (TypeError, ValueError):
+        return f"{what}: c2 must be numbers [N s/m]"
+    bad = array[~((array >= low) & (array <= high))]  # NaN fails both comparisons
+    if bad.size == 0:
+        return None
+    return (f"{what}: {float(bad[0]):g} N s/m lies outside the damper's range "
+            f"[{low:g}, {high:g}] N s/m" + (f" ({bad.size} values)" if bad.size > 1 else ""))
+
+
+def check_damping(values, what: str, damping_range=DAMPER_RANGE, error=ValueError) -> None:
+    """Raise ``error`` with :func:`damping_problem`'s line when it finds one."""
+    problem = damping_problem(values, what, damping_range)
+    if problem is not None:
+        raise error(problem)
 
 
 class DamperStatus(enum.IntEnum):
@@ -152,6 +181,15 @@ class DamperConfig:
     def absurd_limit(self) -> float:
         """[N s/m] commands above this are rejected."""
         return self.absurd_factor * self.max_damping
+
+    @property
+    def damping_range(self) -> tuple[float, float]:
+        """[N s/m] ``(min_damping, max_damping)``."""
+        return self.min_damping, self.max_damping
+
+    def range_problem(self, values, what: str) -> str | None:
+        """:func:`damping_problem` against this damper's range."""
+        return damping_problem(values, what, self.damping_range)
 
 
 @dataclass(frozen=True)
@@ -260,6 +298,9 @@ class DamperModel:
         self._mode = DamperMode(mode)
         self._switching_rate = float(switching_rate)
         if applied is not None:
+            problem = self.config.range_problem(applied, "the per-sample law's c2")
+            if problem is not None:  # the flight refuses such a law before it runs
+                raise RuntimeError(problem)
             self._applied = float(applied)
 
     @property

@@ -141,12 +141,17 @@ def load_runtime_config(params: dict) -> RuntimeConfig:
         stale_timeout=float(params.get("damper_timeout", 0.5)),
         time_constant=float(params.get("damper_time_constant", 0.0)),
     )
-    outside = [c for c in scenario.sweep_damping if not low <= c <= high]
-    if outside:
-        raise ValueError(f"sweep c2 values {outside} N s/m lie outside the damper's range "
-                         f"[{low}, {high}] (parameters damper_min, damper_max)")
+    problem = sweep_problem(scenario, damper)
+    if problem is not None:
+        raise ValueError(f"{problem} (parameters damper_min, damper_max)")
     return RuntimeConfig(scenario=scenario, wing=wing_file.wing, aero=wing_file.aero,
                          absorber=absorber, damper=damper)
+
+
+def sweep_problem(scenario: Scenario, damper: DamperConfig) -> str | None:
+    """Why a stepped sweep's own c2 values cannot be flown with ``damper``, or None."""
+    return damper.range_problem(scenario.sweep_damping,
+                                f"scenario {scenario.name!r}: sweep c2 values")
 
 
 def resolved_scenario(config: RuntimeConfig, critical_airspeed: float | None = None):
@@ -162,6 +167,9 @@ class FlightRuntime:
     """Step a flight block by block (see module docstring)."""
 
     def __init__(self, config: RuntimeConfig, critical_airspeed: float | None = None):
+        problem = sweep_problem(config.scenario, config.damper)
+        if problem is not None:
+            raise ValueError(problem)
         self.config = config
         self.critical_airspeed, self.scenario = resolved_scenario(config, critical_airspeed)
         self.sample_rate = self.scenario.sample_rate
@@ -286,6 +294,11 @@ class FlightRuntime:
             return "the wing flies without absorber"
         if not isinstance(self._sim, StreamingSimulator):
             return "the law runs on the nominal wing only (the scenario has a hidden plant)"
+        law = self.config.switching.law
+        problem = self.config.damper.range_problem((law.c_lo, law.c_hi),
+                                                   "the switching gains' c_lo and c_hi")
+        if problem is not None:
+            return problem
         if abs(self.config.switching.sample_rate - self.sample_rate) > 1e-9:
             return (f"the switching gains are for {self.config.switching.sample_rate:g} Hz, the "
                     f"flight samples at {self.sample_rate:g} Hz")

@@ -363,6 +363,7 @@ def _fit_range(args, res, u_cr):
 def _schedule(args) -> int:
     from aero_dva.control.airspeed_schedule import fit_airspeed_schedule
     from aero_dva.control.schedule_io import load_schedule, save_schedule
+    from aero_dva.flight.damper import check_damping
 
     model, rho, u_cr, speeds, grid = _setup(args)
     if args.damping_range is not None:
@@ -371,6 +372,8 @@ def _schedule(args) -> int:
             raise ValueError("--damping-range MIN must be >= 0")
     else:
         damping_range = (float(grid[0]), float(grid[-1]))
+    check_damping(damping_range, "--damping-range" if args.damping_range is not None
+                  else "--c2-range (the schedule's damping range without --damping-range)")
     res, elapsed = _solve(args, model, rho, speeds, grid)
     low, high, source = _fit_range(args, res, u_cr)
     inside = (res.airspeeds >= low - 1e-9 * high) & (res.airspeeds <= high + 1e-9 * high)

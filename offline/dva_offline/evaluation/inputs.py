@@ -80,8 +80,9 @@ def inputs(args, controllers, inputs: Path, log) -> dict:
             raise FileNotFoundError(f"--schedule: no file {made['schedule']}")
     if "fixed" in controllers:
         if args.fixed_c2 is not None:
-            if not (math.isfinite(args.fixed_c2) and args.fixed_c2 >= 0):
-                raise ValueError(f"--fixed-c2 must be a finite c2 >= 0, got {args.fixed_c2}")
+            from aero_dva.flight.damper import check_damping
+
+            check_damping(args.fixed_c2, "--fixed-c2")
             made["fixed_c2"] = {"damping": args.fixed_c2, "source": "--fixed-c2"}
         else:
             path = inputs / "fixed_c2.json"

@@ -69,9 +69,10 @@ def _check_args(args) -> None:
         if args.controller == needed and not getattr(args, option):
             raise CliError(f"--controller {needed} needs --{option} FILE")
     if args.controller == "fixed":
-        damping = FIXED_DAMPING if args.damping is None else args.damping
-        if not 0.0 <= damping <= 1.0e6:
-            raise CliError(f"--damping must be in [0, 1e6] N s/m, got {damping:g}")
+        from aero_dva.flight.damper import check_damping
+
+        check_damping(FIXED_DAMPING if args.damping is None else args.damping, "--damping",
+                      error=CliError)
     if Path(args.out).exists():
         raise CliError(f"--out {args.out} exists; choose another directory")
     if args.retries < 0:

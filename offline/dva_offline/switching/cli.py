@@ -57,8 +57,11 @@ def register(subparsers) -> None:
                         "Dyke's clipped-optimal force (clipped); default lyapunov")
     d.add_argument("--design-airspeed", type=float, default=1.15, metavar="RATIO",
                    help="design airspeed over U_cr (default 1.15)")
-    d.add_argument("--c-lo", type=float, default=100.0, help="low c2 [N s/m] (default 100)")
-    d.add_argument("--c-hi", type=float, default=2500.0, help="high c2 [N s/m] (default 2500)")
+    d.add_argument("--c-lo", type=float, default=100.0,
+                   help="low c2 [N s/m], > 0 and inside the damper's range 0..2500 (default "
+                        "100)")
+    d.add_argument("--c-hi", type=float, default=2500.0,
+                   help="high c2 [N s/m], inside the damper's range 0..2500 (default 2500)")
     d.add_argument("--lag", type=float, default=0.01,
                    help="damper time constant [s] the design is flown with (default 0.01)")
     d.add_argument("--efforts", default="100",
@@ -144,9 +147,11 @@ def _reference(cfg, model):
 
 def _design(args) -> int:
     from aero_dva.control.switching_io import load_gains, save_gains
+    from aero_dva.flight.damper import check_damping
     from dva_offline.switching.study import design
 
-    if not 0 < args.c_lo < args.c_hi or not math.isfinite(args.c_hi):
+    check_damping((args.c_lo, args.c_hi), "--c-lo and --c-hi")
+    if not 0 < args.c_lo < args.c_hi:
         raise ValueError(f"need 0 < --c-lo < --c-hi, got {args.c_lo}, {args.c_hi}")
     if not (math.isfinite(args.lag) and args.lag >= 0):
         raise ValueError(f"--lag must be >= 0 s, got {args.lag}")

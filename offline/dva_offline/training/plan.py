@@ -29,7 +29,7 @@ import numpy as np
 
 from aero_dva.control.optimal_damping import optimal_damping
 from aero_dva.control.stationary_rms import stationary_rms
-from aero_dva.flight.damper import DAMPER_RANGE
+from aero_dva.flight.damper import DAMPER_RANGE, damping_problem
 
 __all__ = [
     "DEFAULT_FACTORS",
@@ -66,7 +66,7 @@ class PlanSettings:
     max_offset : float
         [N s/m] c2 stays within c2* +- this.
     damping_range : (float, float)
-        [N s/m] the damper's range.
+        [N s/m] the damper's range (inside :data:`~aero_dva.flight.damper.DAMPER_RANGE`).
     window : float
         [s] dwell = analysis window (no settling: each dwell starts stationary).
     sample_rate, force_std : float
@@ -108,6 +108,9 @@ class PlanSettings:
         if not (math.isfinite(low) and math.isfinite(high) and 0 <= low < high):
             raise ValueError(f"damping_range must be 0 <= low < high N s/m, got "
                              f"{self.damping_range}")
+        problem = damping_problem((low, high), "damping_range")
+        if problem is not None:
+            raise ValueError(problem)
         n = self.window * self.sample_rate
         if abs(n - round(n)) > 1e-6 * n or round(n) < 2:
             raise ValueError(f"window * sample_rate must be a whole number >= 2 of samples, "

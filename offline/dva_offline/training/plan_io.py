@@ -19,11 +19,12 @@ from pathlib import Path
 import numpy as np
 
 from aero_dva.atomic_io import atomic_output
+from aero_dva.flight.damper import damping_problem
 from aero_dva.safe_files import read_json
 from dva_offline.training.plan import PlanSettings, TrainingPlan
 
-__all__ = ["FILE_FORMAT", "PLAN_FILE", "load_plan", "plan_from_dict", "plan_to_dict",
-           "save_plan"]
+__all__ = ["FILE_FORMAT", "PLAN_FILE", "load_plan", "plan_damping_problem", "plan_from_dict",
+           "plan_to_dict", "save_plan"]
 
 FILE_FORMAT = "dva_training_plan"
 FILE_VERSION = 1
@@ -92,11 +93,31 @@ def plan_from_dict(data, where: str = "training plan") -> TrainingPlan:
                          "c2 >= 0")
     if shape != (len(settings.factors), len(settings.ratios)):
         raise ValueError(f"{where}: conditions shape {shape} does not match the settings")
+    problem = plan_damping_problem(plan, where)
+    if problem is not None:
+        raise ValueError(problem)
     return plan
 
 
+def plan_damping_problem(plan: TrainingPlan, where: str = "training plan") -> str | None:
+    """Why the plan's c2 values (its dwells', and its conditions' optimum and stable
+    interval where they have one) cannot be flown by the plan's damper, or None."""
+    conditions = np.concatenate([np.ravel(getattr(plan, k)) for k in
+                                 ("optimal_damping", "stable_low", "stable_high")])
+    for what, values in (("a dwell's", plan.damping),
+                         ("a condition's", conditions[np.isfinite(conditions)])):
+        problem = damping_problem(values, f"{where}: {what} c2", plan.settings.damping_range)
+        if problem is not None:
+            return problem
+    return None
+
+
 def save_plan(plan: TrainingPlan, path, wing: str = "") -> Path:
-    """Write ``plan`` to ``path`` (atomically)."""
+    """Write ``plan`` to ``path`` (atomically); a plan with a c2 outside its damper's range is
+    refused (ValueError), never written."""
+    problem = plan_damping_problem(plan)
+    if problem is not None:
+        raise ValueError(problem)
     with atomic_output(path) as handle:
         json.dump(plan_to_dict(plan, wing), handle, allow_nan=False)
     return Path(path)

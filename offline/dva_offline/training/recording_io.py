@@ -22,7 +22,7 @@ import numpy as np
 
 from aero_dva.bag.batch_recorder import BatchRecorder
 from aero_dva.flight.damper import DamperStatus
-from dva_offline.training.plan_io import PLAN_FILE, save_plan
+from dva_offline.training.plan_io import PLAN_FILE, plan_damping_problem, save_plan
 from dva_offline.training.recording import BATCH, simulate_dwells
 
 __all__ = ["RecordedPlan", "SWEEP_SOURCE", "record_plan"]
@@ -66,6 +66,9 @@ def record_plan(bag_dir, model, plan, *, wing: str = "", wing_fingerprint: str =
     progress : callable, optional
         ``progress(samples_done, samples_total)``.
     """
+    problem = plan_damping_problem(plan)
+    if problem is not None:  # the damper applies nothing outside its range
+        raise ValueError(problem)
     s = plan.settings
     n = s.window_samples
     if isinstance(block_size, bool) or not isinstance(block_size, int) or block_size < 1 \

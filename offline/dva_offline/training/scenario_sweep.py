@@ -124,11 +124,9 @@ def scenario_sweep(args, out: Path, range3) -> int:
 
 def load_runtime_config_checked(config):
     """Re-check an adapted sweep against the damper's range (as load_runtime_config does)."""
-    low, high = config.damper.min_damping, config.damper.max_damping
-    outside = [c for c in config.scenario.sweep_damping if not low <= c <= high]
-    if outside:
-        raise ValueError(f"--c2 values {outside} N s/m lie outside the damper's range "
-                         f"[{low}, {high}]")
+    problem = config.damper.range_problem(config.scenario.sweep_damping, "--c2 values")
+    if problem is not None:
+        raise ValueError(problem)
     return config
 
 

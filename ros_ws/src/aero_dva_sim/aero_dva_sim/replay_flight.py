@@ -25,6 +25,7 @@ from aero_dva.bag import channels as ch
 from aero_dva_sim.run_flight import (
     controller_commands,
     controller_files_given,
+    damping_in_range,
     die_with_parent,
     executable,
     ros_params,
@@ -204,7 +205,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--network", default=None, help="RBF network .npz (rbf)")
     parser.add_argument("--schedule", default=None, help="airspeed schedule JSON (schedule)")
     parser.add_argument("--damping", type=float, default=None,
-                        help="c2 [N s/m] for --controller fixed (default: the node's default)")
+                        help="c2 [N s/m] for --controller fixed, inside the damper's range "
+                             "0..2500 (default: the node's default)")
     parser.add_argument("--out", required=True, help="bag directory to create")
     parser.add_argument("--rate", type=float, default=DEFAULT_RATE,
                         help=f"playing speed, x recorded (default {DEFAULT_RATE:g})")
@@ -223,7 +225,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    if not controller_files_given("replay_flight", args):
+    if not controller_files_given("replay_flight", args) or \
+            not damping_in_range("replay_flight", args):
         return 2
     if not args.rate > 0:
         print("replay_flight: error: --rate must be > 0 (the graph must keep up)",

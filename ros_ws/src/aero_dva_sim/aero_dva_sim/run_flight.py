@@ -343,7 +343,8 @@ def build_parser() -> argparse.ArgumentParser:
                         help="who commands c2 (default: fixed)")
     parser.add_argument("--damping", type=float, default=None,
                         help="c2 [N s/m] for --controller fixed, the safe constant c2 for "
-                             "--controller switching (default: the node's default)")
+                             "--controller switching, inside the damper's range 0..2500 "
+                             "(default: the node's default)")
     parser.add_argument("--schedule", default=None, help="airspeed schedule JSON (schedule)")
     parser.add_argument("--network", default=None, help="RBF network .npz (rbf)")
     parser.add_argument("--gains", default=None,
@@ -438,6 +439,20 @@ def switching_gains_readable(prog: str, args) -> bool:
     return True
 
 
+def damping_in_range(prog: str, args) -> bool:
+    """--damping inside the damper's range (the simulator's, 0..2500 N s/m): a c2 the damper
+    would clip or reject is refused at the door; False (and the error said) when it is not."""
+    if getattr(args, "damping", None) is None:
+        return True
+    from aero_dva.flight.damper import damping_problem
+
+    problem = damping_problem(args.damping, "--damping")
+    if problem is not None:
+        print(f"{prog}: error: {problem}", file=sys.stderr)
+        return False
+    return True
+
+
 def run_on_domain(prog: str, run, args) -> tuple[dict | None, int]:
     """``(run(args), 0)`` on ``args.domain_id``, or on a ROS domain reserved for this run
     (released after); ``(None, exit code)`` with the error said when it fails."""
@@ -459,7 +474,8 @@ def run_on_domain(prog: str, run, args) -> tuple[dict | None, int]:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if not controller_files_given("run_flight", args) or \
-            not switching_gains_readable("run_flight", args):
+            not switching_gains_readable("run_flight", args) or \
+            not damping_in_range("run_flight", args):
         return 2
     summary, code = run_on_domain("run_flight", run, args)
     if summary is None:

@@ -8,7 +8,7 @@ import pytest
 from aero_dva.control.airspeed_schedule import AirspeedSchedule, fit_airspeed_schedule
 from aero_dva.control.schedule_io import ScheduleFileError, load_schedule, save_schedule
 
-DAMPER = (0.0, 5000.0)  # [N s/m]
+DAMPER = (0.0, 2500.0)  # [N s/m]
 
 
 def test_fit_recovers_a_line_inside_the_range_only():
@@ -76,7 +76,7 @@ def test_too_few_points_in_the_range():
 
 
 def test_file_round_trip(tmp_path):
-    s = AirspeedSchedule(-2150.5, 31.25, (115.0, 120.0), (0.0, 5000.0))
+    s = AirspeedSchedule(-2150.5, 31.25, (115.0, 120.0), (0.0, 2500.0))
     path = save_schedule(s, tmp_path / "schedule.json", description="fit on fig. 7.4")
     assert load_schedule(path) == s
     data = json.loads(path.read_text())
@@ -84,7 +84,7 @@ def test_file_round_trip(tmp_path):
 
 
 def write(tmp_path, **changes):
-    s = AirspeedSchedule(-2150.5, 31.25, (115.0, 120.0), (0.0, 5000.0))
+    s = AirspeedSchedule(-2150.5, 31.25, (115.0, 120.0), (0.0, 2500.0))
     path = save_schedule(s, tmp_path / "schedule.json")
     data = json.loads(path.read_text())
     for key, value in changes.items():

@@ -44,7 +44,8 @@ def test_round_trip(tmp_path, gains):
 
 @pytest.mark.parametrize("change, message", [
     ({"format": "x"}, "format"),
-    ({"c_lo": 3000.0}, "c_lo < c_hi"),
+    ({"c_lo": 2000.0, "c_hi": 1000.0}, "c_lo < c_hi"),
+    ({"c_hi": 1e12}, "lies outside the damper's range"),
     ({"c_hi": None}, "'c_hi' must be a number"),
     ({"time_constant": -0.1}, "time_constant"),
     ({"gain": [1.0, 2.0]}, "'gain' must have 7 entries"),
