@@ -238,7 +238,7 @@ def _cmd_modal(args) -> int:
         columns = [n for n in conditions[0].covariates if n not in skip]
     conditions, columns, coherence = _take_coherence(conditions, columns)
     domain = ModalDomain(conditions, modes=modes, max_modes=args.max_modes, covariates=columns,
-                         quantity=args.quantity)
+                         quantity=args.quantity, constants=args.modal_constants)
     noise, noise_info = _measured_noise(args, domain, coherence)
     result = _run_loop(args, domain, noise)
     extra = {
@@ -253,7 +253,11 @@ def _cmd_modal(args) -> int:
         "order_selection": {"refined_holdout_errors": {str(k): v for k, v in
                                                        domain.order_errors.items()},
                             "modes": domain.baseline_order,
-                            "rule": domain.order_choice.reason},
+                            "rule": domain.order_choice.reason,
+                            "modal_constants": ("complex" if domain.complex_constants
+                                                else "real"),
+                            "modal_constants_rule": domain.constants_reason,
+                            "form_holdout_errors": domain.form_errors},
     }
     return _report(args, result, domain, grouping, extra, "receptance")
 
@@ -525,6 +529,10 @@ def register(subparsers) -> None:
     p.add_argument("--modes", default="auto",
                    help="number of modes of the baseline, or 'auto' (order rule)")
     p.add_argument("--max-modes", type=int, default=8, help="largest order for 'auto'")
+    p.add_argument("--modal-constants", choices=("auto", "real", "complex"), default="auto",
+                   help="modal constants of the baseline: complex (LSFD, non-proportional "
+                        "damping or a constant phase of the channel), real, or auto: complex "
+                        "when they beat real ones and a single delay significantly (default)")
     _add_loop_arguments(p)
     p.set_defaults(func=_cmd_modal)
 

@@ -30,6 +30,8 @@ EFFECT_VOCABULARY = {
     "foundation_mode": "compliant foundation/fixture with its own resonance, in series",
     "amplitude_dependence": "stiffness and damping depending on the excitation level",
     "covariate_shift": "frequency shift with a covariate (time-temperature superposition)",
+    "complex_modes": "complex modal constants (non-proportional damping, or a constant phase "
+                     "of the measurement chain), as LSFD fits them",
     "actuator_lag": "lag of the damper actuator (flight domain)",
     "cubic_stiffness": "cubic (hardening) stiffness (flight domain)",
     "unsteady_aero": "unsteady aerodynamic lag (flight domain)",

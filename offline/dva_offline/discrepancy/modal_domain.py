@@ -5,7 +5,14 @@ driving-point or transfer FRF of a lightly, proportionally damped structure), in
 
     H(w) = sum_r A_r / (w_r^2 - w^2 + 2 j z_r w_r w) + U - L / w^2
 
-(U: modes above the band, L: modes below it / rigid-body mass line). Mobility and accelerance
+(U: modes above the band, L: modes below it / rigid-body mass line), with real or complex
+modal constants: complex ones in the pole-pair form of EMA tools (LSFD, as sdypy-EMA fits
+them), A_r + j (w / w_r) B_r with complex residuals U + j U'', L + j L'' (a real impulse
+response; B_r / A_r is the phase of mode r at resonance: non-proportional damping, or a
+constant phase of the measurement chain). Each form gets its order by the rule below; complex
+is kept when it beats real significantly in the same paired held-out test and one delay of
+the channel does not explain the phase as well (to first order a delay is a set of complex
+constants, B_r = -w_r tau A_r: 1 parameter against N + 2). Mobility and accelerance
 data are converted to receptance on input (H_rec = H_mob / (j w) = -H_acc / w^2): the relative
 residual of every point is the same in each form. N: 1..N_max modes started at the
 strongest peaks of |H| (frequencies and damping refined by variable projection), each fitted
@@ -24,6 +31,8 @@ amplitude_dependence  mode r: f_r (1 + s_f L), z_r (1 + s_z L), L = ln(a / a_0) 
 covariate_shift       every f_r x 10^(-b (c - c_0)) (stiffness changing with the         1
                       covariate, e.g. temperature)
 sensor_delay          H exp(-j w tau)                                                    1
+complex_modes         A_r + j (w / w_r) B_r, U + j U'', L + j L'' (the baseline's      N + 2
+                      constants were real; the phase shows once other effects are in)
 ====================  ===============================================================  ======
 
 ``amplitude_dependence`` is offered per mode (label ``COVARIATE, mode r (f Hz)``): a joint or
@@ -33,7 +42,7 @@ foundation) are not applicable: the modal model has no mount.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -47,18 +56,22 @@ from dva_offline.discrepancy.fitting import (
     ParamSpec,
     fit_model,
 )
-from dva_offline.discrepancy.model_order import choose_order, has_doublet
+from dva_offline.discrepancy.model_order import choose_order, has_doublet, paired_excess
 from dva_offline.discrepancy.pooling import pool_conditions
 from dva_offline.discrepancy.residual import ResidualFeatures, ljung_box
 from dva_offline.isolator.frf_data import FrfData
 
 MODAL_QUANTITIES = ("receptance", "mobility", "accelerance")
+MODAL_CONSTANTS = ("auto", "real", "complex")
 SIGNATURES = {
     "amplitude_dependence": "one resonance moves (and its damping changes) with the excitation "
                             "level; the residual grows with the level near that mode",
     "covariate_shift": "every resonance moves by the same factor with the covariate",
     "sensor_delay": "phase of H_meas / H_model falls linearly with frequency, magnitude "
                     "unchanged",
+    "complex_modes": "each mode's contribution turned by its own phase near its resonance "
+                     "(non-proportional damping, a constant phase of the channel); unlike a "
+                     "delay's, the phase does not grow with frequency",
 }
 
 
@@ -89,6 +102,11 @@ def to_receptance(frequency_hz, values, quantity: str) -> np.ndarray:
     if quantity == "accelerance":
         return -y / w**2
     raise ValueError(f"quantity must be one of {MODAL_QUANTITIES}, got {quantity!r}")
+
+
+def model_name(n: int, cplx: bool) -> str:
+    """``modal(N=3)`` (real modal constants) or ``modal(N=3, complex)``."""
+    return f"modal(N={n}{', complex' if cplx else ''})"
 
 
 def find_peaks(f, h, count: int) -> list[float]:
@@ -124,6 +142,8 @@ class ModalDomain:
         Covariates to analyse (default: every covariate whose level differs between sweeps).
     quantity : str
         What the input was (reported; the model works in receptance).
+    constants : str
+        Modal constants of the baseline: ``real``, ``complex`` or ``auto`` (module docstring).
     order_z, doublet_bandwidths, whiteness_alpha : float
         The order rule (:func:`~dva_offline.discrepancy.model_order.choose_order`): standard
         errors of the paired held-out excess within which an order is as good as the best,
@@ -136,7 +156,8 @@ class ModalDomain:
     def __init__(self, conditions: Sequence[FrfData], modes: int | None = None,
                  max_modes: int = 8, covariates: Sequence[str] | None = None,
                  quantity: str = "receptance", order_z: float = 2.0,
-                 doublet_bandwidths: float = 3.0, whiteness_alpha: float = 1e-3) -> None:
+                 doublet_bandwidths: float = 3.0, whiteness_alpha: float = 1e-3,
+                 constants: str = "auto") -> None:
         conditions = list(conditions)
         if not conditions or not all(isinstance(c, FrfData) for c in conditions):
             raise TypeError("conditions must be a non-empty sequence of FrfData")
@@ -152,6 +173,11 @@ class ModalDomain:
         self.quantity = quantity
         self.order_z, self.doublet_bandwidths = float(order_z), float(doublet_bandwidths)
         self.whiteness_alpha = whiteness_alpha
+        if constants not in MODAL_CONSTANTS:
+            raise ValueError(f"constants must be one of {MODAL_CONSTANTS}, got {constants!r}")
+        self.constants = constants
+        self.complex_constants = constants == "complex"  # decided by baseline() for auto
+        self._constants_reason, self._form_errors = "", {}
         self.omega, self.observations = pool_conditions(conditions, covariates)
         self.reference = self._reference_condition()
         self._stack: list[ModalTerm] = []
@@ -179,17 +205,25 @@ class ModalDomain:
         col = self.observations.covariates[name]
         return float(col[self.observations.groups == self.reference].mean())
 
-    def _evaluate(self, v, n, terms):
-        """Receptance of parameter vector v = [f_1, z_1, A_1, ..., U, L, term params...],
-        shape (P,) -> (N,), or of each row of v, shape (S, P) -> (S, N)."""
+    def _evaluate(self, v, n, terms, cplx=None):
+        """Receptance of parameter vector v = [f_1, z_1, A_1, ..., U, L, (complex parts: B_1,
+        ..., B_n, U'', L''), term params...], shape (P,) -> (N,), or of each row of v, shape
+        (S, P) -> (S, N). ``cplx``: complex modal constants (default: the baseline's form)."""
+        cplx = self.complex_constants if cplx is None else cplx
         w = self.omega
         vs = np.atleast_2d(np.asarray(v, dtype=float))
         fr, zr, ar = (vs[:, k:3 * n:3, None] for k in range(3))  # (S, n, 1) each
         u, low = vs[:, 3 * n, None], vs[:, 3 * n + 1, None]
-        rest = vs[:, 3 * n + 2:]
+        k0 = 3 * n + 2
+        imag = []  # imaginary parts (B_1..B_n, U'', L'') of the baseline or of a term
+        if cplx:
+            imag.append(vs[:, k0:k0 + n + 2])
+            k0 += n + 2
+        rest = vs[:, k0:]
         f_fac = np.ones((vs.shape[0], n, w.size))
         z_fac = np.ones((vs.shape[0], n, w.size))
         delay = np.zeros((vs.shape[0], 1))
+        phase = np.zeros((vs.shape[0], 1))
         i = 0
         for t in terms:
             p = rest[:, i:i + t.size]
@@ -209,13 +243,22 @@ class ModalDomain:
                 z_fac = z_fac * (1 + (p[:, k:2 * k] @ ind)[:, None, :])
             elif t.kind == "delay":
                 delay = delay + p[:, 0, None]
+            elif t.kind == "phase":  # a constant phase of the channel (form choice only)
+                phase = phase + p[:, 0, None]
+            elif t.kind == "complex":
+                imag.append(p)
+        for p in imag:  # A_r + j (w / w_r) B_r: the pole-pair form, a real impulse response
+            ar = ar + 1j * p[:, :n, None] * (w / (2 * np.pi * fr))
+            u = u + 1j * p[:, n, None]
+            low = low + 1j * p[:, n + 1, None]
         wr = 2 * np.pi * fr * f_fac
         z = zr * z_fac
         h = np.sum(ar / (wr**2 - w**2 + 2j * z * wr * w), axis=1) + u - low / w**2
-        out = h * np.exp(-1j * w * delay)
+        out = h * np.exp(-1j * (w * delay - phase))
         return out if np.ndim(v) == 2 else out[0]
 
-    def _params(self, n, values) -> tuple[ParamSpec, ...]:
+    def _params(self, n, values, cplx=None) -> tuple[ParamSpec, ...]:
+        cplx = self.complex_constants if cplx is None else cplx
         f = self.observations.axis
         f_lo, f_hi = float(f.min()), float(f.max())
         h_scale = float(np.median(np.abs(self.observations.values)))
@@ -235,17 +278,34 @@ class ModalDomain:
         out += [ParamSpec("U", "m/N", values[3 * n], -np.inf, np.inf, scale=h_scale),
                 ParamSpec("L", "m/N rad^2/s^2", values[3 * n + 1], -np.inf, np.inf,
                           scale=h_scale * w_mid**2)]
+        if cplx:  # the imaginary parts of the modal constants (at resonance) and residuals
+            k0 = 3 * n + 2
+            out += [ParamSpec(f"B_{r + 1}", "1/kg", values[k0 + r], -np.inf, np.inf,
+                              scale=out[3 * r + 2].scale) for r in range(n)]
+            out += [ParamSpec("U_imag", "m/N", values[k0 + n], -np.inf, np.inf, scale=h_scale),
+                    ParamSpec("L_imag", "m/N rad^2/s^2", values[k0 + n + 1], -np.inf, np.inf,
+                              scale=h_scale * w_mid**2)]
         return tuple(out)
 
-    def _linear(self, freqs, zetas, points):
-        """Modal constants and residuals by linear least squares for given (f_r, z_r), and
-        the weighted residual of that solution (real and imaginary parts stacked)."""
+    def n_base_params(self, n, cplx=None) -> int:
+        """Parameters of the n-mode model without effects."""
+        cplx = self.complex_constants if cplx is None else cplx
+        return 3 * n + 2 + (n + 2 if cplx else 0)
+
+    def _linear(self, freqs, zetas, points, cplx=None):
+        """Modal constants and residuals by linear least squares for given (f_r, z_r) (with
+        complex constants the LSFD of EMA tools: a real and an imaginary part each), and the
+        weighted residual of that solution (real and imaginary parts stacked)."""
+        cplx = self.complex_constants if cplx is None else cplx
         w = self.omega[points]
         y = self.observations.values[points]
         u = 1.0 / np.abs(y)
-        cols = [1.0 / ((2 * np.pi * fr) ** 2 - w**2 + 2j * zr * 2 * np.pi * fr * w)
-                for fr, zr in zip(freqs, zetas)]
-        cols += [np.ones_like(w, dtype=complex), -1.0 / w**2 + 0j]
+        modes = [1.0 / ((2 * np.pi * fr) ** 2 - w**2 + 2j * zr * 2 * np.pi * fr * w)
+                 for fr, zr in zip(freqs, zetas)]
+        cols = modes + [np.ones_like(w, dtype=complex), -1.0 / w**2 + 0j]
+        if cplx:
+            cols += [1j * (w / (2 * np.pi * fr)) * m for fr, m in zip(freqs, modes)]
+            cols += [1j * np.ones_like(w), -1j / w**2]
         a = np.column_stack(cols) * u[:, None]
         rhs = y * u
         m = np.vstack([a.real, a.imag])
@@ -260,7 +320,7 @@ class ModalDomain:
             sol = np.linalg.lstsq(m, b, rcond=None)[0]
         return sol, m @ sol - b
 
-    def _projected(self, freqs, zetas, points):
+    def _projected(self, freqs, zetas, points, cplx=None):
         """Frequencies and damping ratios refined by variable projection: the modal constants
         and residuals solved exactly for each (f_r, z_r), only those 2 N values iterated.
         Started at peaks on a coarse grid of damping ratios, the full fit otherwise lands in
@@ -275,7 +335,7 @@ class ModalDomain:
         def resid(x):
             e = np.exp(x)
             with np.errstate(all="ignore"):
-                r = self._linear(e[0::2], e[1::2], points)[1]
+                r = self._linear(e[0::2], e[1::2], points, cplx)[1]
             return np.where(np.isfinite(r), r, 1e6)
 
         try:
@@ -286,33 +346,37 @@ class ModalDomain:
         e = np.exp(sol.x)
         return list(e[0::2]), list(e[1::2])
 
-    def _start(self, freqs, zetas, points) -> np.ndarray:
+    def _start(self, freqs, zetas, points, cplx=None) -> np.ndarray:
         """Modal constants and residuals by linear least squares for given (f_r, z_r)."""
-        sol = self._linear(freqs, zetas, points)[0]
+        sol = self._linear(freqs, zetas, points, cplx)[0]
+        n = len(freqs)
         out = []
         for r, (fr, zr) in enumerate(zip(freqs, zetas)):
             out += [fr, zr, sol[r]]
-        return np.array(out + [sol[-2], sol[-1]])
+        return np.array(out + list(sol[n:]))
 
-    def _order_spec(self, n, peaks, points, name=None) -> ModelSpec:
+    def _order_spec(self, n, peaks, points, name=None, cplx=None) -> ModelSpec:
+        cplx = self.complex_constants if cplx is None else cplx
         ref = points & (self.observations.groups == self.reference)
         ref = ref if ref.sum() >= 10 else points
         chosen = sorted(peaks[:n])
-        starts = [self._start(chosen, [z] * n, ref) for z in (0.005, 0.02, 0.06)]
-        best = min(((self._projected(chosen, [z] * n, ref)) for z in (0.002, 0.02)),
-                   key=lambda fz: np.sum(self._linear(*fz, ref)[1] ** 2))
-        projected = self._start(*best, ref)
-        params = self._params(n, projected)
+        starts = [self._start(chosen, [z] * n, ref, cplx) for z in (0.005, 0.02, 0.06)]
+        best = min(((self._projected(chosen, [z] * n, ref, cplx)) for z in (0.002, 0.02)),
+                   key=lambda fz: np.sum(self._linear(*fz, ref, cplx)[1] ** 2))
+        projected = self._start(*best, ref, cplx)
+        params = self._params(n, projected, cplx)
 
         def predict(v, n=n):
-            return self._evaluate(v, n, [])
+            return self._evaluate(v, n, [], cplx)
 
-        return ModelSpec(name or f"modal(N={n})", None, params, 0, predict,
+        return ModelSpec(name or model_name(n, cplx), None, params, 0, predict,
                          tuple(starts), batch_predict=predict)
 
     # --- Domain protocol -------------------------------------------------------------------
     def baseline(self, train: np.ndarray) -> ModelSpec:
-        """N modes by the order rule (module docstring), started at the strongest peaks."""
+        """N modes by the order rule (module docstring), started at the strongest peaks; real
+        or complex modal constants (``constants``), each form's order by the rule, complex
+        kept only when it beats real significantly in the same paired held-out test."""
         train = np.asarray(train, dtype=bool)
         self._train, self._stack, self._term_of = train, [], {}
         self._stack_params = []
@@ -328,30 +392,113 @@ class ModalDomain:
         inner_held = np.zeros_like(train)
         inner_held[idx[2::4]] = True
         inner = HoldoutSplit(train & ~inner_held, inner_held, "every 4th training point")
-        fits = {}
-        for n in orders:
-            fits[n] = fit_model(self._order_spec(n, peaks, train & ~inner_held), obs, inner,
-                                n_screen=3)
-        errors = {n: fit.error for n, fit in fits.items()}
         counts = np.bincount(obs.groups)[np.unique(obs.groups)]
         lags = max(1, min(10, int(counts.min()) // 4))
+        forms = {"real": (False,), "complex": (True,), "auto": (False, True)}[self.constants]
+        chosen = {}
+        for cplx in forms:
+            # (complex constants never need more modes than real ones: a real model takes
+            # extra modes for the phase complex constants give)
+            tried = [n for n in orders if not (cplx and chosen and n > chosen[False][0].order)]
+            fits = {n: fit_model(self._order_spec(n, peaks, train & ~inner_held, cplx=cplx),
+                                 obs, inner, n_screen=3) for n in tried}
 
-        def white(n):
-            return ljung_box(fits[n].residual, obs.groups, lags).p_value >= self.whiteness_alpha
+            def white(n, fits=fits):
+                return (ljung_box(fits[n].residual, obs.groups, lags).p_value
+                        >= self.whiteness_alpha)
 
-        def doublet(n):
-            v = np.array([e.value for e in fits[n].estimates])
-            return has_doublet(v[0:3 * n:3], v[1:3 * n:3], self.doublet_bandwidths)
+            def doublet(n, fits=fits):
+                v = np.array([e.value for e in fits[n].estimates])
+                return has_doublet(v[0:3 * n:3], v[1:3 * n:3], self.doublet_bandwidths)
 
-        choice = choose_order({n: np.abs(fit.residual[inner_held]) ** 2
-                               for n, fit in fits.items()}, self.order_z,
-                              {n: doublet(n) for n in fits}, white)
+            choice = choose_order({n: np.abs(fit.residual[inner_held]) ** 2
+                                   for n, fit in fits.items()}, self.order_z,
+                                  {n: doublet(n) for n in fits}, white)
+            chosen[cplx] = (choice, fits)
+        cplx = forms[0]
+        self._constants_reason = f"{'complex' if cplx else 'real'} modal constants (as asked)"
+        if len(forms) == 2:
+            cplx, self._constants_reason = self._choose_constants(
+                chosen, peaks, train & ~inner_held, inner)
+        self.complex_constants = cplx
+        choice, fits = chosen[cplx]
         n = choice.order
-        self._n, self._order_errors, self._order_choice = n, errors, choice
+        self._n, self._order_choice = n, choice
+        self._order_errors = {m: fit.error for m, fit in fits.items()}
+        self._form_errors = {model_name(m, c): fit.error
+                             for c in forms for m, fit in chosen[c][1].items()}
         values = np.array([e.value for e in fits[n].estimates])
         spec = self._order_spec(n, peaks, train)
         return ModelSpec(spec.name, None, self._params(n, values), 0, spec.predict,
                          (values, *spec.starts), batch_predict=spec.predict)
+
+    def _choose_constants(self, chosen, peaks, train, inner):
+        """Real or complex modal constants (both forms fitted, each at its own order).
+
+        Complex constants are kept when they lower the paired held-out squared error of real
+        ones by more than ``order_z`` standard errors, unless one delay of the channel explains
+        the same phase: to first order in w tau a delay is a set of complex constants, B_r =
+        -w_r tau A_r, so complex constants would absorb every delay. The delay counts when
+        it is identified (the real model with it beats the real model with a constant phase,
+        which in a narrow band fits the same) and complex constants do not beat it."""
+        held = inner.held
+        real_n, cplx_n = chosen[False][0].order, chosen[True][0].order
+        sq = {name: np.abs(chosen[c][1][chosen[c][0].order].residual[held]) ** 2
+              for name, c in (("real", False), ("complex", True))}
+        z = self.order_z
+
+        def beats(a, b):
+            gain, se = paired_excess(sq[b], sq[a])
+            return gain > z * se, gain, se
+
+        ok, gain, se = beats("complex", "real")
+        head = (f"complex (N={cplx_n}) against real (N={real_n}) constants: paired held-out "
+                f"squared error {gain:.3g} +- {se:.2g} lower per point")
+        if not ok:
+            return False, f"real modal constants: {head}, not more than {z:g} standard errors"
+        # the delay on the real model of the complex form's order (a real model of its own
+        # order may have taken extra modes for the phase a delay makes)
+        real = chosen[False][1][cplx_n]
+        f_max = float(self.observations.axis.max())
+        base = np.array([e.value for e in real.estimates])
+        for kind, param, starts in (
+                ("delay", ParamSpec("tau", "s", 0.0, -0.5 / f_max, 2.0 / f_max,
+                                    scale=0.1 / f_max), np.linspace(-0.4, 1.9, 24) / f_max),
+                ("phase", ParamSpec("phi", "rad", 0.0, -np.pi, np.pi, scale=0.1),
+                 np.linspace(-3.0, 3.0, 13))):
+            term = ModalTerm("sensor_delay", "", kind, 1)
+
+            def predict(v, term=term):
+                return self._evaluate(v, cplx_n, [term], False)
+
+            params = self._params(cplx_n, base, False) + (param,)
+            spec = ModelSpec(f"{kind}", None, params, 1, predict,
+                             tuple(np.r_[base, t] for t in starts), batch_predict=predict)
+            sq[kind] = np.abs(fit_model(spec, self.observations, inner, n_screen=3)
+                              .residual[held]) ** 2
+        identified, g_d, s_d = beats("delay", "phase")
+        over, g_c, s_c = beats("complex", "delay")
+        if identified and not over:
+            chosen[False] = (replace(chosen[False][0], order=cplx_n), chosen[False][1])
+            return False, (f"real modal constants (N={cplx_n}): {head}, but one delay of the "
+                           f"channel explains the phase as well (complex {g_c:.3g} +- {s_c:.2g} "
+                           f"lower than real with a delay; the delay beats a constant phase by "
+                           f"{g_d:.3g} +- {s_d:.2g}): the loop tests the delay")
+        return True, (f"complex modal constants: {head}, more than {z:g} standard errors"
+                      + ("" if identified else "; a delay is not told from a constant phase "
+                         "in this band") + (f"; and {g_c:.3g} +- {s_c:.2g} lower than real "
+                                            "with a delay" if identified else ""))
+
+    @property
+    def form_errors(self) -> dict:
+        """Model name (modes, real or complex constants) -> held-out error on the training
+        split, every form tried."""
+        return dict(self._form_errors)
+
+    @property
+    def constants_reason(self) -> str:
+        """Why the baseline's modal constants are real or complex (after :meth:`baseline`)."""
+        return self._constants_reason
 
     @property
     def baseline_order(self) -> int:
@@ -371,7 +518,7 @@ class ModalDomain:
         return dict(self._order_errors)
 
     def _model_name(self) -> str:
-        return f"modal(N={self._n})" + "".join(
+        return model_name(self._n, self.complex_constants) + "".join(
             f" + {t.effect}" + (f"({t.label})" if t.label else "") for t in self._stack)
 
     def _spec(self, base_values, stack_params, term, added, starts, label):
@@ -410,6 +557,7 @@ class ModalDomain:
                                   ModalTerm("sensor_delay", "", "delay", 1),
                                   (ParamSpec("tau", "s", 0.0, lo_t, hi_t, scale=0.1 / f_max),),
                                   starts, ""))
+        out.append(self._complex_candidate(values, stack_params, present))
         varying = self._varying()
         if not varying:
             reason = "needs sweeps at >= 2 levels of a covariate (excitation level, temperature)"
@@ -485,6 +633,31 @@ class ModalDomain:
                 params, [np.concatenate([np.full(k, a), np.full(k, b)])
                          for a in (-0.02, 0.02) for b in (0.0, 0.5)], label))
         return out
+
+    def _complex_candidate(self, values, stack_params, present):
+        """Complex modal constants on the current model (the baseline's form was real): the
+        imaginary parts B_r, U'', L'' enter linearly, so their start is the linear least
+        squares solution on the training points (the LSFD of EMA tools, the poles held)."""
+        if self.complex_constants or ("complex_modes", "") in present:
+            return NotApplicable("complex_modes", "the model's modal constants are complex")
+        n = self._n
+        term = ModalTerm("complex_modes", "", "complex", n + 2)
+        real = self._params(n, values[:3 * n + 2], False)
+        added = tuple(ParamSpec(p.name, p.unit, 0.0, -np.inf, np.inf, scale=p.scale) for p in
+                      self._params(n, np.r_[values[:3 * n + 2], np.zeros(n + 2)], True)
+                      [len(real):])
+        spec = self._spec(values, stack_params, term, added, [], "")
+        obs, train = self.observations, self._train
+        full = np.r_[values, np.zeros(n + 2)]
+        scales = np.array([p.scale for p in added])
+        base = spec.predict(full)
+        cols = np.column_stack([(spec.predict(full + np.r_[np.zeros(values.size), e]) - base)
+                                for e in np.diag(scales)])
+        a = (cols * obs.weights[:, None])[train]
+        b = ((obs.values - base) * obs.weights)[train]
+        sol = np.linalg.lstsq(np.vstack([a.real, a.imag]), np.r_[b.real, b.imag],
+                              rcond=None)[0] * scales
+        return replace(spec, starts=(np.r_[values, sol], *spec.starts))
 
     @property
     def _params_of_stack(self):

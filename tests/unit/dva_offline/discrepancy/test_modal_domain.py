@@ -61,7 +61,7 @@ def test_every_candidate_reduces_to_the_baseline_at_its_null_value():
         v = np.concatenate([[e.value for e in base.estimates], np.zeros(spec.n_added)])
         np.testing.assert_allclose(spec.predict(v), base.prediction, rtol=1e-9)
         seen.add(spec.effect)
-    assert seen == {"sensor_delay", "covariate_shift", "amplitude_dependence"}
+    assert seen == {"sensor_delay", "covariate_shift", "amplitude_dependence", "complex_modes"}
 
 
 def test_level_dependent_mode_is_named_and_the_error_halved():
