@@ -9,12 +9,26 @@ import argparse
 import json
 import math
 
-__all__ = ["CliError", "command_family", "emit", "finite", "json_safe", "range2", "range3",
-           "show_help"]
+__all__ = ["CliError", "command_family", "emit", "finite", "given", "json_safe", "not_with",
+           "range2", "range3", "show_help"]
 
 
 class CliError(Exception):
     """A user-facing error: printed as ``dva: error: ...`` with exit code 2, no traceback."""
+
+
+def given(args, option: str) -> bool:
+    """Whether ``option`` (``"--plot-dir"``) was given: its value is not None or False (an
+    option whose use depends on the mode has the default None, resolved where it is used)."""
+    return getattr(args, option.lstrip("-").replace("-", "_"), None) not in (None, False)
+
+
+def not_with(args, why: str, *options: str) -> None:
+    """Refuse the first of ``options`` that was given, in one line: ``OPTION why``. For the
+    options a mode has no use for, so that none is parsed and then ignored."""
+    for option in options:
+        if given(args, option):
+            raise CliError(f"{option} {why}")
 
 
 def show_help(parser) -> int:

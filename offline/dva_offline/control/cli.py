@@ -27,7 +27,7 @@ import time
 
 import numpy as np
 
-from dva_offline.cli_tools import command_family, emit, finite, range2, range3
+from dva_offline.cli_tools import command_family, emit, finite, not_with, range2, range3
 
 __all__ = ["register"]
 
@@ -84,19 +84,21 @@ def register(subparsers) -> None:
                                    "objective at each airspeed of the grid (Zhang (2006) "
                                    "fig. 7.1-7.4).")
     _common(o)
-    o.add_argument("--curves", metavar="R1,R2,...", default=DEFAULT_CURVES,
-                   help="U/U_cr of the RMS-versus-c2 curves in the plot "
+    o.add_argument("--curves", metavar="R1,R2,...", default=None,
+                   help="U/U_cr of the RMS-versus-c2 curves of --plot "
                         f"(default {DEFAULT_CURVES}, as fig. 7.1-7.3)")
     o.add_argument("--surface", action="store_true",
                    help="include the RMS surfaces (all outputs, every grid point) in --json")
     o.add_argument("--check-simulation", type=int, default=0, metavar="K",
                    help="also simulate the optimum at K airspeeds across the stable range and "
                         "compare with the exact RMS (default 0: no)")
-    o.add_argument("--sim-duration", type=float, default=20.0,
-                   help="[s] kept per simulated flight after settling (default 20)")
-    o.add_argument("--flights", type=int, default=4,
-                   help="simulated flights per airspeed (default 4)")
-    o.add_argument("--seed", type=int, default=0, help="random seed of the simulations (0)")
+    o.add_argument("--sim-duration", type=float, default=None,
+                   help="[s] kept per simulated flight after settling, with --check-simulation "
+                        "(default 20)")
+    o.add_argument("--flights", type=int, default=None,
+                   help="simulated flights per airspeed, with --check-simulation (default 4)")
+    o.add_argument("--seed", type=int, default=None,
+                   help="random seed of the simulations, with --check-simulation (default 0)")
     o.set_defaults(func=_optimal_c2)
 
     s = sub.add_parser("schedule", help="fit c2 = a0 + a1 U (eq. 7.1) and write the file the "
@@ -218,7 +220,10 @@ def _simulation_check(args, model, rho, res, u_cr) -> dict:
 
     from aero_dva.control.optimal_damping import simulated_rms
 
-    if args.flights < 1 or not args.sim_duration > 0:
+    flights = 4 if args.flights is None else args.flights
+    duration = 20.0 if args.sim_duration is None else args.sim_duration
+    seed = 0 if args.seed is None else args.seed
+    if flights < 1 or not duration > 0:
         raise ValueError("--flights must be >= 1 and --sim-duration > 0")
     # Spread over the stable range, short of its last 0.02 U_cr: right at the stability limit
     # the response is so slowly correlated that a simulation of reasonable length says little.
@@ -229,14 +234,14 @@ def _simulation_check(args, model, rho, res, u_cr) -> dict:
     if ok.size == 0:
         raise ValueError("no airspeed has a stable c2: nothing to simulate")
     pick = ok[np.unique(np.linspace(0, ok.size - 1, args.check_simulation).round().astype(int))]
-    rng = np.random.default_rng(args.seed)
+    rng = np.random.default_rng(seed)
     rows = []
     t0 = time.perf_counter()
     k = ("plunge", "pitch", "leading_edge").index(
         {"rotation": "pitch"}.get(res.objective, res.objective))
     for i in tqdm(pick, desc="simulating", unit="airspeed", file=sys.stderr, leave=False):
         sim = simulated_rms(model, [res.airspeeds[i]], [res.optimal_damping[i]], rho, rng=rng,
-                            duration=args.sim_duration, flights=args.flights,
+                            duration=duration, flights=flights,
                             objective=res.objective, force_std=args.force_std,
                             sample_rate=args.sample_rate)
         rows.append({"airspeed": float(res.airspeeds[i]),
@@ -247,7 +252,7 @@ def _simulation_check(args, model, rho, res, u_cr) -> dict:
                      "relative_standard_error": float(sim.relative_standard_error[k, 0, 0]),
                      "z": float(sim.z_score[k, 0, 0]),
                      "settle_time": float(sim.settle_time[0, 0])})
-    return {"duration": args.sim_duration, "flights": args.flights, "seed": args.seed,
+    return {"duration": duration, "flights": flights, "seed": seed,
             "elapsed_s": time.perf_counter() - t0, "points": rows,
             "max_abs_z": max(abs(r["z"]) for r in rows)}
 
@@ -255,8 +260,14 @@ def _simulation_check(args, model, rho, res, u_cr) -> dict:
 def _optimal_c2(args) -> int:
     from aero_dva.control.optimal_damping import RMS_OUTPUTS, optimal_damping
 
+    not_with(args, "sets the curves of the figure: it needs --plot FILE.png", "--curves")
+    if args.check_simulation < 0:
+        raise ValueError(f"--check-simulation must be >= 0, got {args.check_simulation}")
+    if not args.check_simulation:
+        not_with(args, "sets the simulated check: it needs --check-simulation K",
+                 "--sim-duration", "--flights", "--seed")
     model, rho, u_cr, speeds, grid = _setup(args)
-    curves = _curve_ratios(args.curves)
+    curves = _curve_ratios(DEFAULT_CURVES if args.curves is None else args.curves)
     res, elapsed = _solve(args, model, rho, speeds, grid)
     payload = _base_payload(args, res, u_cr, elapsed)
     payload.update({

@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dva_offline.cli_tools import CliError, not_with
 from dva_offline.isolator import files as isolator_files
 
 EXIT_OK = 0
@@ -52,9 +53,9 @@ def _conditions(args):
         columns = [c.strip() for c in args.covariates.split(",") if c.strip()]
     quantity = args.quantity
     if path.suffix.lower() in (".uff", ".unv"):
-        if columns or args.group_by or args.covariate_tolerance is not None:
-            raise ValueError("--covariates/--group-by/--covariate-tolerance need a CSV file "
-                             "(UFF 58 carries no covariates)")
+        not_with(args, "reads a CSV table; a UFF 58 file carries its own columns and units "
+                       "and no covariates", "--covariates", "--group-by",
+                 "--covariate-tolerance", "--columns", "--frequency-unit", "--value-unit")
         data = isolator_files.read_uff58(path, quantity)
         grouping = table_io.Grouping("a single sweep (UFF 58)", (), 1, ())
         return [data], columns, grouping, {}
@@ -88,6 +89,13 @@ def _take_coherence(conditions, columns):
     return conditions, columns, coherence
 
 
+def _check_averages(args, coherence) -> None:
+    """``--averages`` measures the noise from the coherence column: refused without one."""
+    if args.averages is not None and coherence is None:
+        raise CliError(f"--averages measures the noise from a coherence column, which "
+                       f"{Path(args.file).name} has not (map one with --columns coherence=COL)")
+
+
 def _measured_noise(args, domain, coherence):
     """The noise the file measures itself (replicate sweeps, else coherence with --averages)
     and what was found, for the report (:mod:`.noise_sources`)."""
@@ -101,9 +109,6 @@ def _measured_noise(args, domain, coherence):
     if coherence is not None:
         coh, note = coherence_noise(coherence, args.averages)
         notes += [note] if note else []
-    elif args.averages is not None:
-        notes.append("--averages given, but the file has no coherence column (map it with "
-                     "--columns coherence=COL)")
     used = rep or coh
     return used, {"replicates": None if rep is None else rep.sigma,
                   "coherence": None if coh is None else coh.sigma, "notes": notes}
@@ -135,7 +140,9 @@ def _cmd_frf(args) -> int:
     if args.static_stiffness is not None and not args.static_stiffness > 0:
         raise ValueError(f"--static-stiffness must be > 0 N/m, got {args.static_stiffness}")
     elements = None
+    max_elements = 3 if args.max_elements is None else args.max_elements
     if args.elements != "auto":
+        not_with(args, "is the largest order of --elements auto", "--max-elements")
         try:
             elements = int(args.elements)
         except ValueError:
@@ -144,8 +151,9 @@ def _cmd_frf(args) -> int:
             ) from None
     conditions, columns, grouping, info = _conditions(args)
     conditions, columns, coherence = _take_coherence(conditions, columns)
+    _check_averages(args, coherence)
     domain = FrfDomain(conditions, mass=args.mass, static_stiffness=args.static_stiffness,
-                       elements=elements, max_elements=args.max_elements, covariates=columns,
+                       elements=elements, max_elements=max_elements, covariates=columns,
                        modulus=args.quantity == "modulus")
     noise, noise_info = _measured_noise(args, domain, coherence)
     result = _run_loop(args, domain, noise)
@@ -215,7 +223,9 @@ def _cmd_modal(args) -> int:
     from dva_offline.isolator.frf_data import FrfData
 
     modes = None
+    max_modes = 8 if args.max_modes is None else args.max_modes
     if args.modes != "auto":
+        not_with(args, "is the largest order of --modes auto", "--max-modes")
         try:
             modes = int(args.modes)
         except ValueError:
@@ -237,7 +247,8 @@ def _cmd_modal(args) -> int:
         skip = set(grouping.columns) if args.group_by else set()
         columns = [n for n in conditions[0].covariates if n not in skip]
     conditions, columns, coherence = _take_coherence(conditions, columns)
-    domain = ModalDomain(conditions, modes=modes, max_modes=args.max_modes, covariates=columns,
+    _check_averages(args, coherence)
+    domain = ModalDomain(conditions, modes=modes, max_modes=max_modes, covariates=columns,
                          quantity=args.quantity, constants=args.modal_constants)
     noise, noise_info = _measured_noise(args, domain, coherence)
     result = _run_loop(args, domain, noise)
@@ -517,7 +528,8 @@ def register(subparsers) -> None:
     p.add_argument("--elements", default="auto",
                    help="Maxwell elements of the baseline, or 'auto' (isolator order "
                         "selection); a fixed order makes maxwell_element a candidate")
-    p.add_argument("--max-elements", type=int, default=3, help="largest order for 'auto'")
+    p.add_argument("--max-elements", type=int, default=None,
+                   help="largest order for --elements auto (default 3)")
     _add_loop_arguments(p)
     p.set_defaults(func=_cmd_frf)
 
@@ -528,7 +540,8 @@ def register(subparsers) -> None:
     _add_table_arguments(p)
     p.add_argument("--modes", default="auto",
                    help="number of modes of the baseline, or 'auto' (order rule)")
-    p.add_argument("--max-modes", type=int, default=8, help="largest order for 'auto'")
+    p.add_argument("--max-modes", type=int, default=None,
+                   help="largest order for --modes auto (default 8)")
     p.add_argument("--modal-constants", choices=("auto", "real", "complex"), default="auto",
                    help="modal constants of the baseline: complex (LSFD, non-proportional "
                         "damping or a constant phase of the channel), real, or auto: complex "

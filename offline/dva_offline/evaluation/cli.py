@@ -52,7 +52,7 @@ def register(subparsers) -> None:
                         "package's)")
     p.add_argument("--cases", default=None,
                    help="subset of rho0,x0.9,x1.1,slow,1Hz,2f (default all)")
-    p.add_argument("--rms-range", metavar="LOW:HIGH", default=DEFAULT_RMS_RANGE,
+    p.add_argument("--rms-range", metavar="LOW:HIGH", default=None,
                    help=f"airspeeds U/U_cr of the leading-edge RMS (default "
                         f"{DEFAULT_RMS_RANGE}; the first 2 s are left out)")
     p.add_argument("--scenario", metavar="FILE",
@@ -82,28 +82,59 @@ def register(subparsers) -> None:
     g = p.add_argument_group("--graph: the evaluation through the ROS 2 graph")
     g.add_argument("--graph", action="store_true",
                    help="fly every flight through run_flight (nodes over DDS) instead")
-    g.add_argument("--mu", default="0,0.05,0.1",
+    g.add_argument("--mu", default=None,
                    help="density variations at 1 Hz, comma-separated (default 0,0.05,0.1)")
-    g.add_argument("--timeout", type=float, default=300.0,
+    g.add_argument("--timeout", type=float, default=None,
                    help="[s] wall time allowed per flight (default 300)")
-    g.add_argument("--retries", type=int, default=1,
+    g.add_argument("--retries", type=int, default=None,
                    help="times a failed flight is flown again (default 1)")
-    g.add_argument("--real-time-factor", type=float, default=0.0,
+    g.add_argument("--real-time-factor", type=float, default=None,
                    help="run_flight --real-time-factor (default 0: as fast as possible)")
-    g.add_argument("--reports", choices=("first", "none"), default="first",
+    g.add_argument("--reports", choices=("first", "none"), default=None,
                    help="per-run report of the first seed of each case (default) or none")
     g.add_argument("--no-rrd", action="store_true", help="reports without the .rrd")
     p.set_defaults(func=_evaluate)
 
 
+#: The options of --graph only, and their defaults.
+GRAPH_DEFAULTS = {"mu": "0,0.05,0.1", "timeout": 300.0, "retries": 1, "real_time_factor": 0.0,
+                  "reports": "first", "no_rrd": False}
+#: The options of the in-process evaluation only (--graph has no use for them).
+PAIRED_ONLY = ("--cases", "--rms-range", "--no-boundaries", "--one-flight", "--gains")
+
+
 def _evaluate(args) -> int:
+    from dva_offline.cli_tools import not_with
+
     if args.graph:
         from dva_offline.evaluation.graph import GRAPH_CONTROLLERS, evaluate_graph
 
+        not_with(args, "is not an option of --graph (the in-process evaluation's only)",
+                 *PAIRED_ONLY)
         args.seeds = 10 if args.seeds is None else args.seeds
         args.controllers = args.controllers or ",".join(GRAPH_CONTROLLERS)
+        for dest, value in GRAPH_DEFAULTS.items():
+            if getattr(args, dest) is None:
+                setattr(args, dest, value)
         return evaluate_graph(args)
+    not_with(args, "is an option of --graph: it needs --graph",
+             *("--" + d.replace("_", "-") for d in GRAPH_DEFAULTS))
     return _paired(args)
+
+
+def check_inputs_used(args, controllers) -> None:
+    """Refuse an input file or value for a controller that is not flown (one line, exit 2)."""
+    from dva_offline.cli_tools import not_with
+
+    chosen = ",".join(controllers)
+    for option, controller in (("--schedule", "schedule"), ("--network", "rbf"),
+                               ("--sweep-bag", "rbf"), ("--fixed-c2", "fixed"),
+                               ("--gains", "switching")):
+        if controller not in controllers:
+            not_with(args, f"is for the {controller} controller, which is not flown "
+                           f"(--controllers {chosen})", option)
+    if args.network:
+        not_with(args, "trains a network, but --network gives one", "--sweep-bag")
 
 
 def _choose(option: str, text: str | None, known: tuple[str, ...]) -> tuple[str, ...]:
@@ -176,7 +207,8 @@ def _paired(args) -> int:
             from aero_dva.control.switching_io import load_gains
 
             load_gains(args.gains)
-    rms_low, rms_high = _rms_range(args.rms_range)
+    check_inputs_used(args, (*controllers, *(("switching",) if switching else ())))
+    rms_low, rms_high = _rms_range(args.rms_range or DEFAULT_RMS_RANGE)
     seeds = list(range(args.first_seed, args.first_seed + seeds_n))
     scenario_path = Path(args.scenario) if args.scenario else \
         data_files.data_file("scenario_ramp.yaml")

@@ -136,6 +136,7 @@ def evaluate_graph(args) -> int:
     from tqdm import tqdm
 
     from aero_dva import data_files
+    from dva_offline.evaluation.cli import check_inputs_used
     from dva_offline.evaluation.graph_cases import (
         aggregate,
         case_grid,
@@ -162,6 +163,7 @@ def evaluate_graph(args) -> int:
     if not (args.timeout > 0):
         raise ValueError(f"--timeout must be > 0, got {args.timeout}")
     controllers = parse_controllers(args.controllers)
+    check_inputs_used(args, controllers)
     mus = parse_mu_list(args.mu)
     seeds = list(range(args.first_seed, args.first_seed + args.seeds))
     scenario_path = Path(args.scenario) if args.scenario else \

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dva_offline.cli_tools import emit
+from dva_offline.cli_tools import emit, not_with
 from dva_offline.isolator import files as isolator_files
 from dva_offline.isolator.element_types import classify_elements
 from dva_offline.isolator.frf_data import (
@@ -23,6 +23,10 @@ from dva_offline.isolator.frf_data import (
     to_receptance,
 )
 from dva_offline.isolator.maxwell_model import MaxwellModel, frf, modal_properties
+
+#: The options that say how a FRF file is read.
+FRF_INPUT_OPTIONS = ("--quantity", "--format", "--area", "--thickness", "--geometry-factor",
+                     "--fmin-hz", "--fmax-hz", "--min-coherence")
 
 
 def _maxwell_pair(text: str) -> tuple[float, float]:
@@ -90,9 +94,11 @@ def _read_frf(args):
     elif args.area is not None or args.thickness is not None or args.geometry_factor is not None:
         raise ValueError("--area/--thickness/--geometry-factor apply only to --quantity modulus")
     quantity = "stiffness" if modulus else args.quantity
+    if path.suffix.lower() in (".uff", ".unv") and args.format not in (None, "uff58"):
+        raise ValueError(f"--format {args.format}: {path.name} is read as UFF 58 (its suffix)")
     if path.suffix.lower() in (".uff", ".unv") or args.format == "uff58":
         data = isolator_files.read_uff58(path, quantity)
-    elif args.format == "stepped-sine":
+    elif (args.format or args.default_format) == "stepped-sine":
         data = isolator_files.read_stepped_sine_csv(path, quantity)
     else:
         data = isolator_files.read_frf_csv(path, quantity)
@@ -151,13 +157,15 @@ def _rough_natural_frequency(args, omega, h):
 
 
 def _cmd_identify(args) -> int:
+    args.quantity = args.quantity or "receptance"
     if not args.mass > 0:
         raise ValueError(f"--mass must be > 0 kg, got {args.mass}")
     if not args.static_stiffness > 0:
         raise ValueError(f"--static-stiffness must be > 0 N/m, got {args.static_stiffness}")
     if args.elements == "auto":
-        n = args.max_elements
+        n = 3 if args.max_elements is None else args.max_elements
     else:
+        not_with(args, "is the largest order of --elements auto", "--max-elements")
         try:
             n = int(args.elements)
         except ValueError:
@@ -166,6 +174,9 @@ def _cmd_identify(args) -> int:
             ) from None
     if n < 1:
         raise ValueError(f"--elements must be >= 1, got {n}")
+    if args.natural_frequency_rad_s is not None and args.damping_ratio is not None:
+        not_with(args, "estimates w_n and zeta, but both are given", "--modal-estimate")
+    args.modal_estimate = args.modal_estimate or "fit"
     data = _read_frf(args)
     omega, h = to_receptance(data, args.mass)
     if args.modal_estimate == "half-power" and (args.natural_frequency_rad_s is None
@@ -300,6 +311,10 @@ def _cmd_estimate(args) -> int:
 
 
 def _cmd_stepped_sine(args) -> int:
+    args.quantity = args.quantity or "receptance"
+    if args.quantity in ("receptance", "accelerance"):
+        not_with(args, f"converts stiffness or modulus to receptance; {args.quantity} needs "
+                       "no mass", "--mass")
     data = _read_frf(args)
     if args.mass is not None and not args.mass > 0:
         raise ValueError(f"--mass must be > 0 kg, got {args.mass}")
@@ -362,6 +377,8 @@ def _cmd_stepped_sine(args) -> int:
 def _cmd_static(args) -> int:
     from dva_offline.isolator.frf_estimation import static_stiffness_from_load_deflection
 
+    if (args.center_m is None) != (args.half_width_m is None):
+        raise ValueError("--center-m and --half-width-m choose the range together: give both")
     x, f = isolator_files.read_load_deflection_csv(args.file)
     res = static_stiffness_from_load_deflection(x, f, args.center_m, args.half_width_m)
     payload = {
@@ -377,6 +394,17 @@ def _cmd_plot(args) -> int:
     from dva_offline.isolator.plots import parametric_study_figures, plot_frf
 
     written = []
+    if not args.study:
+        not_with(args, "is where --study writes its figures: it needs --study", "--plot-dir")
+    if not args.file:
+        not_with(args, "applies to a FRF file: give FILE", "--plot", *FRF_INPUT_OPTIONS,
+                 "--mass", "--k", "--c", "--maxwell")
+    elif (args.mass is None) != (args.k is None):
+        raise ValueError("the model over the file needs both --mass and --k")
+    elif args.mass is None:
+        not_with(args, "is a parameter of the model, which needs --mass and --k", "--c",
+                 "--maxwell")
+    args.quantity = args.quantity or "receptance"
     if args.study:
         if not args.plot_dir:
             raise ValueError("--study needs --plot-dir DIR")
@@ -387,6 +415,7 @@ def _cmd_plot(args) -> int:
         data = _read_frf(args)
         curves = [("measured", data.frequency_hz, data.values, "k.")]
         if args.mass is not None and args.k is not None:
+            args.c = 0.0 if args.c is None else args.c
             model = _model_from_args(args)
             curves.append(("model", data.frequency_hz,
                            frf(model, data.omega_rad_s, data.quantity), "r-"))
@@ -422,16 +451,19 @@ def register(subparsers) -> None:
     p.set_defaults(func=_cmd_modal)
 
     def frf_input(p, default_format="csv"):
+        p.set_defaults(default_format=default_format)
         p.add_argument("--quantity",
                        choices=("receptance", "accelerance", "stiffness", "modulus"),
-                       default="receptance",
-                       help="what the file holds: receptance [m/N], accelerance [(m/s^2)/N], "
-                            "complex stiffness [N/m] or a material's complex modulus E', E'' "
-                            "[Pa] (needs --area and --thickness, or --geometry-factor)")
+                       default=None,
+                       help="what the file holds: receptance [m/N] (default), accelerance "
+                            "[(m/s^2)/N], complex stiffness [N/m] or a material's complex "
+                            "modulus E', E'' [Pa] (needs --area and --thickness, or "
+                            "--geometry-factor)")
         p.add_argument("--format", choices=("csv", "stepped-sine", "uff58"),
-                       default=default_format,
+                       default=None,
                        help="csv: frequency_hz,real,imag; stepped-sine: also amplitude/phase "
-                            "per step; uff58 (.uff/.unv files are read as UFF 58)")
+                            f"per step; uff58 (default {default_format}; .uff/.unv files are "
+                            "read as UFF 58)")
         p.add_argument("--area", type=float, default=None, metavar="M2",
                        help="modulus only: loaded area A of the rubber specimen [m^2]")
         p.add_argument("--thickness", type=float, default=None, metavar="M",
@@ -452,12 +484,13 @@ def register(subparsers) -> None:
     p.add_argument("--elements", default="2",
                    help="largest number of Maxwell elements (degenerate ones are merged or "
                         "dropped by the order rule), or 'auto' (= --max-elements)")
-    p.add_argument("--max-elements", type=int, default=3, help="largest order for 'auto'")
+    p.add_argument("--max-elements", type=int, default=None,
+                   help="largest order for --elements auto (default 3)")
     p.add_argument("--natural-frequency-rad-s", type=float, default=None,
                    help="w_n to impose exactly [rad/s]; default: estimated (--modal-estimate)")
     p.add_argument("--damping-ratio", type=float, default=None,
                    help="zeta to impose exactly; default: estimated (--modal-estimate)")
-    p.add_argument("--modal-estimate", choices=("fit", "half-power"), default="fit",
+    p.add_argument("--modal-estimate", choices=("fit", "half-power"), default=None,
                    help="how w_n and zeta are estimated when not given: modal solution of an "
                         "unconstrained fit (default, any damping) or zero crossing of Re(H) "
                         "and half-power points (light damping only)")
@@ -512,10 +545,13 @@ def register(subparsers) -> None:
     p.add_argument("--plot", metavar="FILE.png", help="output PNG for the FRF plot")
     p.add_argument("--study", action="store_true", help="write the Figs. 3.2-3.11 study")
     p.add_argument("--plot-dir", help="directory for --study figures")
-    p.add_argument("--mass", type=float, default=None, help="model mass [kg]")
+    p.add_argument("--mass", type=float, default=None,
+                   help="model mass [kg] (with --k: the model is drawn over the file)")
     p.add_argument("--k", type=float, default=None, help="model primary stiffness [N/m]")
-    p.add_argument("--c", type=float, default=0.0, help="model primary damping [N s/m]")
-    p.add_argument("--maxwell", type=_maxwell_pair, action="append", metavar="K,C")
+    p.add_argument("--c", type=float, default=None,
+                   help="model primary damping [N s/m] (default 0)")
+    p.add_argument("--maxwell", type=_maxwell_pair, action="append", metavar="K,C",
+                   help="model Maxwell element stiffness [N/m] and damping [N s/m]; repeat")
     common(p)
     p.set_defaults(func=_cmd_plot)
 

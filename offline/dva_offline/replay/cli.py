@@ -55,7 +55,7 @@ def register(subparsers) -> None:
     p.add_argument("--offline", action="store_true", help="without ROS (the nodes' code)")
     p.add_argument("--rate", type=float, default=None,
                    help="ROS path: playing speed, x recorded (default: replay_flight's, 10)")
-    p.add_argument("--retries", type=int, default=1,
+    p.add_argument("--retries", type=int, default=None,
                    help="ROS path: times a replay whose graph lost messages is run again "
                         "before it is an error (default 1)")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
@@ -63,11 +63,20 @@ def register(subparsers) -> None:
 
 
 def _check_args(args) -> None:
-    from dva_offline.cli_tools import CliError
+    from dva_offline.cli_tools import CliError, not_with
 
     for option, needed in (("network", "rbf"), ("schedule", "schedule")):
         if args.controller == needed and not getattr(args, option):
             raise CliError(f"--controller {needed} needs --{option} FILE")
+    for option, needed in (("--network", "rbf"), ("--schedule", "schedule"),
+                           ("--damping", "fixed")):
+        if args.controller != needed:
+            not_with(args, f"is for --controller {needed}, not {args.controller}", option)
+    if args.offline:
+        not_with(args, "is an option of the ROS path: drop it or --offline", "--rate",
+                 "--retries")
+    if args.retries is None:
+        args.retries = 1
     if args.controller == "fixed":
         from aero_dva.flight.damper import check_damping
 

@@ -72,14 +72,14 @@ def register(subparsers) -> None:
     g = s.add_argument_group("scenario sweep (one continuous flight instead of a plan)")
     g.add_argument("--scenario", metavar="FILE", help="stepped sweep scenario YAML (e.g. "
                    "the package's scenario_sweep.yaml)")
-    g.add_argument("--c2", metavar="MIN:MAX:N", default=SCENARIO_C2,
+    g.add_argument("--c2", metavar="MIN:MAX:N", default=None,
                    help=f"c2 values at each airspeed [N s/m] (default {SCENARIO_C2}; "
                         "'scenario' keeps the file's list)")
-    g.add_argument("--settle", type=float, default=2.0,
+    g.add_argument("--settle", type=float, default=None,
                    help="[s] settling time at the start of each dwell (default 2)")
     g.add_argument("--as-is", action="store_true",
                    help="fly the scenario unchanged (no stability check, its own c2 and dwell)")
-    g.add_argument("--jobs", type=_jobs, default=0, metavar="N",
+    g.add_argument("--jobs", type=_jobs, default=None, metavar="N",
                    help="processes, each recording a part of the sweep into its own file "
                         "of a split bag (default 0: one per core, at most 4; 1: one file)")
     s.add_argument("--json", action="store_true", help="print one JSON object on stdout")
@@ -88,23 +88,63 @@ def register(subparsers) -> None:
     train_rbf_cli.register(sub)
 
 
+#: The plan options, their defaults, and which of them a scenario sweep uses.
+PLAN_DEFAULTS = {"ratios": DEFAULT_RATIOS, "factors": DEFAULT_FACTORS,
+                 "n_damping": DEFAULT_N_DAMPING, "min_decay": 0.2, "max_offset": 300.0,
+                 "window": 2.0, "seed": 7}
+SCENARIO_PLAN_OPTIONS = ("--min-decay", "--window")  # the rest come from the scenario file
+
+
+def _options(dests) -> list[str]:
+    return ["--" + d.replace("_", "-") for d in dests]
+
+
+def _resolve(args, defaults: dict) -> None:
+    """Give the options of ``defaults`` that were not given their default value."""
+    for dest, value in defaults.items():
+        if getattr(args, dest, None) is None:
+            setattr(args, dest, value)
+
+
+def _check_sweep_options(args) -> None:
+    """Refuse the options the chosen sweep has no use for (one line, exit 2)."""
+    from dva_offline.cli_tools import not_with
+
+    plan_options = _options(PLAN_DEFAULTS)
+    scenario_only = ("--c2", "--settle", "--as-is", "--jobs")
+    if args.scenario:
+        not_with(args, "is for a plan, not a --scenario sweep", "--plan", "--wing",
+                 *(o for o in plan_options if o not in SCENARIO_PLAN_OPTIONS))
+        if args.as_is:
+            not_with(args, "adapts the scenario, which --as-is flies unchanged", "--c2",
+                     "--settle", *SCENARIO_PLAN_OPTIONS)
+        _resolve(args, {"c2": SCENARIO_C2, "settle": 2.0, "jobs": 0,
+                        "min_decay": PLAN_DEFAULTS["min_decay"],
+                        "window": PLAN_DEFAULTS["window"]})
+        return
+    not_with(args, "is for a scenario sweep: it needs --scenario FILE", *scenario_only)
+    if args.plan:
+        not_with(args, "makes a plan, but --plan gives one", *plan_options)
+    _resolve(args, PLAN_DEFAULTS)
+
+
 def _plan_options(p) -> None:
     p.add_argument("--wing", metavar="FILE", help="wing YAML with a Maxwell absorber "
                    "(default: the chapter-6 wing)")
-    p.add_argument("--ratios", metavar="START:STOP:STEP", default=DEFAULT_RATIOS,
+    p.add_argument("--ratios", metavar="START:STOP:STEP", default=None,
                    help=f"airspeeds U/U_cr (default {DEFAULT_RATIOS}, the study's)")
-    p.add_argument("--factors", metavar="F1,F2,...", default=DEFAULT_FACTORS,
+    p.add_argument("--factors", metavar="F1,F2,...", default=None,
                    help=f"densities rho/rho0 (default {DEFAULT_FACTORS})")
-    p.add_argument("--n-damping", type=int, default=DEFAULT_N_DAMPING,
+    p.add_argument("--n-damping", type=int, default=None,
                    help=f"c2 values per (U, rho) (default {DEFAULT_N_DAMPING})")
-    p.add_argument("--min-decay", type=float, default=0.2,
+    p.add_argument("--min-decay", type=float, default=None,
                    help="[1/s] decay rate every planned (U, rho, c2) has at least (default "
                         "0.2); a scenario sweep's: every c2 at a kept airspeed (default 0.2)")
-    p.add_argument("--max-offset", type=float, default=300.0,
+    p.add_argument("--max-offset", type=float, default=None,
                    help="[N s/m] c2 within c2* +- this (default 300)")
-    p.add_argument("--window", type=float, default=2.0,
+    p.add_argument("--window", type=float, default=None,
                    help="[s] window = dwell of a plan (default 2, the study's)")
-    p.add_argument("--seed", type=int, default=7, help="excitation seed (default 7)")
+    p.add_argument("--seed", type=int, default=None, help="excitation seed (default 7)")
 
 
 def _jobs(text: str) -> int:
@@ -215,6 +255,7 @@ def _print_plan(summary: dict) -> None:
 def _plan(args) -> int:
     from dva_offline.training.plan_io import save_plan
 
+    _resolve(args, PLAN_DEFAULTS)
     plan, _, wing = _make_plan(args)
     out = save_plan(plan, args.out, wing[0])
     summary = {"plan": str(Path(out).resolve()), **_plan_summary(plan, wing)}
@@ -237,6 +278,7 @@ def _out_dir(args) -> Path:
 
 
 def _sweep(args) -> int:
+    _check_sweep_options(args)
     if args.scenario:
         from dva_offline.training.scenario_sweep import scenario_sweep
 

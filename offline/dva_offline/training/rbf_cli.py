@@ -160,6 +160,11 @@ def _rbf(args) -> int:
     from dva_offline.training.labels import label_exact, label_min_rms
     from dva_offline.training.rbf import DEFAULT_SPREADS, train_network
 
+    if args.labels != "exact":
+        from dva_offline.cli_tools import not_with
+
+        not_with(args, f"is the wing of the exact labels; --labels {args.labels} uses none",
+                 "--wing")
     if args.spreads:
         try:
             spreads = tuple(float(s) for s in args.spreads.split(","))
