@@ -43,3 +43,17 @@ def test_fixed_controller_damping_changes_at_run_time_within_its_range(ros_conte
         assert not node.set_parameters([Parameter("damping", value=-1.0)])[0].successful
     finally:
         node.destroy_node()
+
+
+@pytest.mark.parametrize("node_class", [FixedController, SpectrumNode, AirspeedController,
+                                        Simulator, McapRecorder],
+                         ids=lambda c: c.__name__)
+def test_a_parameter_the_node_does_not_declare_is_refused(node_class, ros_context, tmp_path):
+    """A misspelt parameter (``-p dampng:=750.0``) stops the node with its name, instead of
+    being ignored while the node runs on its default."""
+    overrides = [Parameter("dampng", value=750.0)]
+    if node_class is McapRecorder:
+        overrides.append(Parameter("output", value=str(tmp_path / "bag")))
+    with pytest.raises(ValueError, match=r"unknown parameter 'dampng': \w+ has .* \(see --help\)"):
+        node_class(context=ros_context, parameter_overrides=overrides)
+    assert not (tmp_path / "bag").exists()

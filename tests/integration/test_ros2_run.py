@@ -90,3 +90,18 @@ def test_bad_parameter_fails_with_clear_message(start_process):
     assert proc.proc.wait(timeout=120) == 2
     out = proc.output()
     assert "damping" in out and "Traceback" not in out, out
+
+
+def test_misspelt_parameter_is_refused_in_one_line(start_process, tmp_path):
+    """``-p dampng:=750.0`` (or a parameters file's misspelt key) ends the node with exit 2 and
+    one line naming it; the node does not run on its default damping."""
+    path = ros2_run_path("dva_controller", "fixed_controller")
+    params = tmp_path / "params.yaml"
+    params.write_text("fixed_controller:\n  ros__parameters:\n    dampng: 750.0\n")
+    for ros_args in (["-p", "dampng:=750.0"], ["--params-file", str(params)]):
+        proc = start_process([path, "--ros-args", *ros_args])
+        assert proc.proc.wait(timeout=120) == 2
+        out = proc.output().strip()
+        assert out.splitlines() == [
+            "fixed_controller: error: unknown parameter 'dampng': fixed_controller has "
+            "damping, rate, hold_until_subscribers (see --help)"], out

@@ -294,13 +294,31 @@ def refuse_changes(node, names) -> None:
     node.add_on_set_parameters_callback(check)
 
 
+def refuse_undeclared(node, spec: NodeSpec) -> None:
+    """ValueError naming a parameter given to ``node`` (``-p``, ``--params-file``, overrides)
+    that neither its table nor rclpy declares: a misspelt ``-p dampng:=750.0`` would else be
+    ignored without a word."""
+    given = getattr(node, "_parameter_overrides", {})  # rclpy keeps no public accessor
+    known = {p.name for p in spec.params}
+    unknown = sorted(n for n in given if n not in known and not node.has_parameter(n))
+    if unknown:
+        s = "s" if len(unknown) > 1 else ""
+        raise ValueError(f"unknown parameter{s} {', '.join(repr(n) for n in unknown)}: "
+                         f"{spec.name} has " + ", ".join(p.name for p in spec.params)
+                         + " (see --help)")
+
+
 def declare_parameters(node, spec: NodeSpec, names: Iterable[str] | None = None) -> dict:
     """Declare the table's parameters (or only ``names``) on ``node``; return their values.
 
-    Values outside a row's range or choices raise ValueError naming the parameter. Parameters
-    not marked ``dynamic`` refuse run-time changes (they are read at start-up).
+    With the whole table (``names`` None), a parameter given to the node that the table does
+    not hold is refused first (:func:`refuse_undeclared`). Values outside a row's range or
+    choices raise ValueError naming the parameter. Parameters not marked ``dynamic`` refuse
+    run-time changes (they are read at start-up).
     """
     rows = spec.params if names is None else tuple(spec[n] for n in names)
+    if names is None:
+        refuse_undeclared(node, spec)
     values = {}
     from rclpy.exceptions import InvalidParameterValueException
 
