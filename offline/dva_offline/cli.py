@@ -26,7 +26,7 @@ from dva_offline.switching import cli as switching_cli
 from dva_offline.training import cli as training_cli
 from dva_offline.wing import cli as wing_cli
 
-__all__ = ["COMMANDS", "CliError", "build_parser", "main"]
+__all__ = ["CLOSED_PIPE_EXIT", "COMMANDS", "CliError", "build_parser", "main"]
 
 # name -> the function that adds it, in the order `dva --help` lists them
 COMMANDS = {
@@ -44,6 +44,11 @@ COMMANDS = {
 }
 
 
+#: Exit code when the reader of stdout went away (``dva bag info BAG | head -1``): 128 +
+#: SIGPIPE, what a shell reports for a Unix tool that SIGPIPE ended.
+CLOSED_PIPE_EXIT = 141
+
+
 def input_limits() -> str:
     """The limits every command reads its files within, and the exit codes (for --help)."""
     from aero_dva.safe_files import LIMITS
@@ -51,7 +56,8 @@ def input_limits() -> str:
 
     return (f"Limits: {LIMITS}; CSV tables at most {MAX_ROWS:,} rows, FRF tables at most "
             f"{MAX_FRF_POINTS:,} points; .npz arrays no larger than the file. Exit codes: 0 "
-            f"done, 2 bad input, {INTERNAL_ERROR_EXIT} internal error, 130 interrupted.")
+            f"done, 2 bad input, {INTERNAL_ERROR_EXIT} internal error, 130 interrupted, "
+            f"{CLOSED_PIPE_EXIT} stdout closed by its reader (as `| head`).")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -82,6 +88,9 @@ def main(argv: list[str] | None = None) -> int:
         warnings.simplefilter("always", RuntimeWarning)
         try:
             code = int(args.func(args) or 0)
+            sys.stdout.flush()  # here, so that a closed pipe is met inside the try
+        except BrokenPipeError:
+            return _closed_pipe()
         except KeyboardInterrupt:
             print(f"dva {args.command}: interrupted", file=sys.stderr)
             return 130
@@ -101,6 +110,15 @@ def main(argv: list[str] | None = None) -> int:
             return 2
     _say_warnings(args.command, caught)
     return code
+
+
+def _closed_pipe() -> int:
+    """The reader of stdout closed the pipe: stop quietly, as Unix tools do. Whatever is
+    still buffered goes to /dev/null, so that Python's flush at exit cannot complain."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, sys.stdout.fileno())
+    os.close(devnull)
+    return CLOSED_PIPE_EXIT
 
 
 def _say_warnings(command: str, caught: list) -> None:

@@ -29,3 +29,32 @@ def test_unknown_subcommand_is_an_error():
                             capture_output=True, text=True, timeout=300)
     assert result.returncode == 2
     assert "invalid choice" in result.stderr
+
+
+def test_a_closed_pipe_ends_a_command_quietly_with_141():
+    """stdout's reader is gone before the command writes (``| head`` that has read its fill):
+    no error line, exit code 141 (128 + SIGPIPE), as a Unix tool that SIGPIPE ends."""
+    import os
+
+    read_end, write_end = os.pipe()
+    os.close(read_end)  # closed before the command starts: its first write meets it
+    try:
+        result = subprocess.run([sys.executable, "-m", "dva_offline.cli", "wing", "flutter"],
+                                stdout=write_end, stderr=subprocess.PIPE, timeout=300)
+    finally:
+        os.close(write_end)
+    assert result.returncode == cli.CLOSED_PIPE_EXIT == 141
+    assert result.stderr == b""
+
+
+def test_bag_info_into_head_says_nothing_on_stderr(tmp_path):
+    """The README's ``dva bag info BAG | head -1``: the first line, nothing else."""
+    from tests.unit.aero_dva.bag.reference_bag import write_batch_bag
+
+    bag = write_batch_bag(tmp_path / "bag")
+    result = subprocess.run(
+        ["bash", "-c", f'"{sys.executable}" -m dva_offline.cli bag info "{bag}" | head -1; '
+                       'echo "exit ${PIPESTATUS[0]}" >&2'],
+        capture_output=True, text=True, timeout=300)
+    assert result.stdout == f"bag        {bag}\n"
+    assert result.stderr in ("exit 0\n", "exit 141\n")
