@@ -319,6 +319,16 @@ def _summary_lines(res, u_cr, elapsed) -> list[str]:
     return lines
 
 
+def _plain_log_labels(axis) -> None:
+    """Tick labels of a log axis as plain numbers (0.2, 0.5, 1), not 2 x 10^-1."""
+    import matplotlib.ticker as ticker
+
+    plain = ticker.FuncFormatter(lambda v, _: f"{v:g}")
+    axis.set_major_formatter(plain)
+    axis.set_minor_formatter(ticker.FuncFormatter(
+        lambda v, _: f"{v:g}" if f"{v:.0e}"[0] in "25" else ""))
+
+
 def _plot_optimal(res, curves, u_cr, path) -> None:
     import matplotlib
 
@@ -329,6 +339,7 @@ def _plot_optimal(res, curves, u_cr, path) -> None:
     titles = ("plunge RMS [mm] (fig. 7.1)", "pitch RMS [mrad] (fig. 7.2)",
               "leading-edge RMS [mm] (fig. 7.3)")
     for k, ax in enumerate(axes.ravel()[:3]):
+        ax.set_ylabel(titles[k].split(" (")[0])
         for i, speed in enumerate(curves.airspeeds):
             note = "" if curves.has_optimum[i] else " (unstable at every c2)"
             ax.plot(curves.damping_grid, curves.rms[k, i] * 1e3,
@@ -336,18 +347,20 @@ def _plot_optimal(res, curves, u_cr, path) -> None:
         ax.set_xlabel("c2 [N s/m]")
         ax.set_title(titles[k], fontsize=10)
         ax.set_yscale("log")
+        _plain_log_labels(ax.yaxis)
         ax.grid(True, which="both", alpha=0.3)
     axes[0, 0].legend(fontsize=8)
     ax = axes[1, 1]
     ratio = res.airspeeds / u_cr
     ax.plot(ratio, res.optimal_damping, "b-")
-    ax.set_xlabel("U / U_cr")
+    ax.set_xlabel("U / U_cr [-]")
     ax.set_ylabel("optimal c2 [N s/m]", color="b")
     ax.grid(True, alpha=0.3)
     twin = ax.twinx()
     scale, unit = (1e3, "mrad") if res.objective == "rotation" else (1e3, "mm")
     twin.semilogy(ratio, np.where(np.isfinite(res.min_rms), res.min_rms * scale, np.nan), "r-")
     twin.set_ylabel(f"min {res.objective} RMS [{unit}]", color="r")
+    _plain_log_labels(twin.yaxis)
     ax.set_title(f"optimal c2 and minimum RMS (fig. 7.4, {res.objective})", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
@@ -454,7 +467,7 @@ def _plot_schedule(res, schedule, fit_range, u_cr, path) -> None:
             label="eq. 7.1 line")
     ax.plot(ratio, schedule.evaluate(res.airspeeds), "r-", lw=1.2,
             label="schedule (clamped)")
-    ax.set_xlabel("U / U_cr")
+    ax.set_xlabel("U / U_cr [-]")
     ax.set_ylabel("c2 [N s/m]")
     ax.set_title(f"airspeed schedule c2 = {schedule.a0:.4g} + {schedule.a1:.4g} U", fontsize=10)
     ax.grid(True, alpha=0.3)

@@ -430,8 +430,17 @@ def _cmd_flight(args) -> int:
     }
     payload = result_to_dict(result, extra)
     if args.plot_dir:
-        paths = plot_result(result, domain.observations, args.plot_dir,
-                            "H (force -> acceleration)", path.name)
+        from dva_offline.discrepancy.flight_domain import CHANNELS
+
+        obs = domain.observations
+        labels = {g: f"U {np.mean(obs.covariates['airspeed_mps'][obs.groups == g]):.1f} m/s, "
+                     f"c2 {np.mean(obs.covariates['damper_c2'][obs.groups == g]):.0f} N s/m"
+                  for g in np.unique(obs.groups)}
+        units = {"plunge": "(m/s^2)/N", "pitch": "(rad/s^2)/N"}
+        paths = plot_result(result, obs, args.plot_dir, "H (force -> acceleration)", path.name,
+                            panels=[(f"H {c} acceleration / aileron force", units[c])
+                                    for c in CHANNELS],
+                            condition_labels=labels)
         payload["plots"] = [str(p) for p in paths]
     if args.json:
         print(json.dumps(payload))

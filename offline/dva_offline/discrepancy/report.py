@@ -14,6 +14,7 @@ from dva_offline.cli_tools import json_safe
 from dva_offline.discrepancy.fitting import ModelFit
 from dva_offline.discrepancy.loop import CandidateScore, DiscrepancyResult
 from dva_offline.discrepancy.residual import ResidualFeatures
+from dva_offline.plotting import unwrapped_phase_deg as _unwrapped_deg
 
 
 def _params(estimates) -> list[dict]:
@@ -140,15 +141,36 @@ def result_to_dict(result: DiscrepancyResult, extra: dict | None = None) -> dict
     return json_safe(out)
 
 
+#: SI units of the quantities a FRF file may hold (the table reader converts to these).
+QUANTITY_UNITS = {"receptance": "m/N", "accelerance": "(m/s^2)/N", "mobility": "(m/s)/N",
+                  "stiffness": "N/m", "modulus": "Pa"}
+
+
+def _condition_label(observations, group: int) -> str:
+    """What tells a condition apart: its covariates' levels (``temperature_c 23``)."""
+    sel = observations.groups == group
+    parts = [f"{name} {np.mean(col[sel]):.4g}" for name, col in observations.covariates.items()]
+    return ", ".join(parts) if parts else f"condition {group}"
+
+
 def plot_result(result: DiscrepancyResult, observations, plot_dir, quantity: str,
-                title: str = "") -> list[Path]:
+                title: str = "", panels: list[tuple[str, str]] | None = None,
+                condition_labels: dict | None = None) -> list[Path]:
     """Write ``discrepancy_frf.png`` (measured, baseline, augmented), ``discrepancy_residual.png``
     (relative residual before/after vs frequency, noise floor) and
-    ``discrepancy_candidates.png`` (held-out error and dBIC per candidate) into ``plot_dir``."""
+    ``discrepancy_candidates.png`` (held-out error and dBIC per candidate) into ``plot_dir``.
+
+    ``panels``: (name, unit) of the quantity in each column of the FRF figure; group ``g`` of
+    ``observations`` goes to column ``g % len(panels)`` (a flight's plunge and pitch channels).
+    Default: one column, ``quantity`` in its SI unit. ``condition_labels``: group -> its name in
+    the legend (default: its covariates' levels). Each condition has its colour; measured
+    points are dots, the baseline dashed, the augmented model solid; phases are unwrapped."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    import matplotlib.ticker
+    from matplotlib.lines import Line2D
 
     out_dir = Path(plot_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -161,24 +183,54 @@ def plot_result(result: DiscrepancyResult, observations, plot_dir, quantity: str
         fits.append((f"final ({len(result.steps)} effects)", result.final.fit, "g-"))
     written = []
 
-    fig, (ax_m, ax_p) = plt.subplots(2, 1, sharex=True, figsize=(8, 6.5))
-    for g in np.unique(groups):
-        sel = groups == g
-        first = g == groups[0]
-        ax_m.loglog(f[sel], np.abs(y[sel]), "k.", ms=2, label="measured" if first else None)
-        ax_p.semilogx(f[sel], np.degrees(np.angle(y[sel])), "k.", ms=2)
-        for label, fit, style in fits:
-            ax_m.loglog(f[sel], np.abs(fit.prediction[sel]), style, lw=1,
-                        label=label if first else None)
-            ax_p.semilogx(f[sel], np.degrees(np.angle(fit.prediction[sel])), style, lw=1)
-    ax_m.set_ylabel(f"|{quantity}|")
-    ax_p.set_ylabel("phase [deg]")
-    ax_p.set_xlabel("frequency [Hz]")
-    ax_m.legend(fontsize=8)
-    ax_m.set_title(title or f"verdict: {result.verdict.status} {result.verdict.effect or ''}")
-    for ax in (ax_m, ax_p):
-        ax.grid(True, which="both", alpha=0.3)
-    fig.tight_layout()
+    panels = panels or [(quantity, QUANTITY_UNITS.get(quantity, ""))]
+    fit_styles = dict(zip([label for label, _, _ in fits], ("--", "-", ":")))
+    fig, axes = plt.subplots(2, len(panels), sharex=True, squeeze=False,
+                             figsize=(8 if len(panels) == 1 else 12, 7.5))
+    handles = []
+    for k, (name, unit) in enumerate(panels):
+        ax_m, ax_p = axes[:, k]
+        conditions = [g for g in np.unique(groups) if g % len(panels) == k]
+        colours = plt.cm.viridis(np.linspace(0, 0.9, len(conditions))) if len(conditions) > 10 \
+            else plt.cm.tab10(np.arange(len(conditions)))
+        start = None  # every condition's phase on the branch of the first one's start
+        for g, colour in zip(conditions, colours):
+            sel = groups == g
+            best = _unwrapped_deg(fits[-1][1].prediction[sel])
+            start = best[0] if start is None else start
+            best -= 360.0 * np.round((best[0] - start) / 360.0)
+            for label, fit, _ in fits:
+                phase = _unwrapped_deg(fit.prediction[sel])
+                phase -= 360.0 * np.round((phase[0] - best[0]) / 360.0)
+                # the baseline in grey: the model that lacks the effect, under every condition
+                style = dict(ls=fit_styles[label], lw=1,
+                             color="0.45" if fit is result.baseline else colour)
+                ax_m.loglog(f[sel], np.abs(fit.prediction[sel]), **style)
+                ax_p.semilogx(f[sel], phase, **style)
+            ax_m.loglog(f[sel], np.abs(y[sel]), ".", color=colour, ms=3)
+            ax_p.semilogx(f[sel], _unwrapped_deg(y[sel], best), ".", color=colour, ms=3)
+            if k == 0:
+                handles.append(Line2D([], [], color=colour, marker=".", ls="-",
+                                      label=(condition_labels or {}).get(g)
+                                      or _condition_label(obs, g)))
+        ax_m.set_ylabel(f"|{name.split()[0]}|" + (f" [{unit}]" if unit else ""))
+        ax_p.set_ylabel("phase [deg], unwrapped")
+        ax_p.set_xlabel("frequency [Hz]")
+        ax_m.set_title(name, fontsize=9)
+        for ax in (ax_m, ax_p):
+            ax.grid(True, which="both", alpha=0.3)
+            ax.xaxis.set_major_locator(matplotlib.ticker.LogLocator(subs=(1, 2, 5)))
+            ax.xaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}"))
+            ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+    handles += [Line2D([], [], color="k", marker=".", ls="none", label="measured")]
+    handles += [Line2D([], [], color="0.45" if fit is result.baseline else "k",
+                       ls=fit_styles[label], label=label) for label, fit, _ in fits]
+    rows = -(-len(handles) // 4)
+    fig.legend(handles=handles, loc="lower center", ncol=4, fontsize=7, frameon=False)
+    fig.suptitle((title + ": " if title else "")
+                 + f"verdict {result.verdict.status} {result.verdict.effect or ''}".rstrip(),
+                 fontsize=10)
+    fig.tight_layout(rect=(0, 0.025 * rows + 0.01, 1, 1))
     path = out_dir / "discrepancy_frf.png"
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -192,7 +244,7 @@ def plot_result(result: DiscrepancyResult, observations, plot_dir, quantity: str
     ax.axhline(result.noise.sigma, color="k", ls="--",
                label=f"noise floor {result.noise.sigma:.4f}")
     ax.set_xlabel("frequency [Hz]")
-    ax.set_ylabel("|relative residual|")
+    ax.set_ylabel("|relative residual| [-]")
     ax.set_yscale("log")
     ax.legend(fontsize=8)
     ax.grid(True, which="both", alpha=0.3)
@@ -208,11 +260,11 @@ def plot_result(result: DiscrepancyResult, observations, plot_dir, quantity: str
     ax_e.barh(names, [c.fit.error for c in fitted], color="tab:orange")
     ax_e.axvline(result.baseline.error, color="b", label="baseline")
     ax_e.axvline(result.noise.sigma, color="k", ls="--", label="noise floor")
-    ax_e.set_xlabel("held-out error")
+    ax_e.set_xlabel("held-out error (relative) [-]")
     ax_e.legend(fontsize=7)
     ax_b.barh(names, [c.delta_bic for c in fitted], color="tab:green")
     ax_b.axvline(-result.rule.min_bic_gain, color="k", ls="--")
-    ax_b.set_xlabel("dBIC vs baseline (lower is better)")
+    ax_b.set_xlabel("dBIC vs baseline [-] (lower is better)")
     ax_b.set_yticklabels([])
     fig.tight_layout()
     path = out_dir / "discrepancy_candidates.png"

@@ -122,6 +122,11 @@ def plot_traces(path, mu: float, runs: Mapping[str, object], u_cr: float) -> Pat
             ax.plot(ratio, values, lw=0.5)
             if u_div is not None and math.isfinite(u_div):
                 ax.axvline(u_div, color="r", lw=0.8, ls="--")
+                # the response before the divergence on its own scale: the growth after it
+                # (hundreds of mm) would flatten it; it runs off the panel past the red line
+                before = np.abs(values[np.isfinite(values) & (ratio <= u_div)])
+                if ax is not row[2] and before.size and before.max() > 0:
+                    ax.set_ylim(-1.3 * before.max(), 1.3 * before.max())
             ax.set_ylabel(label)
             ax.grid(True, alpha=0.3)
             ax.set_xlim(0.8, max(1.2, float(np.nanmax(ratio))))
@@ -129,8 +134,9 @@ def plot_traces(path, mu: float, runs: Mapping[str, object], u_cr: float) -> Pat
             else "no divergence"
         row[0].set_title(f"{CONTROLLER_LABELS[controller]}: {div}", fontsize=9, loc="left")
     for ax in axes[-1]:
-        ax.set_xlabel("U / U_cr")
-    fig.suptitle(f"ramp 0.8 -> 1.2 U_cr, density variation mu = {mu:g} (one excitation seed)",
+        ax.set_xlabel("U / U_cr [-]")
+    fig.suptitle(f"ramp 0.8 -> 1.2 U_cr, density variation mu = {mu:g} (one excitation seed); "
+                 "w and alpha scaled to the response before the divergence (red line)",
                  fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=100)

@@ -135,9 +135,12 @@ def plot_paired(out, payload: Mapping, kept: Mapping, critical_airspeed: float) 
             high = np.array([_num(rows[c][key]["ci95"][1]) * scale for c in cases])
             ax.errorbar(x, mean, yerr=[mean - low, high - mean], fmt="o", capsize=3,
                         label=LABELS[controller], color=f"C{k}")
-    for ax, title in ((axes[0], "leading-edge RMS change against the best fixed c2 [%]"),
-                      (axes[1], "U_div/U_cr difference to the best fixed c2")):
+    for ax, title, unit in (
+            (axes[0], "leading-edge RMS change against the best fixed c2", "RMS change [%]"),
+            (axes[1], "U_div/U_cr difference to the best fixed c2", "U_div/U_cr difference [-]")):
         ax.axhline(0.0, color="k", lw=0.8)
+        ax.set_ylabel(unit)
+        ax.set_xlabel("density case")
         ax.set_xticks(np.arange(len(cases)), cases)
         ax.set_title(title, fontsize=10)
         ax.grid(True, alpha=0.3)
@@ -157,7 +160,7 @@ def plot_paired(out, payload: Mapping, kept: Mapping, critical_airspeed: float) 
                             color=f"C{k - 1}" if controller != "fixed" else "k",
                             label=LABELS[controller])
             ax.set_title(case, fontsize=9)
-            ax.set_xlabel("U / U_cr")
+            ax.set_xlabel("U / U_cr [-]")
             ax.set_ylabel("applied c2 [N s/m]")
             ax.grid(True, alpha=0.3)
         axes.ravel()[0].legend(fontsize=7)

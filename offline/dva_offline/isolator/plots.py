@@ -18,6 +18,7 @@ import numpy as np  # noqa: E402
 
 from dva_offline.isolator.maxwell_model import MaxwellModel, frf  # noqa: E402
 from dva_offline.isolator.mv_curves import modal_grid, modal_pairs  # noqa: E402
+from dva_offline.plotting import unwrapped_phase_deg  # noqa: E402
 
 NOMINAL = dict(mass=1.0, k=12e3, c=40.0)
 K1_FAMILY = (3e3, 6e3, 12e3, 24e3, 48e3)  # N/m
@@ -61,9 +62,9 @@ def plot_frf(path, curves, quantity: str = "receptance", title: str = "") -> Pat
     for label, f, h, style in curves:
         kw = dict(lw=1.5, zorder=2) if "-" in style else dict(ms=3, zorder=1)
         ax_m.semilogy(f, np.abs(h), style, label=label, **kw)
-        ax_p.plot(f, np.degrees(np.angle(h)), style, label=label, **kw)
+        ax_p.plot(f, unwrapped_phase_deg(h, frequency=f), style, label=label, **kw)
     ax_m.set_ylabel(_magnitude_label(quantity))
-    ax_p.set_ylabel("phase [deg]")
+    ax_p.set_ylabel("phase [deg], unwrapped")
     ax_p.set_xlabel("frequency [Hz]")
     ax_m.legend(fontsize=8)
     ax_m.set_title(title, fontsize=10)

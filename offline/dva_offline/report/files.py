@@ -22,7 +22,8 @@ from aero_dva.bag.flight_log_io import load_flight_log
 from aero_dva.bag.reader import bag_topics, read_messages
 from dva_offline.report.contents import RunData, SpectrumTrack, build_report, report_markdown
 
-__all__ = ["ReportFiles", "inspect_rrd", "load_run", "write_plots", "write_report", "write_rrd"]
+__all__ = ["ReportFiles", "divergence_time", "inspect_rrd", "load_run", "write_plots",
+           "write_report", "write_rrd"]
 
 TIMELINE = "sim_time"
 SERIES = {  # entity path -> (FlightLog attribute, row or None, scale, legend)
@@ -76,6 +77,8 @@ def _blueprint(spectrum: SpectrumTrack | None):
     import rerun.blueprint as rrb
 
     series = rrb.Vertical(
+        rrb.TimeSeriesView(origin="/wing", contents=["/wing/leading_edge"],
+                           name="leading edge [m]"),
         rrb.TimeSeriesView(origin="/wing", contents=["/wing/plunge"], name="plunge w [m]"),
         rrb.TimeSeriesView(origin="/wing", contents=["/wing/pitch"], name="pitch alpha [rad]"),
         rrb.TimeSeriesView(origin="/damper", name="applied c2 [N s/m]"),
@@ -139,9 +142,25 @@ def inspect_rrd(path) -> dict:
     return {"stores": stores, "entities": entities}
 
 
-def write_plots(out_dir, data: RunData, stem: str = "run") -> dict[str, Path]:
-    """PNG plots: time series (w, alpha, c2, airspeed, density) and, if recorded, the spectra
-    (scaled magnitude versus time and frequency per channel). Returns caption -> path."""
+def divergence_time(log, divergence_airspeed: float) -> float:
+    """[s] the time the flight reached ``divergence_airspeed`` (NaN if it did not diverge)."""
+    if not np.isfinite(divergence_airspeed):
+        return float("nan")
+    reached = np.flatnonzero(np.isfinite(log.airspeed) & (log.airspeed >= divergence_airspeed))
+    return float(log.time[reached[0]]) if reached.size else float("nan")
+
+
+def write_plots(out_dir, data: RunData, stem: str = "run",
+                divergence_airspeed: float = float("nan"),
+                critical_airspeed: float = float("nan")) -> dict[str, Path]:
+    """PNG plots: time series (leading edge, w, alpha, c2, airspeed, density) and, if recorded,
+    the spectra (scaled magnitude versus time and frequency per channel). Returns caption ->
+    path.
+
+    A flight that diverged (``divergence_airspeed``, the report's) gets a second column of the
+    same signals up to the divergence, on their own scales: on the whole flight the last
+    seconds' growth (hundreds of mm) flattens everything before it. The divergence is marked
+    by a dashed red line at the time the airspeed reached it."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -149,17 +168,43 @@ def write_plots(out_dir, data: RunData, stem: str = "run") -> dict[str, Path]:
 
     out_dir = Path(out_dir)
     log = data.log
-    panels = [(log.displacements[0] * 1e3, "w [mm]"), (log.displacements[1] * 1e3,
-                                                       "alpha [mrad]"),
-              (log.applied_damping, "c2 [N s/m]"), (log.airspeed, "U [m/s]"),
-              (log.density, "rho [kg/m^3]")]
-    fig, axes = plt.subplots(len(panels), 1, figsize=(9, 9), sharex=True)
-    for ax, (values, label) in zip(axes, panels):
-        ax.plot(log.time, values, lw=0.6)
-        ax.set_ylabel(label)
-        ax.grid(True, alpha=0.3)
-    axes[-1].set_xlabel("time [s]")
-    axes[0].set_title(Path(data.bag).name, fontsize=10)
+    rows = [(log.displacements[2] * 1e3, "leading edge [mm]"),
+            (log.displacements[0] * 1e3, "plunge w [mm]"),
+            (log.displacements[1] * 1e3, "pitch alpha [mrad]"),
+            (log.applied_damping, "applied c2 [N s/m]"), (log.airspeed, "airspeed U [m/s]"),
+            (log.density, "density rho [kg/m^3]")]
+    t_div = divergence_time(log, divergence_airspeed)
+    diverged = np.isfinite(t_div)
+    u_cr = critical_airspeed if np.isfinite(critical_airspeed) and critical_airspeed > 0 \
+        else None
+    fig, axes = plt.subplots(len(rows), 2 if diverged else 1, figsize=(13 if diverged else 9, 11),
+                             sharex="col", squeeze=False)
+    before = log.time <= t_div if diverged else np.ones(log.time.size, bool)
+    for r, (values, label) in enumerate(rows):
+        columns = [(axes[r, 0], np.ones(log.time.size, bool))]
+        if diverged:
+            columns.append((axes[r, 1], before))
+        for ax, keep in columns:
+            ax.plot(log.time[keep], values[keep], lw=0.6)
+            ax.set_ylabel(label, fontsize=9)
+            ax.grid(True, alpha=0.3)
+            if u_cr is not None and r == 4:
+                ax.axhline(u_cr, color="0.4", ls=":", lw=0.8)
+                ax.annotate(f"U_cr {u_cr:.1f} m/s (no DVA)", (log.time[0], u_cr), fontsize=7,
+                            color="0.3", va="bottom")
+        if diverged:
+            axes[r, 0].axvline(t_div, color="tab:red", ls="--", lw=0.9)
+    where = "" if not diverged else (
+        f"diverged at {divergence_airspeed:.1f} m/s"
+        + (f" = {divergence_airspeed / u_cr:.3f} U_cr" if u_cr else "") + f" (t = {t_div:.1f} s)")
+    axes[0, 0].set_title("whole flight" + (f"; red line: {where}" if diverged else
+                                           ": no divergence within the flight"), fontsize=10)
+    if diverged:
+        axes[0, 1].set_title(f"up to the divergence (t <= {t_div:.1f} s), own scales",
+                             fontsize=10)
+        axes[-1, 1].set_xlabel("time [s]")
+    axes[-1, 0].set_xlabel("time [s]")
+    fig.suptitle(f"{Path(data.bag).name}", fontsize=11)
     fig.tight_layout()
     paths = {"time series (PNG)": out_dir / f"{stem}_timeseries.png"}
     fig.savefig(paths["time series (PNG)"], dpi=100)
@@ -171,8 +216,12 @@ def write_plots(out_dir, data: RunData, stem: str = "run") -> dict[str, Path]:
         for k, (ax, channel) in enumerate(zip(axes[:, 0], sp.channels)):
             mesh = ax.pcolormesh(sp.time, sp.frequencies, sp.magnitudes[:, k, :].T,
                                  shading="nearest")
-            fig.colorbar(mesh, ax=ax, label="scaled magnitude")
+            fig.colorbar(mesh, ax=ax, label="scaled magnitude [-]")
             ax.set_ylabel(f"{channel}: f [Hz]")
+            if diverged:
+                ax.axvline(t_div, color="tab:red", ls="--", lw=0.9)
+        axes[0, 0].set_title("eq. 7.3 scaled spectra (each sums to 1 over its band)"
+                             + (f"; red line: {where}" if diverged else ""), fontsize=10)
         axes[-1, 0].set_xlabel("time [s] (end of the 2 s window)")
         fig.tight_layout()
         paths["spectra (PNG)"] = out_dir / f"{stem}_spectra.png"
@@ -198,7 +247,8 @@ def write_report(bag, out_dir, rrd: bool = True, metadata: dict | None = None,
     data = load_run(bag, metadata, allow_truncated=allow_truncated)
     out_dir.mkdir(parents=True, exist_ok=True)
     report = build_report(data)
-    pngs = write_plots(out_dir, data, stem)
+    pngs = write_plots(out_dir, data, stem, report.summary.divergence_airspeed,
+                       report.summary.critical_airspeed)
     links = {caption: p.name for caption, p in pngs.items()}
     rrd_path = None
     if rrd:

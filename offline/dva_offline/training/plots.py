@@ -45,7 +45,7 @@ def plot_network_c2(path, airspeed_ratio, density, optimal_c2, network_c2, valid
         ax.plot(ratio[on & held], network[on & held], "x", color=color, ms=5)
     ax.plot([], [], "k.", ms=3, label="network (mean over the c2 windows), training airspeeds")
     ax.plot([], [], "kx", ms=5, label="network, held-out airspeeds (validation)")
-    ax.set_xlabel("airspeed U / U_cr")
+    ax.set_xlabel("airspeed U / U_cr [-]")
     ax.set_ylabel("c2 [N s/m]")
     ax.set_title("Optimal c2 and RBF network c2 (cf. Zhang (2006) fig. 7.11)")
     ax.grid(True, lw=0.3)

@@ -137,3 +137,21 @@ def test_cli_reads_a_cut_bag_with_allow_truncated(bag, tmp_path, capsys):
     assert 0 < payload["message_counts"]["/wing/displacement"] < \
         bag_topics(bag)["/wing/displacement"].message_count
     assert captured.err.count("dva report: warning: MCAP file") == 1  # one line, once
+
+
+def test_time_series_show_the_flight_up_to_its_divergence(bag, report, tmp_path):
+    """A diverged flight: a second column up to the divergence, which is marked where the
+    airspeed reached the report's divergence airspeed; a flight that did not: one column."""
+    import matplotlib.image
+
+    from dva_offline.report.files import divergence_time, write_plots
+
+    data = load_run(bag)
+    summary = report.report.summary
+    t_div = divergence_time(data.log, summary.divergence_airspeed)
+    k = np.flatnonzero(data.log.time == t_div)[0]
+    assert data.log.airspeed[k] >= summary.divergence_airspeed > data.log.airspeed[k - 1]
+    both = matplotlib.image.imread(report.pngs["time series (PNG)"])
+    one = matplotlib.image.imread(write_plots(tmp_path, data)["time series (PNG)"])
+    assert both.shape[1] == 1300 and one.shape[1] == 900  # 13 and 9 inches at 100 dpi
+    assert np.isnan(divergence_time(data.log, float("nan")))
