@@ -163,8 +163,8 @@ def plot_summary(path, stats: Sequence[CaseStats]) -> Path:
         if seed:
             ax.plot(*zip(*seed), marker="*", ms=11, ls=":", color=color, alpha=0.8)
     ax.plot([], [], "k*", ls=":", label="study (one flight)")
-    ax.set_xlabel("density variation mu (eq. 7.2)")
-    ax.set_ylabel("U_div / U_cr")
+    ax.set_xlabel("density variation mu (eq. 7.2) [-]")
+    ax.set_ylabel("U_div / U_cr [-]")
     ax.set_title("divergence airspeed: mean +- std (bars: min..max over seeds)", fontsize=10)
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)

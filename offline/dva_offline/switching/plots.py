@@ -32,7 +32,7 @@ def plot_switching(model, gains, u_cr: float, fixed_c2: float, path, seed: int =
                           (switched, f"switching law, {tau * 1e3:g} ms lag")):
         le = np.clip(np.abs(flight.leading_edge), 1e-6, 1.0)
         ax1.semilogy(u / u_cr, le, lw=0.4, label=label)
-    ax1.set_xlabel("airspeed / U_cr (ramp 0.8 -> 1.4 in 45 s)")
+    ax1.set_xlabel("airspeed U / U_cr [-] (ramp 0.8 -> 1.4 in 45 s)")
     ax1.set_ylabel("|leading edge| [m] (clipped at 1 m)")
     ax1.legend(loc="upper left")
     ax1.grid(True, which="both", alpha=0.3)
@@ -47,7 +47,7 @@ def plot_switching(model, gains, u_cr: float, fixed_c2: float, path, seed: int =
     ax3.plot(t[w], at.leading_edge[w] * 1e3, color="C0", lw=0.8, label="leading edge [mm]")
     ax3.plot(t[w], force_d[w] / k2 * 1e3, color="C2", lw=0.8,
              label="|damper force| / k2 [mm]")
-    ax3.set_ylabel("[mm]")
+    ax3.set_ylabel("leading edge, |damper force| / k2 [mm]")
     lines = ax2.get_lines() + ax3.get_lines()
     ax2.legend(lines, [ln.get_label() for ln in lines], loc="upper right", fontsize=8)
     fig.tight_layout()
