@@ -31,9 +31,13 @@ from aero_dva.flight.discretize import zoh
 from aero_dva.flight.per_sample.switching_law import maxwell_index, measurement_matrices
 from aero_dva.wing.model import AeroelasticModel
 
-__all__ = ["DESIGNS", "kalman_filter_gain", "law_gain", "middle_damping"]
+__all__ = ["DESIGNS", "SCHEDULED_DESIGN", "desired_force_gain", "kalman_filter_gain", "law_gain",
+           "middle_damping"]
 
-DESIGNS = ("lyapunov", "clipped")
+#: The designs of a gains file: the two of :func:`law_gain` at one airspeed, and the
+#: clipped-optimal law scheduled with the airspeed (:mod:`aero_dva.control.clipped_optimal`).
+SCHEDULED_DESIGN = "clipped_optimal"
+DESIGNS = ("lyapunov", "clipped", SCHEDULED_DESIGN)
 
 
 def middle_damping(c_lo: float, c_hi: float) -> float:
@@ -53,8 +57,8 @@ def law_gain(model: AeroelasticModel, airspeed: float, density: float, c_lo: flo
     ``effort`` scales the LQR's control weight (relative to a weight that makes the control
     term and the leading-edge term of the cost comparable); the design command searches it.
     """
-    if design not in DESIGNS:
-        raise ValueError(f"design must be one of {DESIGNS}, got {design!r}")
+    if design not in DESIGNS[:2]:
+        raise ValueError(f"design must be one of {DESIGNS[:2]}, got {design!r}")
     if not effort > 0:
         raise ValueError(f"effort must be > 0, got {effort}")
     idx = maxwell_index(model)
@@ -70,16 +74,32 @@ def law_gain(model: AeroelasticModel, airspeed: float, density: float, c_lo: flo
         r = np.array([[effort * 1e-6]])  # v [m/s] against the leading edge [m]
         p = linalg.solve_continuous_are(a, b, q, r)
         return -p[idx] / np.max(np.abs(p[idx]))
-    keep = [i for i in range(a.shape[0]) if i != idx]
-    a_s = a[np.ix_(keep, keep)]
-    b_s = a[keep, idx][:, None] / k2  # the Maxwell force F = k2 delta enters like this
-    r = np.array([[effort * 1e-12]])  # F [N] against the leading edge [m]
-    p = linalg.solve_continuous_are(a_s, b_s, q[np.ix_(keep, keep)], r)
-    k = (b_s.T @ p / r[0, 0])[0]
-    gain = np.zeros(a.shape[0])
-    gain[keep] = -k
+    gain = -desired_force_gain(model, airspeed, density, effort)
     gain[idx] = -k2
     return gain / np.max(np.abs(gain))
+
+
+def desired_force_gain(model: AeroelasticModel, airspeed: float, density: float,
+                       effort: float = 1.0) -> np.ndarray:
+    """``K`` (n,) of the force ``f_c = -K x`` [N] an ideal actuator in place of the Maxwell
+    element should give (the ``clipped`` design, Dyke et al. 1996): the LQR of the wing with
+    its absorber mass and parallel spring, weighting the leading-edge displacement against
+    ``effort`` x 1e-12 m^2/N^2 times F^2. Zero in the Maxwell deflection's column."""
+    if not effort > 0:
+        raise ValueError(f"effort must be > 0, got {effort}")
+    idx = maxwell_index(model)
+    # c2 enters only the Maxwell row, which the actuator replaces: any c2 > 0 gives the same
+    a, _ = model.matrices(airspeed, density, 1000.0)
+    q = _leading_edge_weight(model)
+    q = q + 1e-9 * np.eye(a.shape[0]) * np.trace(q)
+    keep = [i for i in range(a.shape[0]) if i != idx]
+    a_s = a[np.ix_(keep, keep)]
+    b_s = a[keep, idx][:, None] / model.absorber.series_stiffness  # F = k2 delta enters so
+    r = np.array([[effort * 1e-12]])  # F [N] against the leading edge [m]
+    p = linalg.solve_continuous_are(a_s, b_s, q[np.ix_(keep, keep)], r)
+    gain = np.zeros(a.shape[0])
+    gain[keep] = (b_s.T @ p / r[0, 0])[0]
+    return gain
 
 
 def kalman_filter_gain(model: AeroelasticModel, airspeed: float, density: float,

@@ -5,7 +5,9 @@ designed for) plus how the design was chosen. Checked on load: format, version, 
 number finite, shapes consistent, 0 < c_lo < c_hi; the wing fingerprint lets a user refuse a
 file made for another wing. c_lo and c_hi must lie inside the damper's range (by default
 :data:`~aero_dva.flight.damper.DAMPER_RANGE`; a flight checks its own damper's): such a file
-is neither written nor read. Example (abridged)::
+is neither written nor read. A law scheduled with the airspeed (the clipped-optimal law,
+design ``clipped_optimal``) has ``airspeeds`` [m/s] and one row of ``gain`` (and of
+``force_gain``) per airspeed; the others have neither and one row. Example (abridged)::
 
     {"format": "dva_switching_gains", "version": 1, "design": "lyapunov",
      "wing_fingerprint": "3f0c...", "design_airspeed": 115.0, "density": 1.2,
@@ -24,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from aero_dva.atomic_io import atomic_output
-from aero_dva.control.switching_design import DESIGNS
+from aero_dva.control.switching_design import DESIGNS, SCHEDULED_DESIGN
 from aero_dva.flight.damper import DAMPER_RANGE, damping_problem
 from aero_dva.flight.per_sample.switching_law import MEASURED_OUTPUTS, SwitchingLaw
 from aero_dva.safe_files import check_file_header, parse_json
@@ -69,6 +71,7 @@ def gains_to_dict(g: SwitchingGains) -> dict:
     problem = damping_problem((g.law.c_lo, g.law.c_hi), "switching gains c_lo and c_hi")
     if problem is not None:
         raise SwitchingGainsError(problem)
+    scheduled = {} if not g.law.scheduled else {"airspeeds": g.law.airspeeds.tolist()}
     return {
         "format": FILE_FORMAT, "version": FILE_VERSION, "design": g.design,
         "wing_fingerprint": g.wing_fingerprint, "design_airspeed": g.design_airspeed,
@@ -78,6 +81,7 @@ def gains_to_dict(g: SwitchingGains) -> dict:
         "observer": None if g.law.observer is None else g.law.observer.tolist(),
         "force_gain": None if g.law.force_gain is None else g.law.force_gain.tolist(),
         "units": dict(UNITS), "selection": g.selection, "description": g.description,
+        **scheduled,
     }
 
 
@@ -119,17 +123,27 @@ def gains_from_dict(data, source: str = "<dict>",
         observer = None if observer is None else np.array(observer, dtype=float)
         force_gain = data.get("force_gain")
         force_gain = None if force_gain is None else np.array(force_gain, dtype=float)
+        airspeeds = data.get("airspeeds")
+        airspeeds = None if airspeeds is None else np.array(airspeeds, dtype=float)
     except (TypeError, ValueError):
-        raise fail("fields 'gain', 'observer' and 'force_gain' must be numbers") from None
-    if gain.shape != (len(names),):
-        raise fail(f"field 'gain' must have {len(names)} entries (one per state), "
+        raise fail("fields 'gain', 'observer', 'force_gain' and 'airspeeds' must be "
+                   "numbers") from None
+    scheduled = data["design"] == SCHEDULED_DESIGN
+    if scheduled != (airspeeds is not None):
+        raise fail(f"field 'airspeeds' is required with design {SCHEDULED_DESIGN!r} and only "
+                   "with it")
+    rows = () if airspeeds is None else airspeeds.shape
+    if gain.shape != (*rows, len(names)):
+        raise fail(f"field 'gain' must have {len(names)} entries (one per state"
+                   f"{f', in each of {rows[0]} rows, one per airspeed' if rows else ''}), "
                    f"got shape {gain.shape}")
     problem = damping_problem((values["c_lo"], values["c_hi"]), "fields 'c_lo' and 'c_hi'",
                               damping_range)
     if problem is not None:
         raise fail(problem)
     try:
-        law = SwitchingLaw(gain, values["c_lo"], values["c_hi"], observer, force_gain)
+        law = SwitchingLaw(gain, values["c_lo"], values["c_hi"], observer, force_gain,
+                           airspeeds)
     except ValueError as exc:
         raise fail(str(exc)) from None
     selection = data.get("selection", [])

@@ -5,6 +5,7 @@ Subcommands::
     dva switching design    gains of the law and its Kalman observer from the wing model,
                             written to a checked JSON file
     dva switching plot      figure: a ramp flight with both dampers, the law at work
+    dva switching mechanism per-sample laws against the ideal force they approximate
     dva switching evaluate  the law against the best constant c2 on paired seeds: bounded and
                             practical boundaries, RMS at 1.1 U_cr, switching rate, damper
                             power; sensitivity to damper lag, sensor noise, model mismatch
@@ -52,11 +53,16 @@ def register(subparsers) -> None:
     d.add_argument("--out", required=True, metavar="FILE", help="gains file to write (JSON)")
     d.add_argument("--wing", metavar="FILE", help="wing YAML with a Maxwell absorber "
                    "(default: the chapter-6 wing)")
-    d.add_argument("--design", choices=("lyapunov", "clipped"), default="lyapunov",
-                   help="h from the Riccati solution of the Maxwell-rate input (lyapunov) or "
-                        "Dyke's clipped-optimal force (clipped); default lyapunov")
+    d.add_argument("--design", choices=("lyapunov", "clipped", "clipped_optimal"),
+                   default="lyapunov",
+                   help="h from the Riccati solution of the Maxwell-rate input (lyapunov), "
+                        "Dyke's clipped-optimal force at the design airspeed (clipped), or "
+                        "Dyke's law with the force's LQR scheduled with the airspeed, the "
+                        "clipped_optimal controller's (clipped_optimal, "
+                        "docs/clipped_optimal.md); default lyapunov")
     d.add_argument("--design-airspeed", type=float, default=1.15, metavar="RATIO",
-                   help="design airspeed over U_cr (default 1.15)")
+                   help="design airspeed over U_cr (default 1.15): of the law and its "
+                        "observer; with clipped_optimal of the observer only")
     d.add_argument("--c-lo", type=float, default=100.0,
                    help="low c2 [N s/m], > 0 and inside the damper's range 0..2500 (default "
                         "100)")
@@ -108,6 +114,25 @@ def register(subparsers) -> None:
                    help="aerodynamics instead of the wing file's (wagner: Jones' finite-state "
                         "unsteady model)")
     e.set_defaults(func=_evaluate)
+
+    m = sub.add_parser("mechanism", help="per-sample laws against the ideal force they "
+                       "approximate, at one airspeed",
+                       description="At --airspeed U_cr: the ideal actuator's closed loop "
+                       "(eigenvalue, stationary RMS, share of time its force absorbs power) "
+                       "and, flown on paired seeds, how closely each law's damper force "
+                       "follows the desired force, its RMS, power and c2 "
+                       "(docs/clipped_optimal.md).")
+    m.add_argument("--gains", required=True, action="append", metavar="FILE",
+                   help="gains file of 'design' (repeat for several laws)")
+    m.add_argument("--effort", type=float, default=30.0,
+                   help="LQR effort of the desired force (default 30, the shipped "
+                        "clipped-optimal law's)")
+    m.add_argument("--airspeed", type=float, default=1.1, metavar="RATIO",
+                   help="airspeed over U_cr, below the constant c2's flutter (default 1.1)")
+    m.add_argument("--seeds", type=int, default=30, help="paired seeds (default 30)")
+    m.add_argument("--wing", metavar="FILE", help="wing YAML (must match the gains files)")
+    m.add_argument("--json", action="store_true", help="print one JSON object")
+    m.set_defaults(func=_mechanism)
 
     g = sub.add_parser("plot", help="figure: ramp flight fixed vs switching, the law at work")
     g.add_argument("--gains", required=True, metavar="FILE", help="gains file of 'design'")
@@ -258,6 +283,51 @@ def _evaluate(args) -> int:
         print(json.dumps({"gains": str(args.gains), "u_cr": u_cr, "fixed_c2": c2,
                           "fixed_flutter_ratio": u_fix / u_cr, "seeds": len(seeds),
                           "rows": rows}, indent=1))
+    return 0
+
+
+def _mechanism(args) -> int:
+    from aero_dva.control.switching_design import measured_rms
+    from dva_offline.switching.study import FORCE_STD, SAMPLE_RATE, mechanism
+
+    if not (math.isfinite(args.effort) and args.effort > 0):
+        raise ValueError(f"--effort must be > 0, got {args.effort}")
+    if not 0.5 <= args.airspeed <= 2.0:
+        raise ValueError(f"--airspeed is a ratio of U_cr in [0.5, 2], got {args.airspeed}")
+    laws, model, cfg = {}, None, None
+    for path in args.gains:
+        class _One:  # what _gains_for_wing reads
+            gains, wing, aero = path, args.wing, None
+        gains, cfg, model = _gains_for_wing(_One)
+        laws[path] = gains
+    u_cr, c2, _ = _reference(cfg, model)
+    sensor_rms = measured_rms(model, u_cr, cfg.air_density, c2, SAMPLE_RATE, FORCE_STD)
+    out = mechanism(model, laws, u_cr, c2, _seeds(args.seeds, EVALUATION_SEEDS), sensor_rms,
+                    args.effort, args.airspeed)
+    if args.json:
+        from dva_offline.cli_tools import json_safe
+
+        print(json.dumps(json_safe(out), indent=1))
+        return 0
+    i, fx = out["ideal"], out["fixed"]
+    print(f"at {args.airspeed:g} U_cr, {out['seeds']} seeds")
+    print(f"ideal force (effort {args.effort:g}): least stable Re "
+          f"{i['least_stable_real_part']:+.2f} 1/s, stationary leading-edge RMS "
+          f"{i['leading_edge_rms_m'] * 1e3:.3f} mm, force RMS "
+          f"{i['force_rms_n']:.0f} N, absorbs power {i['absorbing_share'] * 100:.0f} % of the "
+          f"time (correlation with the stroke rate {i['force_stroke_rate_correlation']:+.2f})")
+    print(f"constant c2 {fx['c2']:.1f} N s/m: least stable Re "
+          f"{fx['least_stable_real_part']:+.2f} 1/s, stationary leading-edge RMS "
+          f"{fx['leading_edge_rms_m'] * 1e3:.3f} mm")
+    for name, row in out["flown"].items():
+        extra = "" if name == "fixed" else (
+            f", corr(F, f_c) {row['force_correlation']:+.2f}, c_hi "
+            f"{row['share_at_c_hi'] * 100:.0f} % of the time, "
+            f"{row['share_of_ideal_gain'] * 100:.0f} % of the ideal gain")
+        print(f"flown {name}: leading-edge RMS {row['leading_edge_rms_m'] * 1e3:.3f} mm, F RMS "
+              f"{row['damper_force_rms_n']:.0f} N, f_c RMS {row['desired_force_rms_n']:.0f} N, "
+              f"damper power {row['damper_power_w']:.1f} W, mean c2 {row['mean_c2']:.0f} N s/m"
+              + extra)
     return 0
 
 

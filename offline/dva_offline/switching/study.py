@@ -20,9 +20,12 @@ import dataclasses
 import math
 
 import numpy as np
-from scipy import optimize, stats
+from scipy import linalg, optimize, stats
 
+from aero_dva.control.clipped_optimal import schedule_airspeeds, scheduled_law
 from aero_dva.control.switching_design import (
+    SCHEDULED_DESIGN,
+    desired_force_gain,
     kalman_filter_gain,
     law_gain,
     lead_rows,
@@ -33,13 +36,13 @@ from aero_dva.control.switching_io import SwitchingGains
 from aero_dva.flight.divergence import divergence_airspeed, ramp_airspeed
 from aero_dva.flight.peak_limit import peak_limit_airspeed
 from aero_dva.flight.per_sample.flight import fly_switched
-from aero_dva.flight.per_sample.switching_law import SwitchingLaw
+from aero_dva.flight.per_sample.switching_law import SwitchingLaw, maxwell_index
 from aero_dva.wing.aerodynamics import WagnerAero
 from aero_dva.wing.flutter import NoFlutterError, flutter_speed
 from aero_dva.wing.model import AeroelasticModel
 
 __all__ = ["PEAK_FACTOR", "Setting", "best_fixed_damping", "design", "evaluate_setting",
-           "paired"]
+           "mechanism", "paired"]
 
 PEAK_FACTOR = 20.0
 RAMP = (0.8, 1.4, 45.0)  # [U_cr], [U_cr], [s]
@@ -223,10 +226,14 @@ def design(model: AeroelasticModel, fingerprint: str, density: float, u_cr: floa
     selection = []
     best = None
     for effort, lead in [(e, t) for e in efforts for t in leads]:
-        gain = law_gain(model, airspeed, density, c_lo, c_hi, design=design_name,
-                        effort=effort)
-        force_gain, gain = lead_rows(model, airspeed, density, c_lo, c_hi, gain, lead)
-        law = SwitchingLaw(gain, c_lo, c_hi, observer, force_gain if lead else None)
+        if design_name == SCHEDULED_DESIGN:  # rows at every airspeed of the schedule
+            law = scheduled_law(model, schedule_airspeeds(u_cr), density, c_lo, c_hi,
+                                effort=effort, lead=lead, observer=observer)
+        else:
+            gain = law_gain(model, airspeed, density, c_lo, c_hi, design=design_name,
+                            effort=effort)
+            force_gain, gain = lead_rows(model, airspeed, density, c_lo, c_hi, gain, lead)
+            law = SwitchingLaw(gain, c_lo, c_hi, observer, force_gain if lead else None)
         gains = SwitchingGains(law=law, design=design_name, wing_fingerprint=fingerprint,
                                design_airspeed=airspeed, density=density,
                                time_constant=time_constant, sample_rate=SAMPLE_RATE,
@@ -247,7 +254,91 @@ def design(model: AeroelasticModel, fingerprint: str, density: float, u_cr: floa
     chosen = dataclasses.replace(
         best[1], selection=selection,
         description=(f"{design_name} switching law designed at {design_ratio:g} U_cr "
-                     f"(U_cr {u_cr:.3f} m/s), c2 {c_lo:g}/{c_hi:g} N s/m, lag "
+                     f"(U_cr {u_cr:.3f} m/s"
+                     + ("; the law's rows at 0.6..1.6 U_cr, its observer there"
+                        if design_name == SCHEDULED_DESIGN else "")
+                     + f"), c2 {c_lo:g}/{c_hi:g} N s/m, lag "
                      f"{time_constant:g} s; effort and lead chosen by the practical boundary of "
                      f"{len(seeds)} ramp flights; best constant c2 {fixed_c2:.1f} N s/m"))
     return chosen, sensor_rms
+
+
+def _stationary(a, b, row, force_std: float) -> tuple[float, float]:
+    """(least stable eigenvalue's real part [1/s], stationary RMS of ``row @ x``) of
+    x' = a x + b f under a white force of ``force_std`` per sample (intensity std^2 / rate)."""
+    growth = float(np.max(np.linalg.eigvals(a).real))
+    if growth >= 0:
+        return growth, math.inf
+    cov = linalg.solve_continuous_lyapunov(a, -force_std**2 / SAMPLE_RATE * np.outer(b, b))
+    return growth, float(math.sqrt(row @ cov @ row))
+
+
+def mechanism(model: AeroelasticModel, laws: dict, u_cr: float, fixed_c2: float, seeds,
+              sensor_rms: np.ndarray, effort: float, ratio: float = 1.1,
+              noise: float = 0.05) -> dict:
+    """What the per-sample laws do at ``ratio`` U_cr against the ideal force they approximate.
+
+    ``ideal``: the desired force f_c = -K x of the clipped-optimal design at ``effort``
+    applied exactly in place of the Maxwell element (its closed loop's least stable
+    eigenvalue, stationary leading-edge RMS, force RMS, and the share of time it absorbs
+    power: F times the stroke rate > 0, from its correlation with the stroke rate, Gaussian);
+    ``fixed``: the best constant c2 the same way. ``flown``: per law of ``laws`` (name ->
+    SwitchingGains) and for the constant c2, 20 s at ``ratio`` U_cr on ``seeds`` (2 s of
+    transient left out; the laws with their lag and ``noise``): leading-edge RMS, RMS of the
+    damper force F and of f_c on the true state, their correlation, the share of samples at
+    c_hi, damper power, mean c2."""
+    rho = next(iter(laws.values())).density if laws else 1.2
+    speed = ratio * u_cr
+    idx = maxwell_index(model)
+    k2 = model.absorber.series_stiffness
+    keep = [i for i in range(model.n_states) if i != idx]
+    a, b = model.matrices(speed, rho, 1000.0)
+    k = desired_force_gain(model, speed, rho, effort)
+    b_f = a[keep, idx] / k2
+    a_cl = a[np.ix_(keep, keep)] - np.outer(b_f, k[keep])
+    growth, rms = _stationary(a_cl, b[keep], model.c_displacement[2][keep], FORCE_STD)
+    cov = linalg.solve_continuous_lyapunov(a_cl, -FORCE_STD**2 / SAMPLE_RATE
+                                           * np.outer(b[keep], b[keep]))
+    stroke_rate = (model.c_displacement[3] @ a)[keep]  # d/dt of the absorber stroke
+    f_row = -k[keep]
+    corr = float(f_row @ cov @ stroke_rate / math.sqrt((f_row @ cov @ f_row)
+                                                       * (stroke_rate @ cov @ stroke_rate)))
+    ideal = {"effort": effort, "least_stable_real_part": growth, "leading_edge_rms_m": rms,
+             "force_rms_n": float(math.sqrt(f_row @ cov @ f_row)),
+             "force_stroke_rate_correlation": corr,
+             "absorbing_share": 0.5 + math.asin(corr) / math.pi}
+    a_f, b_fix = model.matrices(speed, rho, fixed_c2)
+    growth_f, rms_f = _stationary(a_f, b_fix, model.c_displacement[2], FORCE_STD)
+    _, flight_s, skip_s = RMS_POINT
+    n, skip = int(flight_s * SAMPLE_RATE), int(skip_s * SAMPLE_RATE)
+    force = _forces(seeds, n)
+    flown = {}
+    for name, gains in {**laws, "fixed": None}.items():
+        if gains is None:
+            f = fly_switched(model, fixed_law(model, fixed_c2), speed, rho, force,
+                             time_constant=0.0, initial_damping=fixed_c2, keep_states=True)
+        else:
+            f = fly_switched(model, gains.law, speed, rho, force,
+                             time_constant=gains.time_constant,
+                             noise=_noise(seeds, n, noise * sensor_rms), keep_states=True)
+        x = f.states[:, skip:]
+        damper_force, wanted = k2 * x[..., idx], -(x @ k)
+        flown[name] = {
+            "leading_edge_rms_m": float(np.mean(np.sqrt(np.mean(
+                f.leading_edge[:, skip:] ** 2, axis=1)))),
+            "damper_force_rms_n": float(np.sqrt(np.mean(damper_force ** 2))),
+            "desired_force_rms_n": float(np.sqrt(np.mean(wanted ** 2))),
+            "force_correlation": float(np.corrcoef(damper_force.ravel(), wanted.ravel())[0, 1]),
+            "share_at_c_hi": float(np.mean(f.target[:, skip:])) if gains is not None
+            else math.nan,
+            "damper_power_w": float(np.mean(f.damper_power[:, skip:])),
+            "mean_c2": float(np.mean(f.damping[:, skip:])),
+        }
+    reference = flown["fixed"]["leading_edge_rms_m"]
+    for name in laws:
+        flown[name]["share_of_ideal_gain"] = (
+            (reference - flown[name]["leading_edge_rms_m"]) / (reference - rms))
+    return {"airspeed_ratio": ratio, "seeds": len(seeds), "ideal": ideal,
+            "fixed": {"c2": fixed_c2, "least_stable_real_part": growth_f,
+                      "leading_edge_rms_m": rms_f},
+            "flown": flown}

@@ -72,6 +72,8 @@ class SwitchedFlight:
     damping : (N,) [N s/m] c2 flown over each sample (a table level)
     target : (N,) bool, True where the target was c_hi
     damper_power : (N,) [W] power the damper dissipates, F^2 / c2
+    states : (N, n) or None
+        The plant's state at each sample's start (``keep_states``), else None.
     """
 
     leading_edge: np.ndarray
@@ -80,6 +82,7 @@ class SwitchedFlight:
     target: np.ndarray
     damper_power: np.ndarray
     sample_rate: float
+    states: np.ndarray | None = None
 
     @property
     def switches_per_second(self) -> float:
@@ -152,11 +155,17 @@ def _condition_maps(plant, observer_model, law, conditions):
         est[:, :, n + m + 1:] = obs
         fh_model, fh_state = observer_model, est
     fh = np.zeros((kc, 2, n + m + nv))
-    if law.force_gain is None:
-        fh[:, 0] = fh_model.absorber.series_stiffness * fh_state[:, maxwell_index(fh_model)]
+    if law.scheduled:  # the rows at each condition's airspeed
+        gain, force_gain = law.rows_at(conditions[:, 0])
     else:
-        fh[:, 0] = law.force_gain @ fh_state
-    fh[:, 1] = law.gain @ fh_state
+        gain, force_gain = law.gain, law.force_gain
+    if force_gain is None:
+        fh[:, 0] = fh_model.absorber.series_stiffness * fh_state[:, maxwell_index(fh_model)]
+    elif law.scheduled:
+        fh[:, 0] = np.einsum("kj,kjc->kc", force_gain, fh_state)
+    else:
+        fh[:, 0] = force_gain @ fh_state
+    fh[:, 1] = np.einsum("kj,kjc->kc", gain, fh_state) if law.scheduled else gain @ fh_state
     if est is None:
         est = np.zeros((kc, 0, n + nv))
     return est, fh[:, :, n + m:], fh[:, :, :n + m]
@@ -168,7 +177,7 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
                  hold: int = DEFAULT_HOLD, quantum: float = BATCH_QUANTUM,
                  initial_damping: float | None = None,
                  force_limit: float = math.inf, update_every: int = 1,
-                 yield_force: float = 0.0) -> SwitchedFlight:
+                 yield_force: float = 0.0, keep_states: bool = False) -> SwitchedFlight:
     """Fly ``plant`` with the switching law armed (module docstring).
 
     Parameters
@@ -203,6 +212,8 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
         the velocity plus the yield force (:func:`~aero_dva.flight.per_sample.kernel.fly_maps`;
         the lock and the sign are held over each sample). The law and its observer still
         assume the linear damper.
+    keep_states : bool
+        Return the plant's states too (:attr:`SwitchedFlight.states`).
 
     Returns
     -------
@@ -212,8 +223,8 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
     observer_model = plant if observer_model is None else observer_model
     maxwell_index(plant)
     maxwell_index(observer_model)
-    if law.gain.size != observer_model.n_states:
-        raise ValueError(f"gain has {law.gain.size} entries, the observer model "
+    if law.states != observer_model.n_states:
+        raise ValueError(f"gain has {law.states} entries, the observer model "
                          f"{observer_model.n_states} states")
     if law.observer is None and observer_model is not plant:
         raise ValueError("a law without observer sees the plant's state: no observer_model")
@@ -299,10 +310,12 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
     power = spring_force * flowing
     power /= damping
     out = SwitchedFlight(leading_edge=le, stroke=stroke, damping=damping, target=targets,
-                         damper_power=power, sample_rate=1.0 / dt)
+                         damper_power=power, sample_rate=1.0 / dt,
+                         states=states if keep_states else None)
     if single:
         return SwitchedFlight(*(getattr(out, f)[0] for f in (
-            "leading_edge", "stroke", "damping", "target", "damper_power")), 1.0 / dt)
+            "leading_edge", "stroke", "damping", "target", "damper_power")), 1.0 / dt,
+            states=states[0] if keep_states else None)
     return out
 
 
@@ -327,7 +340,7 @@ def _flight_maps(plant, observer_model, law, keys, table, dt, expm):
 
     key = (_models_key(plant), _models_key(observer_model), observer_model is plant,
            raw(law.gain), law.c_lo, law.c_hi, raw(law.observer), raw(law.force_gain),
-           raw(keys), raw(table), dt)
+           raw(law.airspeeds), raw(keys), raw(table), dt)
     kept = _kept.get(key)
     if kept is not None:
         return kept

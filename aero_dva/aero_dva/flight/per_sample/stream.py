@@ -75,8 +75,8 @@ class SwitchedStream:
                  time_constant: float, hold: int = DEFAULT_HOLD,
                  quantum: float = FLIGHT_QUANTUM):
         maxwell_index(model)
-        if law.gain.size != model.n_states:
-            raise ValueError(f"the law's gain has {law.gain.size} entries, the wing "
+        if law.states != model.n_states:
+            raise ValueError(f"the law's gain has {law.states} entries, the wing "
                              f"{model.n_states} states")
         self.model, self.law = model, law
         self.dt = 1.0 / float(sample_rate)

@@ -5,8 +5,11 @@ Every sample, from an estimate ``x`` of the state, the law sets the damper's tar
     c2 = c_hi  when  F(x) h(x) > 0,  else c_lo,      F = k2 delta (the damper force),
 
 with ``h = gain @ x`` linear in the state (:mod:`aero_dva.control.switching_design` designs
-the gain and the observer). :mod:`.flight` flies it over a whole flight, :mod:`.stream` block
-by block in the simulator's damper path, both with the compiled loop of :mod:`.kernel`.
+the gain and the observer). A law may schedule its rows with the airspeed (the clipped-optimal
+law of :mod:`aero_dva.control.clipped_optimal`): rows given at a grid of airspeeds, linear
+between them and held beyond its ends, read at the airspeed each sample is flown at.
+:mod:`.flight` flies it over a whole flight, :mod:`.stream` block by block in the simulator's
+damper path, both with the compiled loop of :mod:`.kernel`.
 Pure numerics.
 """
 from __future__ import annotations
@@ -33,18 +36,22 @@ class SwitchingLaw:
 
     Attributes
     ----------
-    gain : (n,)
-        ``h = gain @ x`` on the observer model's state.
+    gain : (n,) or (G, n)
+        ``h = gain @ x`` on the observer model's state; (G, n): one row per airspeed of
+        ``airspeeds``.
     c_lo, c_hi : float
         [N s/m] the two targets, ``0 < c_lo < c_hi``.
     observer : (n, 4) or None
         Filter gain on :data:`MEASURED_OUTPUTS` (``x = x_pred + observer (y - C x_pred)``);
         None: the law sees the plant's true state (the plant and observer models must then be
         the same).
-    force_gain : (n,) or None
+    force_gain : (n,) or (G, n) or None
         ``F = force_gain @ x``; None: the damper force k2 delta. A design that leads the
         damper's lag evaluates F and h on the state predicted ahead (both rows times the
         model's transition matrix over the lead).
+    airspeeds : (G,) or None
+        [m/s] increasing airspeeds of a scheduled law's rows (G >= 2); None: one row for
+        every airspeed.
     """
 
     gain: np.ndarray
@@ -52,11 +59,23 @@ class SwitchingLaw:
     c_hi: float
     observer: np.ndarray | None = None
     force_gain: np.ndarray | None = None
+    airspeeds: np.ndarray | None = None
 
     def __post_init__(self):
         gain = np.asarray(self.gain, dtype=float)
-        if gain.ndim != 1 or not np.all(np.isfinite(gain)):
-            raise ValueError("gain must be a finite vector")
+        if self.airspeeds is not None:
+            speeds = np.asarray(self.airspeeds, dtype=float)
+            if speeds.ndim != 1 or speeds.size < 2 or not np.all(np.isfinite(speeds)) or \
+                    not np.all(np.diff(speeds) > 0):
+                raise ValueError("airspeeds must be at least 2 increasing finite values")
+            if gain.shape[:1] != speeds.shape or gain.ndim != 2:
+                raise ValueError(f"a scheduled gain must have one row per airspeed "
+                                 f"({speeds.size}), got shape {gain.shape}")
+            object.__setattr__(self, "airspeeds", speeds)
+        elif gain.ndim != 1:
+            raise ValueError("gain must be a vector (a matrix needs airspeeds)")
+        if not np.all(np.isfinite(gain)):
+            raise ValueError("gain must be finite")
         lo, hi = float(self.c_lo), float(self.c_hi)
         if not (math.isfinite(hi) and 0.0 < lo < hi):
             raise ValueError(f"need 0 < c_lo < c_hi (finite), got ({lo}, {hi}) N s/m")
@@ -65,15 +84,43 @@ class SwitchingLaw:
         object.__setattr__(self, "c_hi", hi)
         if self.observer is not None:
             obs = np.asarray(self.observer, dtype=float)
-            if obs.shape != (gain.size, len(MEASURED_OUTPUTS)) or not np.all(np.isfinite(obs)):
-                raise ValueError(f"observer must be a finite ({gain.size}, "
+            if obs.shape != (self.states, len(MEASURED_OUTPUTS)) or not np.all(np.isfinite(obs)):
+                raise ValueError(f"observer must be a finite ({self.states}, "
                                  f"{len(MEASURED_OUTPUTS)}) matrix")
             object.__setattr__(self, "observer", obs)
         if self.force_gain is not None:
             fg = np.asarray(self.force_gain, dtype=float)
             if fg.shape != gain.shape or not np.all(np.isfinite(fg)):
-                raise ValueError(f"force_gain must be a finite vector of {gain.size} entries")
+                raise ValueError(f"force_gain must be finite with the gain's shape {gain.shape}")
             object.__setattr__(self, "force_gain", fg)
+
+    @property
+    def states(self) -> int:
+        """States of the observer model the rows act on."""
+        return int(self.gain.shape[-1])
+
+    @property
+    def scheduled(self) -> bool:
+        return self.airspeeds is not None
+
+    def rows_at(self, airspeed) -> tuple[np.ndarray, np.ndarray | None]:
+        """``(gain, force_gain)`` at each of ``airspeed`` (K,) [m/s], each (K, n) (force_gain
+        None when the law has none): a scheduled law's rows linear between its airspeeds and
+        held beyond them, else its one row."""
+        u = np.atleast_1d(np.asarray(airspeed, dtype=float))
+        if not self.scheduled:
+            rows = np.broadcast_to(self.gain, (u.size, self.states))
+            force = None if self.force_gain is None else np.broadcast_to(
+                self.force_gain, (u.size, self.states))
+            return rows, force
+        grid = self.airspeeds
+        j = np.clip(np.searchsorted(grid, u, side="right") - 1, 0, grid.size - 2)
+        w = np.clip((u - grid[j]) / (grid[j + 1] - grid[j]), 0.0, 1.0)[:, None]
+
+        def blend(m):
+            return None if m is None else (1.0 - w) * m[j] + w * m[j + 1]
+
+        return blend(self.gain), blend(self.force_gain)
 
 
 def maxwell_index(model: AeroelasticModel) -> int:

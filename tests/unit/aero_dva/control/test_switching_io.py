@@ -91,3 +91,57 @@ def test_gains_for_another_wing_or_other_states_are_refused_by_one_rule(tmp_path
     ours = save_gains(dataclasses.replace(gains, wing_fingerprint=wing_fingerprint(
         load_wing(None))), tmp_path / "ours.json")
     assert gains_problem(ours) is None
+
+
+@pytest.fixture(scope="module")
+def scheduled():
+    from aero_dva.control.clipped_optimal import scheduled_law
+
+    cfg = load_wing(None)
+    model = AeroelasticModel(cfg.wing, cfg.absorber, cfg.aero)
+    law = scheduled_law(model, [80.0, 100.0, 120.0], 1.2, 100.0, 2500.0, effort=30.0,
+                        lead=0.01, observer=np.full((7, 4), 0.25))
+    return SwitchingGains(law=law, design="clipped_optimal", wing_fingerprint="abc",
+                          design_airspeed=115.0, density=1.2, time_constant=0.01,
+                          sample_rate=1000.0, effort=30.0, state_names=model.state_names,
+                          lead=0.01)
+
+
+def test_a_scheduled_law_round_trips(tmp_path, scheduled):
+    back = load_gains(save_gains(scheduled, tmp_path / "s.json"))
+    assert back.design == "clipped_optimal" and back.law.scheduled
+    assert np.array_equal(back.law.airspeeds, [80.0, 100.0, 120.0])
+    assert np.array_equal(back.law.gain, scheduled.law.gain)
+    assert np.array_equal(back.law.force_gain, scheduled.law.force_gain)
+
+
+@pytest.mark.parametrize("change, message", [
+    ({"airspeeds": None}, "'airspeeds' is required with design 'clipped_optimal'"),
+    ({"design": "clipped"}, "'airspeeds' is required with design 'clipped_optimal' and "
+                            "only with it"),
+    ({"airspeeds": [80.0, 100.0]}, "in each of 2 rows, one per airspeed"),
+    ({"airspeeds": [80.0, 120.0, 100.0]}, "increasing"),
+    ({"force_gain": [[0.0] * 7] * 2}, "force_gain"),
+])
+def test_bad_schedules_are_refused_naming_the_field(tmp_path, scheduled, change, message):
+    data = gains_to_dict(scheduled)
+    data.update(change)
+    if data["airspeeds"] is None:
+        del data["airspeeds"]
+    path = tmp_path / "bad.json"
+    path.write_text(json.dumps(data))
+    with pytest.raises(SwitchingGainsError, match=message):
+        load_gains(path)
+
+
+def test_the_package_files_are_for_the_package_wing():
+    """The shipped gains of both per-sample laws load and are the default wing's: the
+    switching law's at one airspeed, the clipped-optimal law's scheduled with it."""
+    from aero_dva.data_files import data_file
+
+    for name, design, scheduled in (("switching_gains.json", "lyapunov", False),
+                                    ("clipped_optimal_gains.json", "clipped_optimal", True)):
+        path = data_file(name)
+        assert gains_problem(path) is None
+        g = load_gains(path)
+        assert (g.design, g.law.scheduled, g.time_constant) == (design, scheduled, 0.01)

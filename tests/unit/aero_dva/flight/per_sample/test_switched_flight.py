@@ -37,7 +37,10 @@ def reference_flight(model, law, speed, rho, force, noise, tau, dt=1e-3, observe
                      yield_force=0.0):
     """The law written out sample by sample with scipy's expm: continuous lag, c2 rounded to
     the table in log c2, filtered estimate from the measurements, decision acting one sample
-    later."""
+    later. ``speed`` per sample (an array) is held every 10 samples at the period's first
+    (a ramp steep enough to pass the hold's quantum every period), and a scheduled law's rows
+    are read there."""
+    speeds = np.broadcast_to(np.asarray(speed, dtype=float), (len(force),))
     n = model.n_states
     obs_model = model if observer_model is None else observer_model
     table = c2_levels(law.c_lo, law.c_hi, tau)
@@ -47,6 +50,8 @@ def reference_flight(model, law, speed, rho, force, noise, tau, dt=1e-3, observe
     c, target_hi, decision = law.c_hi, True, True
     les, damping = [], []
     for i, f in enumerate(force):
+        speed = speeds[i - i % 10]
+        gain, force_gain = law.rows_at(speed)
         target_hi = decision if i else True
         target = law.c_hi if target_hi else law.c_lo
         if tau > 0:
@@ -61,7 +66,8 @@ def reference_flight(model, law, speed, rho, force, noise, tau, dt=1e-3, observe
         y = cm @ x + dm * f + noise[i]
         cm_obs = measurement_matrices(obs_model, speed, rho, level)[0]
         est = x if law.observer is None else pred + law.observer @ (y - cm_obs @ pred)
-        decision = (k2 * est[idx]) * (law.gain @ est) > 0
+        damper_force = k2 * est[idx] if force_gain is None else force_gain[0] @ est
+        decision = damper_force * (gain[0] @ est) > 0
         # A Bingham damper: locked (c2 = inf) at most at the yield force, else the linear
         # damper plus the yield force's offset on the deflection rate
         spring = k2 * x[idx]
@@ -112,6 +118,34 @@ def test_matches_a_plain_sample_by_sample_loop(wing, tau, with_observer, mismatc
     np.testing.assert_allclose(flight.leading_edge, le, rtol=1e-7,
                                atol=1e-9 * np.max(np.abs(le)))
     assert 0 < np.count_nonzero(np.diff(flight.target)) < 399  # it did switch
+
+
+def test_a_law_scheduled_with_the_airspeed_reads_its_rows_at_the_held_airspeed(wing):
+    """The clipped-optimal law's rows, read between its airspeeds at each held airspeed of a
+    ramp, with its lead (a force row of its own), observer and lag: as the plain loop."""
+    from aero_dva.control.clipped_optimal import scheduled_law
+
+    cfg, model = wing
+    rho = cfg.air_density
+    scale = measured_rms(model, U_CR, rho, 624.7, 1000.0, 1000.0)
+    observer = kalman_filter_gain(model, 115.0, rho, 500.0, 1000.0, 1000.0, 0.05 * scale)
+    law = scheduled_law(model, [90.0, 110.0, 130.0, 150.0], rho, C_LO, C_HI, effort=30.0,
+                        lead=0.01, observer=observer)
+    rng = np.random.default_rng(4)
+    force = rng.normal(0, 1000.0, 400)
+    noise = rng.normal(0, 1.0, (400, 4)) * 0.05 * scale
+    speed = np.linspace(100.0, 140.0, 400, endpoint=False)  # 1 m/s per hold period
+    flight = fly_switched(model, law, speed, rho, force, time_constant=0.01, noise=noise)
+    le, damping = reference_flight(model, law, speed, rho, force, noise, 0.01)
+    np.testing.assert_allclose(flight.damping, damping, rtol=1e-12)
+    np.testing.assert_allclose(flight.leading_edge, le, rtol=1e-7,
+                               atol=1e-9 * np.max(np.abs(le)))
+    assert 0 < np.count_nonzero(np.diff(flight.target)) < 399
+    # the rows do change along the ramp: read at one airspeed, the law decides otherwise
+    gain, force_gain = law.rows_at(105.0)
+    fixed_rows = SwitchingLaw(gain[0], C_LO, C_HI, observer, force_gain[0])
+    other = fly_switched(model, fixed_rows, speed, rho, force, time_constant=0.01, noise=noise)
+    assert np.any(other.target != flight.target)
 
 
 def test_a_law_that_never_switches_is_the_held_c2_flight(wing):
