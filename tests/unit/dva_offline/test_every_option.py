@@ -232,6 +232,8 @@ TABLE: dict[str, dict] = {
         "--gains", "--wing", "--seeds", "--lags", "--noises", "--mismatches", "--force-limits",
         "--yield-forces", "--blocks", "--no-wagner", "--noise", "--cases", "--json", "--aero")},
     "switching plot": {o: ALL for o in ("--gains", "--out", "--wing", "--seed", "--aero")},
+    "switching mechanism": {o: ALL for o in (
+        "--gains", "--effort", "--airspeed", "--seeds", "--wing", "--json")},
 }
 
 #: Values for the options whose type a plain number or word does not satisfy.
