@@ -200,7 +200,9 @@ def _report(args, result, domain, grouping, extra: dict, quantity: str) -> int:
     if args.json:
         print(json.dumps(payload))
     else:
-        print(f"read {domain.omega.size} points: {grouping.describe()}")
+        ignored = extra.get("input", {}).get("ignored_text_columns")
+        print(f"read {domain.omega.size} points: {grouping.describe()}"
+              + (f"; ignored text column(s) {', '.join(ignored)}" if ignored else ""))
         print(f"noise: {result.noise.sigma:.4f} from {result.noise.method}"
               + "".join(f"; {n}" for n in extra.get("noise_estimates", {}).get("notes", [])))
         print("\n".join(_summary_lines(result) + _shift_lines(extra.get("shift_factors"))))

@@ -1,10 +1,13 @@
 """Reading an instrument's frequency-response export as it is: column names, units, sweeps.
 
 A CSV (comma, semicolon or tab separated; a UTF-8 byte-order mark is ignored) with one header
-row, optionally a units row right below it (any non-numeric row, e.g. ``Hz, MPa, MPa, C, -``)
-and one row per measured point. :class:`ColumnMap` says which columns hold the frequency and
-the real and imaginary parts (default ``frequency_hz``, ``real``, ``imag``) and renames
-covariate columns (``temperature_c=T``); every other numeric column is kept as a covariate.
+row, optionally a units row right below it (a row without any number, e.g. ``Hz, MPa, MPa, C,
+-``) and one row per measured point. A column with text in it (a file name, a sample label) is
+ignored unless selected: as a set column to group by it works, as a covariate or a value it
+is refused naming its first cell that is no number. :class:`ColumnMap` says which columns
+hold the frequency and the real and imaginary parts (default ``frequency_hz``, ``real``,
+``imag``) and renames covariate columns (``temperature_c=T``); every other numeric column is
+kept as a covariate.
 
 Units: the frequency and the values are converted to SI (Hz; Pa, N/m, m/N, (m/s)/N or
 (m/s^2)/N) by a factor from :data:`VALUE_UNITS` / :data:`FREQUENCY_UNITS`, taken from the
@@ -91,11 +94,21 @@ class ColumnMap:
 
 @dataclass(frozen=True)
 class Table:
-    """A CSV read as numbers: columns by name, the units row (if any)."""
+    """A CSV read as numbers: columns by name, the units row (if any); columns that hold a
+    cell that is not a number are kept as text (``text``: name -> cells; ``not_numbers``:
+    name -> the first such cell's message), used only when selected (a set column to group
+    by) and otherwise ignored."""
 
     columns: dict
     units: dict
     n_rows: int
+    text: dict = field(default_factory=dict)
+    not_numbers: dict = field(default_factory=dict)
+
+    def require_numeric(self, name: str) -> None:
+        """Refuse a selected column that is text, naming its first cell that is no number."""
+        if name in self.not_numbers:
+            raise ValueError(self.not_numbers[name])
 
 
 def _sniff_delimiter(line: str) -> str:
@@ -147,17 +160,37 @@ def _read_rows(path: Path) -> Table:
         raise ValueError(f"{path}: duplicate column names in header {header}")
     units: dict = {}
     values = array("d")  # flat, row after row: 8 bytes a value
+    text: dict = {}  # column index -> its cells as text, once one is not a number
+    not_numbers: dict = {}
     rows = 0
     for i, row in enumerate(csv.reader(lines, delimiter=delim)):
-        if i == 0 and not all(_is_number(c) for c in row if c.strip()):
+        if i == 0 and not any(_is_number(c) for c in row if c.strip()):  # (a text column
+            # makes a data row non-numeric too: a units row has no number at all)
             units = {name: cell.strip() for name, cell in zip(header, row)}
             continue
-        append_numeric_row(values, row, header, path, i + 2, rows, MAX_FRF_POINTS)
+        try:
+            append_numeric_row(values, row, header, path, i + 2, rows, MAX_FRF_POINTS)
+        except ValueError:
+            if len(row) != len(header) or rows == MAX_FRF_POINTS:
+                raise
+            # a text column (a file name, a sample label): kept as text, NaN among the
+            # numbers; an error only if the analysis selects it
+            del values[rows * len(header):]
+            for j, (name, cell) in enumerate(zip(header, row)):
+                if j not in text and not _is_number(cell):
+                    text[j] = [str(x) for x in values[j::len(header)]]
+                    not_numbers[name] = (f"{path}: line {i + 2}, column {name!r}: "
+                                         f"{cell[:40]!r} is not a number")
+                values.append(float(cell) if _is_number(cell) else np.nan)
+        for j, cells in text.items():
+            cells.append(row[j].strip())
         rows += 1
     if not rows:
         raise ValueError(f"{path}: no data rows")
     data = np.frombuffer(values, dtype=float).reshape(rows, len(header))
-    return Table({name: data[:, j].copy() for j, name in enumerate(header)}, units, rows)
+    numeric = {name: data[:, j].copy() for j, name in enumerate(header) if j not in text}
+    return Table(numeric, units, rows, {header[j]: cells for j, cells in text.items()},
+                 not_numbers)
 
 
 def _factor(unit: str, table: dict, what: str) -> float:
@@ -277,6 +310,8 @@ def conditions_from_table(table: Table, quantity: str, column_map: ColumnMap | N
     """
     cmap = column_map or ColumnMap()
     cols = table.columns
+    for col in cmap.roles.values():  # a selected column must be numbers
+        table.require_numeric(col)
     missing = [c for c in cmap.roles.values() if c not in cols]
     if missing:
         raise ValueError(f"missing column(s) {missing}; found {list(cols)} (map them with "
@@ -319,17 +354,25 @@ def conditions_from_table(table: Table, quantity: str, column_map: ColumnMap | N
     used = set(cmap.roles.values())
     renamed = {col: name for name, col in cmap.renames.items()}
     for name, col in cmap.renames.items():
+        table.require_numeric(col)
         if col not in cols:
             raise ValueError(f"--columns {name}={col}: no column {col!r}; found {list(cols)}")
     cov = {renamed.get(n, n): c for n, c in cols.items() if n not in used}
     if covariates is not None:
         for name in covariates:
+            table.require_numeric(cmap.renames.get(name, name))
             if name not in cov:
                 raise ValueError(f"covariate {name!r} not found; have {sorted(cov)}")
     group_key = renamed.get(group_by, group_by) if group_by is not None else None
     if group_by is not None and group_by in cmap.renames:
         group_key = group_by
-    labels, grouping = group_rows(cov, table.n_rows, group_key, tolerance,
+    group_cov = cov
+    if group_by is not None and group_by in table.text:  # sweeps named by text labels
+        names = {}  # label -> code, in order of first appearance
+        codes = np.array([names.setdefault(x, len(names)) for x in table.text[group_by]],
+                         float)
+        group_cov, group_key = {**cov, group_by: codes}, group_by
+    labels, grouping = group_rows(group_cov, table.n_rows, group_key, tolerance,
                                   None if covariates is None or group_by is not None
                                   else list(covariates))
     stored = internal_quantity or ("stiffness" if quantity == "modulus" else quantity)
@@ -337,7 +380,8 @@ def conditions_from_table(table: Table, quantity: str, column_map: ColumnMap | N
     for label in range(grouping.n_conditions):
         rows = np.nonzero(labels == label)[0]
         rows = rows[np.argsort(f[rows], kind="stable")]
-        where = ", ".join(f"{n} = {np.mean(cov[n][rows]):g}" for n in grouping.columns) or "all"
+        where = ", ".join(f"{n} = {np.mean(group_cov[n][rows]):g}"
+                          for n in grouping.columns) or "all"
         if rows.size < MIN_POINTS:
             dropped.append((f"condition {where}", int(rows.size)))
             continue
@@ -355,7 +399,8 @@ def conditions_from_table(table: Table, quantity: str, column_map: ColumnMap | N
                          "--covariate-tolerance TOL")
     grouping = Grouping(grouping.method, grouping.columns, len(conditions), tuple(dropped))
     info = {"units": units_used, "columns": dict(cmap.roles), "renamed": dict(cmap.renames),
-            "units_row": dict(table.units)}
+            "units_row": dict(table.units),
+            "ignored_text_columns": sorted(n for n in table.text if n != group_by)}
     return conditions, grouping, info
 
 

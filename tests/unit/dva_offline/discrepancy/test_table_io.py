@@ -88,3 +88,49 @@ def test_semicolons_rad_per_s_and_n_per_mm_flags(tmp_path):
     np.testing.assert_allclose(conds[0].frequency_hz, np.geomspace(1, 100, 12))
     assert conds[0].values[0] == pytest.approx(2000.0 + 500.0j)
     assert info["units"]["frequency"] == "rad/s (flag)"
+
+
+def text_column_export(tmp_path):
+    """Two sweeps of a modulus with a text column naming each raw file."""
+    rows = ["f,E1,E2,T,raw_file,set"]
+    for k, (temp, name) in enumerate(((20.0, "run_a.txt"), (40.0, "run b.txt"))):
+        rows += [f"{x},{1e6 * (1 + 0.1 * k) * x ** 0.1},{2e5},{temp + 0.01 * i},{name},{k}"
+                 for i, x in enumerate(np.geomspace(0.1, 100, 12))]
+    path = tmp_path / "export.csv"
+    path.write_text("\n".join(rows) + "\n")
+    return path
+
+
+def test_a_text_column_nobody_selects_is_ignored(tmp_path):
+    path = text_column_export(tmp_path)
+    table = table_io.read_table(path)
+    assert "raw_file" not in table.columns and table.text["raw_file"][0] == "run_a.txt"
+    cmap = table_io.ColumnMap.parse("f=f,real=E1,imag=E2,temperature_c=T")
+    conds, grouping, info = table_io.conditions_from_table(table, "modulus", cmap,
+                                                           group_by="set")
+    assert grouping.n_conditions == 2 and info["ignored_text_columns"] == ["raw_file"]
+    assert set(conds[0].covariates) == {"temperature_c", "set"}
+    # grouped by the text column itself: the same two sweeps
+    by_name, grouping, info = table_io.conditions_from_table(table, "modulus", cmap,
+                                                             group_by="raw_file")
+    assert grouping.n_conditions == 2 and info["ignored_text_columns"] == []
+    np.testing.assert_array_equal(by_name[1].values, conds[1].values)
+    # selected as a covariate or a role, it is refused with its first text cell
+    with pytest.raises(ValueError, match=r"line 2, column 'raw_file': 'run_a.txt' is not a"):
+        table_io.conditions_from_table(table, "modulus", cmap, covariates=["raw_file"])
+    with pytest.raises(ValueError, match="column 'raw_file'"):
+        table_io.conditions_from_table(table, "modulus", table_io.ColumnMap.parse(
+            "f=f,real=raw_file,imag=E2"))
+
+
+def test_cli_reads_past_a_text_column(tmp_path, capsys):
+    path = text_column_export(tmp_path)
+    code = cli.main(["discrepancy", "frf", str(path), "--quantity", "modulus", "--columns",
+                     "f=f,real=E1,imag=E2,temperature_c=T", "--group-by", "set",
+                     "--max-steps", "1", "--json"])
+    assert code == 0
+    import json
+
+    out = json.loads(capsys.readouterr().out)
+    assert out["input"]["ignored_text_columns"] == ["raw_file"]
+    assert out["grouping"]["n_conditions"] == 2
