@@ -269,7 +269,7 @@ class FrfLibrary:
                 if only is None:
                     out.append(NotApplicable("amplitude_dependence",
                                              f"covariate {name!r} is a temperature", name))
-            elif wanted("amplitude_dependence", name) and np.all(col > 0):
+            elif wanted("amplitude_dependence", f"{name}, logarithmic") and np.all(col > 0):
                 log_level = np.log(col / ref)
                 bound = 0.95 / float(np.max(np.abs(log_level)))
 
@@ -277,8 +277,9 @@ class FrfLibrary:
                     "amplitude_dependence",
                     (ParamSpec("s_k", "-", 0.0, -bound, bound, scale=0.05),
                      ParamSpec("s_d", "-", 0.0, -bound, bound, scale=0.05)),
-                    Term("amplitude_dependence", name, "level", 2, "level",
-                         {"log_level": log_level}), label=name, more_bases=ref_bases,
+                    Term("amplitude_dependence", f"{name}, logarithmic", "level", 2, "level",
+                         {"log_level": log_level}), label=f"{name}, logarithmic",
+                    more_bases=ref_bases,
                     starts=[np.array([a * bound, b * bound]) for a in np.linspace(-0.8, 0.8, 5)
                             for b in np.linspace(-0.8, 0.8, 5)]))
             elif wanted("amplitude_dependence", name):
@@ -291,7 +292,7 @@ class FrfLibrary:
                     out.append(NotApplicable(
                         "covariate_shift", f"covariate {name!r} is an excitation level (a "
                         "shift with it is amplitude_dependence)", name))
-            elif wanted("covariate_shift", name):
+            elif wanted("covariate_shift", f"{name}, WLF"):
                 dt = col - ref
                 c2_min = float(max(-dt.min(), 0.0)) + 1.0
 
@@ -309,8 +310,8 @@ class FrfLibrary:
                                         "linear in the covariate (log a_T = -b (T - T0)); the "
                                         "data do not show WLF curvature (see the Arrhenius "
                                         "form for a temperature)")),
-                    Term("covariate_shift", name, "shift", 2, "wlf", {"dt": dt}),
-                    label=name, more_bases=ref_bases,
+                    Term("covariate_shift", f"{name}, WLF", "shift", 2, "wlf", {"dt": dt}),
+                    label=f"{name}, WLF", more_bases=ref_bases,
                     starts=[np.array([b, c2]) for b in np.linspace(-0.1, 0.1, 21)
                             for c2 in (c2_0, 3 * c2_0)]))
             kelvin = absolute_temperature(name, col)

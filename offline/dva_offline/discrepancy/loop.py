@@ -23,7 +23,7 @@ Scores and decision (all thresholds in :class:`DecisionRule`):
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Protocol
 
 import numpy as np
@@ -608,7 +608,8 @@ def run(domain: Domain, rule: DecisionRule | None = None, split: HoldoutSplit | 
     base = fit_model(base_spec, obs, split)
     measured = noise
     features = _features(obs, base, None if measured is None else measured.sigma)
-    noise = measured or features.noise
+    noise = measured or replace(features.noise, method=f"{features.noise.method}, of the "
+                                                       f"residual of {base.name}")
     # (a domain whose groups are no test conditions of a covariate says so)
     reference = None
     if getattr(domain, "per_condition_reference", True):
@@ -622,9 +623,15 @@ def run(domain: Domain, rule: DecisionRule | None = None, split: HoldoutSplit | 
     verdict = decide(base, noise, features, scores, rule, reference)
     steps, final = (), None
     if hasattr(domain, "augment"):
-        steps, final = _iterate(domain, obs, split, base, features, noise, scores, specs, rule,
-                                progress, n_variants, reference if used else None,
-                                measured is not None)
+        steps, final, last = _iterate(domain, obs, split, base, features, noise, scores, specs,
+                                      rule, progress, n_variants, reference if used else None,
+                                      measured is not None)
+        if last is not noise:  # one floor per report: the lowest estimate, for every ratio
+            noise = last
+            features = _features(obs, base, noise.sigma)
+            scores, steps = _rescored(base, scores, steps, noise.sigma,
+                                      reference if used else None)
+            verdict = decide(base, noise, features, scores, rule, reference)
         verdict = _loop_verdict(verdict, steps, final, rule.joint_ratio,
                                 reference if used else None)
     augmented = aug_features = None
@@ -678,11 +685,32 @@ def _iterate(domain, obs, split, base, features, noise, scores, specs, rule, pro
         # (a noise measured by replicates or coherence stays as it is)
         fresh = _features(obs, base).noise
         if fresh.sigma < noise.sigma and not measured:
-            noise = fresh
+            noise = replace(fresh, method=f"{fresh.method}, of the residual of {base.name} "
+                                          "(the lowest estimate of the models fitted)")
         features = _features(obs, base, noise.sigma)
     final = LoopOutcome(status, reason, base.name, base.error, noise.sigma,
                         tuple((s.effect, s.label) for s in steps), base)
-    return steps, final
+    return steps, final, noise
+
+
+def _rescored(base, scores, steps, sigma, reference):
+    """The first step's candidates and every step scored again against one noise floor
+    ``sigma`` (the fits do not depend on it, only the shares of the excess do)."""
+    out = []
+    for c in scores:
+        if c.applicable and c.fit is not None:
+            _, _, frac = score_candidate(base, c.fit, sigma)
+            c = replace(c, explained_fraction=frac,
+                        achieved_fraction=achieved_fraction(base, c.fit, sigma, reference))
+        out.append(c)
+    again, before = [], base
+    for st in steps:
+        _, _, frac = score_candidate(before, st.fit, sigma)
+        again.append(replace(st, noise_before=sigma, explained_fraction=frac,
+                             achieved_fraction=achieved_fraction(before, st.fit, sigma,
+                                                                 reference)))
+        before = st.fit
+    return out, tuple(again)
 
 
 def _loop_verdict(first: Verdict, steps, final, joint_ratio: float,

@@ -28,8 +28,8 @@ loop's later steps build on the model with the effects found so far):
 effect                model                                                            params
 ====================  ===============================================================  ======
 amplitude_dependence  mode r: f_r (1 + s_f L), z_r (1 + s_z L), L = ln(a / a_0)          2
-covariate_shift       every f_r x 10^(-b (c - c_0)) (stiffness changing with the         1
-                      covariate, e.g. temperature)
+covariate_shift       every f_r x 10^(-b (c - c_0)) (form "exponential"; stiffness        1
+                      changing with the covariate, e.g. temperature)
 sensor_delay          H exp(-j w tau)                                                    1
 complex_modes         A_r + j (w / w_r) B_r, U + j U'', L + j L'' (the baseline's      N + 2
                       constants were real; the phase shows once other effects are in)
@@ -586,15 +586,17 @@ class ModalDomain:
                                          name))
             if is_level(name) and np.all(col > 0):
                 out += self._level_laws(name, col, ref, values, stack_params, present)
-            elif ("covariate_shift", name) not in present:
+            elif ("covariate_shift", f"{name}, exponential") not in present:
                 dc = col - ref
                 span = float(np.max(np.abs(dc))) or 1.0
                 out.append(self._spec(
                     values, stack_params,
-                    ModalTerm("covariate_shift", name, "shift", 1, data={"dc": dc}),
+                    ModalTerm("covariate_shift", f"{name}, exponential", "shift", 1,
+                              data={"dc": dc}),
                     (ParamSpec("b", f"1/({name})", 0.0, -0.5 / span, 0.5 / span,
                                scale=0.01 / span),),
-                    [np.array([s / span]) for s in (-0.03, -0.01, 0.01, 0.03)], name))
+                    [np.array([s / span]) for s in (-0.03, -0.01, 0.01, 0.03)],
+                    f"{name}, exponential"))
         for effect in ("maxwell_element", "fixture_mass", "foundation_mode"):
             out.append(NotApplicable(effect, "an isolator effect; the modal baseline of a "
                                              "structure has no mount"))

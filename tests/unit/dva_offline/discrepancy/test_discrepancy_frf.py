@@ -166,13 +166,13 @@ def test_two_covariates_the_one_that_matters_is_named():
     dom = domain_for(case)
     assert len(dom.conditions) == 9
     res = loop.run(dom)
-    # the WLF data: the WLF form (label temperature_c) or its Arrhenius limit
+    # the WLF data: the WLF form (label temperature_c, WLF) or its Arrhenius limit
     assert (res.verdict.status, res.verdict.effect) == ("explained", "covariate_shift")
     assert res.verdict.label.partition(", ")[0] == "temperature_c"
     assert res.augmented.error <= 0.5 * res.baseline.error
     assert res.augmented.error < 1.5 * case.sigma
     tried = {(c.effect, c.label) for c in res.candidates if c.applicable}
-    assert {("amplitude_dependence", "excitation_n"),
+    assert {("amplitude_dependence", "excitation_n, logarithmic"),
             ("covariate_shift", "temperature_c, Arrhenius")} <= tried
     # a shift with an excitation level is named by its kind: amplitude dependence
     level_shift = next(c for c in res.candidates if c.effect == "covariate_shift"
