@@ -96,7 +96,35 @@ def _check_averages(args, coherence) -> None:
                        f"{Path(args.file).name} has not (map one with --columns coherence=COL)")
 
 
-def _measured_noise(args, domain, coherence):
+def _replicates(args, conditions, columns):
+    """Replicate sets of the sweeps (:func:`.noise_sources.sweep_replicates`: by the measured
+    scatter of the covariates, or the user's ``--replicates COLUMN``), how they were found,
+    and the covariates to analyse: none when every sweep is a replicate of one condition (their
+    covariates differ only by their scatter), never the replicate column itself."""
+    from dva_offline.discrepancy.noise_sources import sweep_replicates
+
+    declared, how = None, "covariate means within their measured scatter in a sweep"
+    col = args.replicates
+    if col is not None:
+        if any(col not in c.covariates for c in conditions):
+            have = sorted(conditions[0].covariates) if conditions else []
+            raise ValueError(f"--replicates column {col!r} not found; have {have}")
+        if any(np.ptp(c.covariates[col]) > 0 for c in conditions):
+            raise ValueError(f"--replicates column {col!r} changes within a sweep; it must "
+                             "name each sweep's nominal condition")
+        declared = [float(c.covariates[col][0]) for c in conditions]
+        how = f"declared by --replicates {col}"
+    names = [n for n in (columns or []) if n != col]  # the set column is no covariate
+    sets = sweep_replicates([{n: c.covariates[n] for n in names} for c in conditions],
+                            [c.frequency_hz for c in conditions], declared=declared)
+    if columns is not None and col is not None:
+        columns = [n for n in columns if n != col]
+    if len(conditions) > 1 and sets and len(sets[0]) == len(conditions):
+        columns = []  # one condition measured again: no covariate to analyse
+    return sets, how, columns
+
+
+def _measured_noise(args, domain, coherence, sets=(), how=""):
     """The noise the file measures itself (replicate sweeps, else coherence with --averages)
     and what was found, for the report (:mod:`.noise_sources`)."""
     from dva_offline.discrepancy.noise_sources import coherence_noise, replicate_noise
@@ -104,13 +132,18 @@ def _measured_noise(args, domain, coherence):
     if args.averages is not None and args.averages < 1:
         raise ValueError(f"--averages must be an integer >= 1, got {args.averages}")
     notes = []
-    rep = replicate_noise(domain.observations)
+    rep = replicate_noise(domain.observations, sets=list(sets), how=how) if sets else None
+    if args.replicates is not None and rep is None:  # an option that would do nothing
+        raise CliError(f"--replicates {args.replicates}: no two sweeps with one value of it "
+                       "share 5 frequency lines; nothing to measure the noise from")
     coh = None
     if coherence is not None:
         coh, note = coherence_noise(coherence, args.averages)
         notes += [note] if note else []
     used = rep or coh
     return used, {"replicates": None if rep is None else rep.sigma,
+                  "replicate_sets": [list(map(int, st)) for st in sets],
+                  "replicates_found_by": how if sets else None,
                   "coherence": None if coh is None else coh.sigma, "notes": notes}
 
 
@@ -152,10 +185,11 @@ def _cmd_frf(args) -> int:
     conditions, columns, grouping, info = _conditions(args)
     conditions, columns, coherence = _take_coherence(conditions, columns)
     _check_averages(args, coherence)
+    sets, how, columns = _replicates(args, conditions, columns)
     domain = FrfDomain(conditions, mass=args.mass, static_stiffness=args.static_stiffness,
                        elements=elements, max_elements=max_elements, covariates=columns,
                        modulus=args.quantity == "modulus")
-    noise, noise_info = _measured_noise(args, domain, coherence)
+    noise, noise_info = _measured_noise(args, domain, coherence, sets, how)
     result = _run_loop(args, domain, noise)
     sel = domain.order_selection
     extra = {
@@ -192,6 +226,8 @@ def _report(args, result, domain, grouping, extra: dict, quantity: str) -> int:
     ``quantity`` in --plot-dir."""
     from dva_offline.discrepancy.report import plot_result, result_to_dict
 
+    if "noise_estimates" in extra:  # the data's own estimate beside a measured one
+        extra["noise_estimates"]["second_differences"] = result.residual.noise.sigma
     payload = result_to_dict(result, extra)
     if args.plot_dir:
         paths = plot_result(result, domain.observations, args.plot_dir, quantity,
@@ -203,8 +239,12 @@ def _report(args, result, domain, grouping, extra: dict, quantity: str) -> int:
         ignored = extra.get("input", {}).get("ignored_text_columns")
         print(f"read {domain.omega.size} points: {grouping.describe()}"
               + (f"; ignored text column(s) {', '.join(ignored)}" if ignored else ""))
-        print(f"noise: {result.noise.sigma:.4f} from {result.noise.method}"
-              + "".join(f"; {n}" for n in extra.get("noise_estimates", {}).get("notes", [])))
+        est = extra.get("noise_estimates", {})
+        other = ("" if result.noise.method.startswith("1.4826") else
+                 f"; second differences of the baseline's residual give "
+                 f"{result.residual.noise.sigma:.4f}, not used")
+        print(f"noise: {result.noise.sigma:.4f} from {result.noise.method}{other}"
+              + "".join(f"; {n}" for n in est.get("notes", [])))
         print("\n".join(_summary_lines(result) + _shift_lines(extra.get("shift_factors"))))
     return EXIT_OK
 
@@ -250,9 +290,10 @@ def _cmd_modal(args) -> int:
         columns = [n for n in conditions[0].covariates if n not in skip]
     conditions, columns, coherence = _take_coherence(conditions, columns)
     _check_averages(args, coherence)
+    sets, how, columns = _replicates(args, conditions, columns)
     domain = ModalDomain(conditions, modes=modes, max_modes=max_modes, covariates=columns,
                          quantity=args.quantity, constants=args.modal_constants)
-    noise, noise_info = _measured_noise(args, domain, coherence)
+    noise, noise_info = _measured_noise(args, domain, coherence, sets, how)
     result = _run_loop(args, domain, noise)
     extra = {
         "file": str(args.file), "quantity": args.quantity, "model_quantity": "receptance",
@@ -506,6 +547,10 @@ def _add_loop_arguments(p) -> None:
                    help="hold out a seeded random 1/N of the points instead")
     p.add_argument("--max-steps", type=int, default=12,
                    help="most effects the loop adds one after another (default 12)")
+    p.add_argument("--replicates", default=None, metavar="COL",
+                   help="sweeps with one value of this column are replicates of one condition "
+                        "(their scatter is the noise; default: sweeps whose covariates differ "
+                        "by no more than their scatter within a sweep)")
     p.add_argument("--averages", type=int, default=None, metavar="N",
                    help="number of averages of the analyzer's H1 estimate: with a coherence "
                         "column (--columns coherence=COL) the noise is measured from it")

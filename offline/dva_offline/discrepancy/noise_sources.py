@@ -5,10 +5,13 @@ smoothness of one sweep; it is a robust (median-like) level, blind to noise that
 anti-resonances. When the file holds more, the noise is measured directly, as an RMS over the
 points like the held-out error it is compared with:
 
-* **replicates**: sweeps of one condition (the same level of every covariate, within 1 % of
-  that covariate's spread over the file) on the same frequency lines. At each line the
-  relative scatter ``|y_ij - mean_j|^2 / |mean_j|^2`` summed over the m replicates and divided
-  by m - 1 estimates the variance of one sweep's relative noise there. Sweeps at different
+* **replicates**: sweeps of one nominal condition: every covariate's sweep means differ by
+  no more than that covariate's measured scatter within a sweep (its range there: the drift
+  of a temperature or strain the instrument shows while it holds the condition) or 1 % of
+  its spread over the file, or the user says which (``--replicates COLUMN``: sweeps with one
+  value of COLUMN). On the frequency lines they share (at least 5), the relative scatter
+  ``|y_ij - mean_j|^2 / |mean_j|^2`` summed over the m replicates and divided by m - 1
+  estimates the variance of one sweep's relative noise at each line. Sweeps at different
   levels are never pooled: their difference is the effect the loop looks for.
 * **coherence** gamma^2 of an H1 estimate from n_avg averages: the normalised random error of
   |H| and of its phase (rad) are both sqrt(1 - gamma^2) / (|gamma| sqrt(2 n_avg)) (Bendat &
@@ -21,59 +24,99 @@ import numpy as np
 
 from dva_offline.discrepancy.residual import NoiseFloor
 
-__all__ = ["coherence_noise", "replicate_noise", "replicate_sets"]
+__all__ = ["MIN_COMMON_LINES", "coherence_noise", "common_lines", "replicate_noise",
+           "replicate_sets", "sweep_replicates"]
+
+MIN_COMMON_LINES = 5  # lines replicates must share for their scatter to count
 
 
-def replicate_sets(obs, tolerance: float = 0.01) -> list[list[int]]:
-    """Groups of conditions (labels) that are replicates of one another: the same covariate
-    levels (condition means within ``tolerance`` of each covariate's spread) and the same
-    frequency lines. Only sets of two or more."""
-    labels = list(np.unique(obs.groups))
-    means = {}
-    for name, col in obs.covariates.items():
-        col = np.asarray(col, float)
-        means[name] = {g: float(col[obs.groups == g].mean()) for g in labels}
+def sweep_replicates(covariates: list[dict], frequencies: list, tolerance: float = 0.01,
+                     declared=None) -> list[list[int]]:
+    """Groups of sweeps (indices) that are replicates of one condition; only sets of two or
+    more, sharing at least :data:`MIN_COMMON_LINES` frequency lines.
+
+    ``covariates``: per sweep, name -> values per point (as measured); ``frequencies``: per
+    sweep, its lines. Two sweeps are replicates when every covariate's sweep means differ by
+    no more than the larger of (a) the covariate's measured scatter within a sweep (the
+    larger of the two sweeps' ranges: a drift the instrument shows while it holds the
+    condition) and (b) ``tolerance`` x its spread over the file. ``declared``: per sweep, the
+    value of the user's replicate column (``--replicates COLUMN``): sweeps sharing a value are
+    replicates, whatever their covariates."""
+    n = len(covariates)
+    names = sorted(set.intersection(*(set(c) for c in covariates))) if n else []
+    means = {k: [float(np.mean(c[k])) for c in covariates] for k in names}
+    ranges = {k: [float(np.ptp(c[k])) for c in covariates] for k in names}
 
     def same(a, b):
-        for per in means.values():
-            spread = max(per.values()) - min(per.values())
-            if abs(per[a] - per[b]) > tolerance * spread:
+        if declared is not None:
+            return declared[a] == declared[b]
+        for k in names:
+            allowed = max(ranges[k][a], ranges[k][b],
+                          tolerance * (max(means[k]) - min(means[k])))
+            if abs(means[k][a] - means[k][b]) > allowed:
                 return False
-        fa, fb = obs.axis[obs.groups == a], obs.axis[obs.groups == b]
-        return fa.size == fb.size and bool(np.allclose(fa, fb, rtol=1e-9, atol=0.0))
+        return True
 
     sets: list[list[int]] = []
-    for g in labels:
-        for s in sets:
-            if same(s[0], g):
-                s.append(g)
+    for g in range(n):
+        for st in sets:
+            if same(st[0], g):
+                st.append(g)
                 break
         else:
             sets.append([g])
-    return [s for s in sets if len(s) >= 2]
+    return [st for st in sets if len(st) >= 2
+            and len(common_lines([frequencies[g] for g in st])) >= MIN_COMMON_LINES]
 
 
-def replicate_noise(obs, tolerance: float = 0.01) -> NoiseFloor | None:
-    """RMS relative noise of one sweep from the scatter of replicate sweeps (module
-    docstring); None when the file has no replicates."""
-    sets = replicate_sets(obs, tolerance)
+def common_lines(frequencies: list) -> np.ndarray:
+    """The frequency lines every sweep has (relative tolerance 1e-6)."""
+    lines = np.asarray(frequencies[0], float)
+    for f in frequencies[1:]:
+        f = np.asarray(f, float)
+        lines = lines[[bool(np.any(np.isclose(f, x, rtol=1e-6, atol=0.0))) for x in lines]]
+    return lines
+
+
+def replicate_sets(obs, tolerance: float = 0.01, declared=None) -> list[list[int]]:
+    """:func:`sweep_replicates` of the conditions (group labels) of ``obs``."""
+    labels = list(np.unique(obs.groups))
+    covs = [{k: np.asarray(c, float)[obs.groups == g] for k, c in obs.covariates.items()}
+            for g in labels]
+    freqs = [obs.axis[obs.groups == g] for g in labels]
+    return [[labels[i] for i in st] for st in sweep_replicates(covs, freqs, tolerance, declared)]
+
+
+def replicate_noise(obs, tolerance: float = 0.01, sets=None,
+                    how: str = "") -> NoiseFloor | None:
+    """RMS relative noise of one sweep from the scatter of replicate sweeps on the lines they
+    share (module docstring); None when the file has no replicates. ``sets``: the replicate
+    sets (condition labels), default :func:`replicate_sets`; ``how``: how they were found."""
+    sets = replicate_sets(obs, tolerance) if sets is None else sets
     if not sets:
         return None
     var_re, var_im, dof = [], [], 0
-    for s in sets:
-        y = np.array([obs.values[obs.groups == g] for g in s])  # (m, lines)
+    for st in sets:
+        lines = common_lines([obs.axis[obs.groups == g] for g in st])
+        y = []
+        for g in st:
+            f, v = obs.axis[obs.groups == g], obs.values[obs.groups == g]
+            y.append([v[np.flatnonzero(np.isclose(f, x, rtol=1e-6, atol=0.0))[0]]
+                      for x in lines])
+        y = np.array(y)  # (m, lines)
         mean = y.mean(axis=0)
         rel = (y - mean) / np.abs(mean)
-        m = len(s)
+        m = len(st)
         var_re.append(np.sum(rel.real**2, axis=0) / (m - 1))
         var_im.append(np.sum(rel.imag**2, axis=0) / (m - 1))
         dof += (m - 1) * y.shape[1]
     s_re = float(np.sqrt(np.mean(np.concatenate(var_re))))
     s_im = float(np.sqrt(np.mean(np.concatenate(var_im))))
-    n_sweeps = sum(len(s) for s in sets)
+    n_sweeps = sum(len(st) for st in sets)
     return NoiseFloor(float(np.hypot(s_re, s_im)), s_re, s_im, int(dof),
                       f"replicates: scatter of {n_sweeps} sweeps in {len(sets)} set(s) of one "
-                      "condition each, RMS over the lines")
+                      "condition each, RMS over the lines they share"
+                      + (f" ({how})" if how else ""))
 
 
 def coherence_noise(coherence, averages: int | None) -> tuple[NoiseFloor | None, str]:

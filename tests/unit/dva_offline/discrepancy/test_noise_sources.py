@@ -100,3 +100,76 @@ def test_cli_coherence_column_with_and_without_averages(tmp_path, capsys):
     assert any("averages" in n for n in out["noise_estimates"]["notes"])
     assert cli.main([*args, "--averages", "0"]) == 2
     assert "--averages" in capsys.readouterr().err
+
+
+def test_sweeps_whose_covariates_differ_by_their_scatter_are_replicates():
+    """Two sweeps at one nominal temperature and strain: the measured values drift within
+    each sweep (range 0.02 K, 0.01 %) and their means differ by less than that."""
+    from dva_offline.discrepancy.noise_sources import sweep_replicates
+
+    rng = np.random.default_rng(1)
+    f0 = np.geomspace(0.01, 1.0, 12)
+    f = [f0, np.r_[f0, 1.5, 4.6, 21.5]]
+
+    def sweep(t, strain, n):
+        return {"temperature_c": t + 0.01 * rng.uniform(-1, 1, n),
+                "strain": strain + 0.005 * rng.uniform(-1, 1, n)}
+
+    covs = [sweep(30.0, 2.0, 12), sweep(30.004, 2.003, 15)]
+    assert sweep_replicates(covs, f) == [[0, 1]]
+    # 1 K apart: another condition (the old rule, 1 % of the file's spread, said the same
+    # sweeps were never replicates: the spread was the difference itself)
+    covs[1]["temperature_c"] = covs[1]["temperature_c"] + 1.0
+    assert sweep_replicates(covs, f) == []
+    # the user says it outright
+    assert sweep_replicates(covs, f, declared=[30.0, 30.0]) == [[0, 1]]
+    # sweeps that share fewer than 5 lines give no scatter
+    assert sweep_replicates(covs, [f[0][:6], f[0][3:]], declared=[30.0, 30.0]) == []
+
+
+def test_replicate_noise_on_the_lines_the_sweeps_share():
+    rng = np.random.default_rng(2)
+    f1, f2 = np.linspace(10.0, 60.0, 51), np.linspace(30.0, 100.0, 71)
+    h = (lambda f: 1.0 / (1 - (f / 50.0) ** 2 + 0.05j * f / 50.0))
+    y = [h(f) * (1 + 0.01 / np.sqrt(2) * (rng.standard_normal(f.size)
+                                          + 1j * rng.standard_normal(f.size))) for f in (f1, f2)]
+    obs = Observations(np.concatenate(y), 1 / np.abs(np.concatenate(y)), np.r_[f1, f2],
+                       np.repeat([0, 1], [f1.size, f2.size]),
+                       {"temperature_c": np.repeat([20.0, 20.0], [f1.size, f2.size])})
+    est = replicate_noise(obs)
+    assert est.sigma == pytest.approx(0.01, rel=0.3) and "share" in est.method
+    assert est.n_differences == 31  # the 31 lines of 30-60 Hz
+
+
+def test_cli_repeated_sweeps_with_drifting_covariates(tmp_path, capsys):
+    """Three sweeps of one condition whose measured force drifts within each sweep: they are
+    replicates, their scatter is the noise, the report gives the second-difference estimate
+    beside it, and no covariate is analysed (one condition)."""
+    rng = np.random.default_rng(8)
+    rows = _one_mode_rows(rng, 0.01, [(1, 5.0), (2, 5.0), (3, 5.0)])
+    for r in rows:
+        r[3] += 0.02 * rng.uniform(-1, 1) + 0.005 * r[4]  # drift 0.04 N, means 0.015 N apart
+    path = tmp_path / "rep.csv"
+    _write(path, rows, "frequency_hz,real,imag,force_n,sweep")
+    assert cli.main(["discrepancy", "modal", str(path), "--quantity", "receptance",
+                     "--group-by", "sweep", "--max-steps", "1", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    est = out["noise_estimates"]
+    assert out["noise_floor"]["method"].startswith("replicates")
+    assert est["replicate_sets"] == [[0, 1, 2]] and "scatter" in est["replicates_found_by"]
+    assert est["replicates"] == pytest.approx(0.01, rel=0.25)
+    assert est["second_differences"] > 0
+    assert out["verdict"]["status"] in ("consistent", "no_covariate_effect")
+    assert not any(c["applicable"] for c in out["candidates"]
+                   if c["effect"] in ("amplitude_dependence", "covariate_shift"))
+    # the same sweeps declared by a column of their nominal force
+    rows = [r + [5.0] for r in rows]
+    _write(path, rows, "frequency_hz,real,imag,force_n,sweep,nominal_n")
+    assert cli.main(["discrepancy", "modal", str(path), "--quantity", "receptance",
+                     "--group-by", "sweep", "--replicates", "nominal_n", "--max-steps", "1",
+                     "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["noise_estimates"]["replicates_found_by"] == "declared by --replicates nominal_n"
+    assert cli.main(["discrepancy", "modal", str(path), "--quantity", "receptance",
+                     "--group-by", "sweep", "--replicates", "nope"]) == 2
+    assert "--replicates column 'nope' not found" in capsys.readouterr().err
