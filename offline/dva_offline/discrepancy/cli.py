@@ -253,9 +253,12 @@ def _shift_lines(shifts) -> list[str]:
     """The final model's shift factors per condition (to hold against a master curve's)."""
     if not shifts:
         return []
-    head = (f"shift factors of the final model (log10 a_T, {shifts['form']}, "
-            f"{shifts['covariate']} reference {shifts['reference_level']:.4g}):")
+    vertical = shifts.get("vertical")
+    head = (f"shift factors of the final model (log10 a_T{', b_T' if vertical else ''}, "
+            f"{shifts['form']}, {shifts['covariate']} reference "
+            f"{shifts['reference_level']:.4g}):")
     return [head] + [f"  {r['level']:10.4g}: {r['log10_aT']:8.3f}"
+                     + (f"  {r['b_T']:7.4f}" if vertical else "")
                      for r in shifts["per_condition"]]
 
 

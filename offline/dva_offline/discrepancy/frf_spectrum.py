@@ -58,12 +58,26 @@ class ProfiledSpec(ModelSpec):
 
 @dataclass(frozen=True)
 class ShiftForm:
-    """One shift law: parameters and log10 a_T at every point."""
+    """One shift law: parameters, log10 a_T at every point and, with a vertical factor,
+    log10 b_T at every point (``vertical`` its form's name, ``n_shift`` the parameters of the
+    horizontal law, the vertical ones after them)."""
 
     form: str
     params: tuple[ParamSpec, ...]
     log_shift: Callable[[np.ndarray], np.ndarray]
     starts: tuple[np.ndarray, ...]
+    vertical: str = ""
+    log_vertical: Callable[[np.ndarray], np.ndarray] | None = None
+    n_shift: int = -1
+
+    def label(self) -> str:
+        return self.form + (f" + vertical {self.vertical}" if self.vertical else "")
+
+    def factors(self, v) -> tuple[np.ndarray, np.ndarray | None]:
+        """log10 a_T and log10 b_T (None without a vertical factor) at every point."""
+        if self.log_vertical is None:
+            return self.log_shift(v), None
+        return self.log_shift(v[:self.n_shift]), self.log_vertical(v[self.n_shift:])
 
 
 class SpectrumLibrary:
@@ -151,29 +165,77 @@ class SpectrumLibrary:
             lambda v: free_shift_values(groups, self.reference, v), (pair_g[others],)))
         return forms
 
+    def _vertical_forms(self, name: str, form: ShiftForm) -> list[ShiftForm]:
+        """``form`` with the vertical factor of time-temperature superposition, b_T, in its
+        two forms: the physical one, b_T = T rho(T) / (T_ref rho_ref) with rho(T) / rho_ref =
+        1 - alpha (T - T_ref) (alpha the volumetric thermal expansion, 0-2e-3 /K), and free,
+        one log10 b_T per condition (the reference condition's at 0). A temperature only."""
+        obs = self.observations
+        col, groups = obs.covariates[name], obs.groups
+        kelvin = absolute_temperature(name, col)
+        if kelvin is None:
+            return []
+        t_ref = float(kelvin[groups == self.reference].mean())
+        ratio, dt = kelvin / t_ref, kelvin - t_ref
+        n = len(form.params)
+        labels = np.unique(groups)
+        others = labels != self.reference
+
+        def density(v):
+            return np.log10(ratio * (1.0 - v[0] * dt))
+
+        alpha = ParamSpec("alpha", "1/K", 6e-4, 0.0, 2e-3, scale=1e-4,
+                          at_lower="no thermal expansion: b_T = T / T_ref",
+                          at_upper="a thermal expansion above 2e-3 /K (no polymer melt has it)")
+        free = tuple(ParamSpec(f"log_bT_{g}", "-", 0.0, -0.5, 0.5, scale=0.01,
+                               at_lower="a vertical factor below 1/3",
+                               at_upper="a vertical factor above 3") for g in labels[others])
+        starts = tuple(np.r_[s, 0.0 * np.ones(len(free))] for s in form.starts)
+        return [
+            replace(form, params=form.params + (alpha,), vertical="T rho",
+                    log_vertical=density, n_shift=n,
+                    starts=tuple(np.r_[s, a] for s in form.starts for a in (0.0, 6e-4))),
+            replace(form, params=form.params + free, vertical="per condition",
+                    log_vertical=lambda v: free_shift_values(groups, self.reference, v),
+                    n_shift=n, starts=starts)]
+
     def _spectrum_library(self, base_n_params: int) -> list:
         """The Prony candidates of this step, or a NotApplicable saying why there are none."""
         why = self._spectrum_ready()
         if why:
             return [NotApplicable("maxwell_element", f"Prony spectrum: {why}", "Prony spectrum")]
-        done = self._spectrum["per_decade"] if getattr(self, "_spectrum", None) else 0.0
+        now = getattr(self, "_spectrum", None)
+        done = now["per_decade"] if now else 0.0
         denser = [d for d in DENSITIES if d > done]
-        if not denser:
-            return [NotApplicable("maxwell_element", "Prony spectrum: already at "
-                                  f"{done:g} time constants per decade", "Prony spectrum")]
-        per_decade = denser[0]
         name, current = self._current_log_shift()
+        vertical = now.get("vertical", "") if now else ""
         out = []
-        for form in self._shift_forms(name, current):
-            label = f"{name}, Prony spectrum {per_decade:g}/decade + {form.form}"
-            head = f"prony({per_decade:g}/decade)"
-            spec_name = f"{head} + covariate_shift({name}, {form.form})"
-            spec = ProfiledSpec(spec_name, "maxwell_element", form.params, len(form.params),
-                                lambda v: v, signature=SIGNATURES["maxwell_element"],
-                                label=label)
-            out.append(replace(spec, profiled_fit=self._make_fitter(
-                spec, form, per_decade, name, current, base_n_params)))
+        if not denser:
+            out.append(NotApplicable("maxwell_element", "Prony spectrum: already at "
+                                     f"{done:g} time constants per decade", "Prony spectrum"))
+        for per_decade in denser[:1]:
+            for form in self._shift_forms(name, current):
+                if vertical:  # the vertical factor found before stays, in its form
+                    form = next(f for f in self._vertical_forms(name, form)
+                                if f.vertical == vertical)
+                out.append(self._prony_candidate("maxwell_element", name, form, per_decade,
+                                                 current, base_n_params))
+        if now and not vertical:
+            # time-temperature superposition's vertical factor on the spectrum as it is,
+            # beside its horizontal shift (both refitted): a form of the covariate shift
+            form = next(f for f in self._shift_forms(name, current) if f.form == now["form"])
+            out += [self._prony_candidate("covariate_shift", name, v, done, current,
+                                          base_n_params)
+                    for v in self._vertical_forms(name, form)]
         return out
+
+    def _prony_candidate(self, effect, name, form, per_decade, current, base_n_params):
+        label = f"{name}, Prony spectrum {per_decade:g}/decade + {form.label()}"
+        spec_name = f"prony({per_decade:g}/decade) + covariate_shift({name}, {form.label()})"
+        spec = ProfiledSpec(spec_name, effect, form.params, len(form.params),
+                            lambda v: v, signature=SIGNATURES[effect], label=label)
+        return replace(spec, profiled_fit=self._make_fitter(
+            spec, form, per_decade, name, current, base_n_params))
 
     def _make_fitter(self, spec, form, per_decade, name, current, base_n_params):
         def fitter(obs, split):
@@ -193,7 +255,10 @@ class SpectrumLibrary:
             taus = relaxation_times(np.log10(f * 10.0**shift), per_decade)
 
             def predict(v, taus=taus):
-                cols = prony_columns(w * 10.0 ** form.log_shift(v), taus)
+                log_a, log_b = form.factors(v)
+                cols = prony_columns(w * 10.0**log_a, taus)
+                if log_b is not None:  # the modulus scaled by b_T at every point
+                    cols = cols * 10.0**log_b[:, None]
                 return cols @ nonnegative_moduli(cols, y, wt, train)
 
             inner = ModelSpec(spec.name, "maxwell_element", params, len(params), predict,
@@ -201,10 +266,12 @@ class SpectrumLibrary:
                               batch_predict=lambda vs, p=predict: np.array([p(v) for v in vs]))
             fit = fit_model(inner, obs, split, n_screen=4)
             values = np.array([e.value for e in fit.estimates])
-            shift = form.log_shift(values)
+            shift, vertical = form.factors(values)
             params = tuple(replace(p, initial=float(np.clip(v, p.lower, p.upper)))
                            for p, v in zip(params, values))
         cols = prony_columns(w * 10.0**shift, taus)
+        if vertical is not None:
+            cols = cols * 10.0**vertical[:, None]
         moduli = nonnegative_moduli(cols, y, wt, train)
         unit_k = self.units["k"]
         active = np.nonzero(moduli[1:] > 0)[0]
@@ -215,7 +282,7 @@ class SpectrumLibrary:
         count = int(np.clip(len(estimates) - base_n_params, 1, len(estimates)))
         self._spectrum_fits[spec.name] = dict(
             per_decade=per_decade, covariate=name, form=form.form, log_shift=shift,
-            taus=taus, moduli=moduli)
+            taus=taus, moduli=moduli, vertical=form.vertical, log_vertical=vertical)
         return replace(fit, name=spec.name, label=spec.label, estimates=tuple(estimates),
                        n_added=len(form.params), count_added=count)
 
@@ -230,8 +297,12 @@ class SpectrumLibrary:
         """log10 a_T of ``fit`` per condition (the mean over its points), with the covariate's
         level of each condition; None when the model has no shift."""
         done = self._spectrum_fits.get(fit.name) if hasattr(self, "_spectrum_fits") else None
+        vertical = None
         if done is not None:
             name, shift, form = done["covariate"], done["log_shift"], done["form"]
+            if done.get("vertical"):
+                vertical = done["log_vertical"]
+                form = f"{form} + vertical {done['vertical']}"
         else:
             shifts = [t for t in self._stack if t.stage == "shift"]
             if not shifts:
@@ -247,11 +318,13 @@ class SpectrumLibrary:
         obs = self.observations
         col = obs.covariates[name]
         rows = [{"condition": int(g), "level": float(col[obs.groups == g].mean()),
-                 "log10_aT": float(shift[obs.groups == g].mean())}
+                 "log10_aT": float(shift[obs.groups == g].mean()),
+                 "b_T": 1.0 if vertical is None else float(
+                     10.0 ** vertical[obs.groups == g].mean())}
                 for g in np.unique(obs.groups)]
         return {"covariate": name, "form": form,
                 "reference_level": float(col[obs.groups == self.reference].mean()),
-                "per_condition": rows}
+                "vertical": vertical is not None, "per_condition": rows}
 
 
 def _closest(law, target, starts, bounds) -> np.ndarray:

@@ -130,7 +130,10 @@ def test_sweeps_whose_covariates_differ_by_their_scatter_are_replicates():
 def test_replicate_noise_on_the_lines_the_sweeps_share():
     rng = np.random.default_rng(2)
     f1, f2 = np.linspace(10.0, 60.0, 51), np.linspace(30.0, 100.0, 71)
-    h = (lambda f: 1.0 / (1 - (f / 50.0) ** 2 + 0.05j * f / 50.0))
+
+    def h(f):
+        return 1.0 / (1 - (f / 50.0) ** 2 + 0.05j * f / 50.0)
+
     y = [h(f) * (1 + 0.01 / np.sqrt(2) * (rng.standard_normal(f.size)
                                           + 1j * rng.standard_normal(f.size))) for f in (f1, f2)]
     obs = Observations(np.concatenate(y), 1 / np.abs(np.concatenate(y)), np.r_[f1, f2],
