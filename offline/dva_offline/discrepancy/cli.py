@@ -55,7 +55,8 @@ def _conditions(args):
     if path.suffix.lower() in (".uff", ".unv"):
         not_with(args, "reads a CSV table; a UFF 58 file carries its own columns and units "
                        "and no covariates", "--covariates", "--group-by",
-                 "--covariate-tolerance", "--columns", "--frequency-unit", "--value-unit")
+                 "--covariate-tolerance", "--columns", "--frequency-unit", "--value-unit",
+                 "--replicates")
         data = isolator_files.read_uff58(path, quantity)
         grouping = table_io.Grouping("a single sweep (UFF 58)", (), 1, ())
         return [data], columns, grouping, {}
