@@ -129,6 +129,9 @@ TABLE: dict[str, dict] = {
         "--max-elements": ("with --elements auto", [(["f.csv", "--elements", "2"],
                                                       "largest order of --elements auto")]),
         "--averages": ("with a coherence column", [(["{csv}"], "a coherence column")]),
+        "--replicates": ("with a CSV table that has the column", [
+            (["f.uff"], "a UFF 58 file carries its own"),
+            (["{csv}"], "--replicates column 'x' not found")]),
     },
     "discrepancy modal": {
         "file": ALL, "--quantity": ALL, "--columns": ALL, "--frequency-unit": ALL,
@@ -139,6 +142,8 @@ TABLE: dict[str, dict] = {
         "--max-modes": ("with --modes auto", [(["f.csv", "--modes", "2"],
                                                 "largest order of --modes auto")]),
         "--averages": ("with a coherence column", [(["{csv}"], "a coherence column")]),
+        "--replicates": ("with a table that has the column", [
+            (["{csv}"], "--replicates column 'x' not found")]),
     },
     "discrepancy synth-structure": {o: ALL for o in (
         "--effect", "--seed", "--out", "--quantity", "--sigma", "--jitter", "--json")},
