@@ -51,12 +51,18 @@ CLOSED_PIPE_EXIT = 141
 
 def input_limits() -> str:
     """The limits every command reads its files within, and the exit codes (for --help)."""
+    from aero_dva.bag.chunk_limits import MAX_CHUNK_BYTES
+    from aero_dva.flight.flight_limits import MAX_FLIGHT_SAMPLES, SAMPLE_RATE_RANGE
     from aero_dva.safe_files import LIMITS
     from dva_offline.isolator.files import MAX_FRF_POINTS, MAX_ROWS
 
     return (f"Limits: {LIMITS}; CSV tables at most {MAX_ROWS:,} rows, FRF tables at most "
-            f"{MAX_FRF_POINTS:,} points; .npz arrays no larger than the file. Exit codes: 0 "
-            f"done, 2 bad input, {INTERNAL_ERROR_EXIT} internal error, 130 interrupted, "
+            f"{MAX_FRF_POINTS:,} points; .npz arrays no larger than the file; bag chunks at "
+            f"most {MAX_CHUNK_BYTES // 2**20} MiB decompressed, each file of a bag listed "
+            f"once; flights, scenarios and training plans at most {MAX_FLIGHT_SAMPLES:,} "
+            f"samples (duration x sample rate, {SAMPLE_RATE_RANGE[0]:g}.."
+            f"{SAMPLE_RATE_RANGE[1]:g} Hz; docs/reliability.md). Exit codes: 0 done, 2 bad "
+            f"input, {INTERNAL_ERROR_EXIT} internal error, 130 interrupted, "
             f"{CLOSED_PIPE_EXIT} stdout closed by its reader (as `| head`).")
 
 

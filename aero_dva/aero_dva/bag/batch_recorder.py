@@ -46,6 +46,7 @@ from aero_dva.bag.batch_cdr import (
     structured_dtype,
 )
 from aero_dva.bag.chunk_framing import COMPRESSIONS, MESSAGE_RECORD, ChunkedMcapFile
+from aero_dva.bag.chunk_limits import MAX_CHUNK_BYTES
 from aero_dva.bag.schemas import message_fields, typestore_of
 from aero_dva.bag.writer import BagSummary, qos_profile_yaml
 from aero_dva.wing.model import ACCELERATION_NAMES, DISPLACEMENT_NAMES
@@ -231,8 +232,11 @@ class BatchRecorder:
             raise ValueError(f"sample_rate must be a finite rate > 0 Hz, got {sample_rate!r}")
         if compression not in COMPRESSIONS:
             raise ValueError(f"compression must be one of {COMPRESSIONS}, got {compression!r}")
-        if isinstance(chunk_size, bool) or not isinstance(chunk_size, int) or chunk_size < 1:
-            raise ValueError(f"chunk_size must be a positive integer, got {chunk_size!r}")
+        if isinstance(chunk_size, bool) or not isinstance(chunk_size, int) or \
+                not 1 <= chunk_size <= MAX_CHUNK_BYTES // 2:
+            raise ValueError(f"chunk_size must be an integer in [1, {MAX_CHUNK_BYTES // 2}] "
+                             f"bytes (readers read chunks of at most {MAX_CHUNK_BYTES}), got "
+                             f"{chunk_size!r}")
         if isinstance(first_block, bool) or not isinstance(first_block, (int, np.integer)) \
                 or first_block < 0:
             raise ValueError(f"first_block must be an integer >= 0, got {first_block!r}")

@@ -14,6 +14,8 @@ of their own), the data section CRC when the writer stored one, and the summary 
 footer's summary CRC. Each unreadable stretch is a :class:`DamagedRange` with, when the message
 index records in it still read, the topics, messages and log-time span it held. A file cut
 short keeps, as before, the whole message records at the start of the chunk it ends inside.
+Chunks are decompressed within the readers' limits (:mod:`aero_dva.bag.chunk_limits`): one
+larger than the ceiling is a damaged range, named as such.
 """
 from __future__ import annotations
 
@@ -33,7 +35,14 @@ from mcap.records import Channel, ChunkIndex, Header, Message, Metadata, Schema,
 from mcap.records import Chunk as ChunkRecord
 from mcap.stream_reader import breakup_chunk
 
-from aero_dva.bag.mcap_scan import MCAP_MAGIC, ScannedMessage, _decompress_prefix
+from aero_dva.bag.chunk_limits import (
+    MAX_CHUNK_BYTES,
+    ChunkLimitError,
+    MergeBudget,
+    decompress_chunk,
+    decompress_prefix,
+)
+from aero_dva.bag.mcap_scan import MCAP_MAGIC, ScannedMessage
 
 __all__ = ["DamagedRange", "FileSurvey", "GoodChunk", "survey_file"]
 
@@ -134,16 +143,20 @@ class FileSurvey:
         decompressed only when the merge reaches its first log time."""
         order = sorted(range(len(self.chunks)), key=lambda i: (self.chunks[i].start_ns, i))
         heap: list = []
+        budget = MergeBudget(f"MCAP file {str(self.path)!r}")
         with open(self.path, "rb") as stream:
             k = 0
             while k < len(order) or heap:
                 while k < len(order) and (not heap or
                                           self.chunks[order[k]].start_ns <= heap[0][0]):
                     i = order[k]
-                    for j, message in enumerate(_chunk_messages(stream, self.chunks[i])):
+                    messages = _chunk_messages(stream, self.chunks[i])
+                    budget.hold(messages)
+                    for j, message in enumerate(messages):
                         heapq.heappush(heap, (message.log_time, i, j, message))
                     k += 1
                 *_, message = heapq.heappop(heap)
+                budget.release(message)
                 item = self._item(message)
                 if item is not None:
                     yield item
@@ -198,25 +211,22 @@ def _check_chunk(data, pos: int, limit: int):
                 if limit - body < declared else "a chunk record runs past the data section")
     if crc == 0:
         return "a chunk record without CRC (cannot be checked)"
+    if records_length > MAX_CHUNK_BYTES + 2**16:
+        return (f"a chunk record of {records_length:,} bytes, more than the "
+                f"{MAX_CHUNK_BYTES:,} a chunk may hold (the readers' ceiling)")
     try:
-        raw = _decompress(compression, bytes(data[at:at + records_length]))
+        raw = decompress_chunk(compression, bytes(data[at:at + records_length]))
         records = breakup_chunk(ChunkRecord(compression="", data=raw, message_start_time=start_ns,
                                             message_end_time=end_ns, uncompressed_crc=crc,
                                             uncompressed_size=len(raw)), validate_crc=True)
+    except ChunkLimitError as exc:
+        return str(exc)
     except Exception as exc:  # noqa: BLE001 - decompression and CRC errors of assorted types
         return f"chunk fails its CRC or does not decompress ({type(exc).__name__})"
     fields = {"log-time start": start_ns, "log-time end": end_ns,
               "uncompressed size": _CHUNK_FIXED.unpack_from(data, body)[2],
               "record length": _HEAD.unpack_from(data, pos)[1], "body": at + records_length - body}
     return at + records_length, records, raw, fields
-
-
-def _decompress(compression: str, data: bytes) -> bytes:
-    if compression == "zstd":
-        import zstandard
-
-        return zstandard.ZstdDecompressor().decompressobj().decompress(data)
-    return _decompress_prefix(compression, data)
 
 
 def _message_index(raw: bytes) -> dict[int, list[tuple[int, int]]]:
@@ -631,7 +641,8 @@ def _loose_records(data, pos: int, limit: int) -> list:
     compression = bytes(data[at - 8 - name_length:at - 8]).decode("ascii", "replace")
     length = struct.unpack_from("<Q", data, at - 8)[0]
     try:
-        raw = _decompress_prefix(compression, bytes(data[at:min(at + length, limit)]))
+        raw = decompress_prefix(compression,
+                                bytes(data[at:min(at + length, limit, at + MAX_CHUNK_BYTES)]))
     except Exception:  # noqa: BLE001 - nothing readable
         return []
     out, i = [], 0
@@ -651,7 +662,7 @@ def _loose_records(data, pos: int, limit: int) -> list:
 def _salvage(w: _Walker, pos: int) -> None:
     """The whole message records at the start of the chunk the file ends inside."""
     data, out = w.data, w.out
-    partial = bytes(data[pos + _HEAD.size:])
+    partial = bytes(data[pos + _HEAD.size:pos + _HEAD.size + MAX_CHUNK_BYTES + 2**16])
     if len(partial) < _CHUNK_FIXED.size:
         return
     *_, name_length = _CHUNK_FIXED.unpack_from(partial)
@@ -661,7 +672,7 @@ def _salvage(w: _Walker, pos: int) -> None:
     compression = partial[_CHUNK_FIXED.size:_CHUNK_FIXED.size + name_length].decode(
         "utf-8", "replace")
     try:
-        raw = _decompress_prefix(compression, partial[start:])
+        raw = decompress_prefix(compression, partial[start:])
     except Exception:  # noqa: BLE001 - an undecodable prefix holds nothing to keep
         return
     at = 0

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 from mcap.reader import SeekingReader
 
+from aero_dva.bag.chunk_limits import MAX_CHUNK_BYTES, ChunkLimitError, decompress_chunk
 from aero_dva.bag.reader import BagReadError
 from aero_dva.bag.schemas import normalize_type_name
 
@@ -62,7 +63,7 @@ def indexed_messages(file: Path, topics: Iterable[str]) -> Iterator[MessageMatri
     """Messages of ``topics`` in the MCAP ``file``, or None if it has no usable index."""
     with open(file, "rb") as stream:
         try:
-            summary = SeekingReader(stream).get_summary()
+            summary = SeekingReader(stream, record_size_limit=MAX_CHUNK_BYTES).get_summary()
         except Exception:  # noqa: BLE001 - an unclosed or damaged file: no index to use
             return None
     if summary is None or not summary.chunk_indexes:
@@ -91,6 +92,10 @@ def _iterate(file: Path, chunk_indexes, meta) -> Iterator[MessageMatrix]:
                 continue
             records = _chunk_records(stream, index, file)
             first = min(index.message_index_offsets.values())
+            if index.message_index_length > MAX_CHUNK_BYTES:
+                raise IndexedReadError(f"{file}: a chunk's message index declares "
+                                       f"{index.message_index_length:,} bytes, more than "
+                                       f"the {MAX_CHUNK_BYTES:,} the readers read")
             stream.seek(first)
             indexes = np.frombuffer(stream.read(index.message_index_length), dtype=np.uint8)
             for cid in present:
@@ -125,6 +130,10 @@ def _cut(records, offsets, index, cid, meta, file) -> Iterator[MessageMatrix]:
 def _chunk_records(stream, index, file: Path) -> np.ndarray:
     """The decompressed records of a chunk, CRC checked."""
     at = index.chunk_start_offset
+    if index.chunk_length > MAX_CHUNK_BYTES + 2**16:
+        raise IndexedReadError(f"{file}: the chunk at offset {at} declares "
+                               f"{index.chunk_length:,} bytes, more than the "
+                               f"{MAX_CHUNK_BYTES:,} a chunk may hold (the readers' ceiling)")
     stream.seek(at)
     raw = stream.read(index.chunk_length)
     if len(raw) != index.chunk_length or raw[0] != _CHUNK_OP:
@@ -138,16 +147,12 @@ def _chunk_records(stream, index, file: Path) -> np.ndarray:
     if pos + stored > len(raw):
         raise IndexedReadError(f"{file}: the chunk at offset {at} runs past its record")
     data = memoryview(raw)[pos:pos + stored]
-    if compression == "zstd":
-        import zstandard
-
-        data = zstandard.ZstdDecompressor().decompress(data, max_output_size=size)
-    elif compression == "lz4":
-        import lz4.frame
-
-        data = lz4.frame.decompress(data)
-    elif compression:
+    if compression not in ("", "zstd", "lz4"):
         raise IndexedReadError(f"{file}: chunk compression {compression!r} is not known")
+    try:
+        data = decompress_chunk(compression, data, size)
+    except ChunkLimitError as exc:
+        raise IndexedReadError(f"{file}: the chunk at offset {at}: {exc}") from None
     if len(data) != size:
         raise IndexedReadError(f"{file}: the chunk at offset {at} holds {len(data)} bytes, "
                                f"its header says {size}")

@@ -4,7 +4,8 @@ What a truncated, unclosed or corrupt file still holds: every message of every c
 whole and passes its CRC, in file order, and, when the file ends inside a chunk (a recorder
 killed while writing it), the whole message records at the start of that chunk. A complete
 chunk that fails its CRC or does not decompress ends the scan: nothing after damage is
-trusted. The scan never reads more than the file holds, whatever a corrupt length field says.
+trusted. The scan never reads more than the file holds, whatever a corrupt length field says,
+nor a record or chunk past the readers' ceiling (:mod:`aero_dva.bag.chunk_limits`).
 
 Used by the reader (``allow_truncated``), ``dva bag info`` and ``dva bag recover``.
 """
@@ -20,7 +21,8 @@ from pathlib import Path
 from mcap.data_stream import ReadDataStream
 from mcap.opcode import Opcode
 from mcap.records import Channel, Chunk, Message, Schema
-from mcap.stream_reader import breakup_chunk
+
+from aero_dva.bag.chunk_limits import MAX_CHUNK_BYTES, chunk_records, decompress_prefix
 
 __all__ = ["MCAP_MAGIC", "Damage", "FileScan", "ScannedMessage"]
 
@@ -28,6 +30,7 @@ MCAP_MAGIC = b"\x89MCAP0\r\n"
 _RECORD_HEAD = struct.Struct("<BQ")  # opcode, body length
 _CHUNK_HEAD = struct.Struct("<QQQII")  # start, end, uncompressed size, crc, name length
 _NAMES = {int(op): op.name.lower() for op in Opcode}
+_READ = (Opcode.CHUNK, Opcode.SCHEMA, Opcode.CHANNEL, Opcode.MESSAGE, Opcode.FOOTER)
 
 
 @dataclass(frozen=True)
@@ -94,9 +97,18 @@ class FileScan:
                 available = size - pos - _RECORD_HEAD.size
                 if length > available:
                     if opcode == Opcode.CHUNK:
-                        yield from self._salvage(stream.read(available))
+                        yield from self._salvage(stream.read(min(available,
+                                                                 MAX_CHUNK_BYTES + 2**16)))
                     self._stop(pos, f"the file ends inside a {name} record ({available} of "
                                f"{length} bytes)")
+                    return
+                if opcode not in _READ:  # nothing of it is used: not read
+                    stream.seek(length, os.SEEK_CUR)
+                    pos += _RECORD_HEAD.size + length
+                    continue
+                if length > MAX_CHUNK_BYTES + 2**16:
+                    self._stop(pos, f"a {name} record of {length:,} bytes is larger than the "
+                               f"{MAX_CHUNK_BYTES:,} the readers read")
                     return
                 body = stream.read(length)
                 try:
@@ -123,7 +135,7 @@ class FileScan:
             chunk = Chunk.read(data)
             if self.compression is None:
                 self.compression = chunk.compression
-            records = breakup_chunk(chunk, validate_crc=True)
+            records = chunk_records(chunk, validate_crc=True)
         elif opcode == Opcode.SCHEMA:
             records = [Schema.read(data)]
         elif opcode == Opcode.CHANNEL:
@@ -156,7 +168,7 @@ class FileScan:
         compression = partial[_CHUNK_HEAD.size:_CHUNK_HEAD.size + name_length].decode(
             "utf-8", "replace")
         try:
-            data = _decompress_prefix(compression, partial[start:])
+            data = decompress_prefix(compression, partial[start:])
         except Exception:  # noqa: BLE001 - an undecodable prefix holds nothing to keep
             return
         pos = 0
@@ -174,18 +186,3 @@ class FileScan:
                 channel = self.channels[record.channel_id]
                 yield ScannedMessage(self.schemas.get(channel.schema_id), channel, record)
             pos = end
-
-
-def _decompress_prefix(compression: str, data: bytes) -> bytes:
-    """What the first bytes of a compressed chunk decompress to (all of them if "")."""
-    if compression == "":
-        return data
-    if compression == "zstd":
-        import zstandard
-
-        return zstandard.ZstdDecompressor().decompressobj().decompress(data)
-    if compression == "lz4":
-        import lz4.frame
-
-        return lz4.frame.LZ4FrameDecompressor().decompress(data)
-    raise ValueError(f"unknown chunk compression {compression!r}")

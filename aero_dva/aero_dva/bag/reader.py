@@ -9,14 +9,23 @@ warns how many messages it skipped.
 """
 from __future__ import annotations
 
+import heapq
+import io
+import os
 import warnings
+from collections import Counter
 from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
+from mcap.data_stream import ReadDataStream
+from mcap.opcode import Opcode
 from mcap.reader import SeekingReader
+from mcap.records import Chunk, Message
 
+from aero_dva.bag.chunk_limits import MAX_CHUNK_BYTES, ChunkLimitError, MergeBudget, chunk_records
 from aero_dva.bag.chunk_survey import survey_file
+from aero_dva.bag.mcap_scan import FileScan
 from aero_dva.bag.schemas import normalize_type_name, schema_typestore, typestore
 from aero_dva.bag.writer import TopicInfo
 from aero_dva.safe_files import read_yaml
@@ -141,6 +150,11 @@ def bag_files(path, allow_truncated: bool = False) -> list[Path]:
         if info.get("compression_mode"):
             raise BagReadError(f"bag {str(path)!r} uses file compression, which is not supported")
         files = [path / Path(p).name for p in info["relative_file_paths"]]
+        counts = Counter(f.name for f in files)
+        name, times = max(counts.items(), key=lambda kv: kv[1], default=("", 0))
+        if times > 1:
+            raise BagReadError(f"bag {str(path)!r}: metadata.yaml lists {name!r} {times} "
+                               "times; each file of a bag is read once")
     except BagReadError:
         raise
     except (KeyError, TypeError, AttributeError) as exc:
@@ -156,7 +170,7 @@ def file_summary(path: Path):
     """The file's MCAP summary, or None if it has none (not closed, cut or corrupt)."""
     with open(path, "rb") as stream:
         try:
-            return SeekingReader(stream).get_summary()
+            return SeekingReader(stream, record_size_limit=MAX_CHUNK_BYTES).get_summary()
         except Exception:  # noqa: BLE001 - corrupt data raises assorted errors
             return None
 
@@ -302,9 +316,87 @@ def _records(file: Path, selected: set[str], log_time_order: bool, allow_truncat
                 yield item.schema, item.channel, item.message
         return
     with open(file, "rb") as stream:
-        # Chunk CRCs are checked: a flipped byte is an error naming the file, not a wrong value.
-        reader = SeekingReader(stream, validate_crcs=True)
-        yield from reader.iter_messages(topics=sorted(selected), log_time_order=log_time_order)
+        summary = SeekingReader(stream, record_size_limit=MAX_CHUNK_BYTES).get_summary()
+        if summary is None or not summary.chunk_indexes:
+            yield from _unchunked(file, selected, log_time_order)
+            return
+        yield from _indexed(stream, file, summary, selected, log_time_order)
+
+
+def _indexed(stream, file: Path, summary, selected: set[str], log_time_order: bool):
+    """(schema, channel, message) of the selected topics by the summary's chunk index, in
+    ``mcap.reader.SeekingReader``'s order (log time, then chunk offset, then record), each
+    chunk read, CRC-checked and decompressed within the readers' limits
+    (:mod:`aero_dva.bag.chunk_limits`) when the merge reaches its first log time."""
+    size = os.fstat(stream.fileno()).st_size
+    chunks = [c for c in summary.chunk_indexes if not c.message_index_offsets or any(
+        summary.channels[cid].topic in selected for cid in c.message_index_offsets
+        if cid in summary.channels)]
+
+    def messages(index):
+        for at, record in enumerate(_chunk_of(stream, file, index, size)):
+            if isinstance(record, Message):
+                channel = summary.channels[record.channel_id]
+                if channel.topic in selected:
+                    schema = summary.schemas[channel.schema_id] if channel.schema_id else None
+                    yield (record.log_time, index.chunk_start_offset, at), (schema, channel,
+                                                                           record)
+
+    if not log_time_order:
+        for index in chunks:
+            for _, item in messages(index):
+                yield item
+        return
+    budget = MergeBudget(f"MCAP file {str(file)!r}")
+    heap = [((c.message_start_time, c.chunk_start_offset, -1), None, c) for c in chunks]
+    heapq.heapify(heap)
+    while heap:
+        _, item, index = heapq.heappop(heap)
+        if item is None:  # a chunk the merge has reached: its messages join the queue
+            queued = list(messages(index))
+            budget.hold(m for _, (_, _, m) in queued)
+            for key, entry in queued:
+                heapq.heappush(heap, (key, entry, None))
+            continue
+        budget.release(item[2])
+        yield item
+
+
+def _chunk_of(stream, file: Path, index, size: int) -> list:
+    """The records of the chunk ``index`` names, read within the file and the limits."""
+    length, at = index.chunk_length, index.chunk_start_offset
+    if length > MAX_CHUNK_BYTES + 2**16:
+        raise ChunkLimitError(f"MCAP file {str(file)!r}: the chunk at byte {at} declares "
+                              f"{length:,} bytes, more than the {MAX_CHUNK_BYTES:,} a chunk "
+                              "may hold (the readers' ceiling)")
+    if at + length > size:
+        raise BagReadError(f"MCAP file {str(file)!r}: the chunk at byte {at} runs past the "
+                           "end of the file")
+    stream.seek(index.chunk_start_offset)
+    raw = stream.read(length)
+    if len(raw) != length or raw[0] != Opcode.CHUNK:
+        raise BagReadError(f"MCAP file {str(file)!r}: no chunk record at byte "
+                           f"{index.chunk_start_offset}")
+    try:
+        return chunk_records(Chunk.read(ReadDataStream(io.BytesIO(raw[9:]))))
+    except ChunkLimitError as exc:
+        raise ChunkLimitError(f"MCAP file {str(file)!r}: {exc}") from None
+
+
+def _unchunked(file: Path, selected: set[str], log_time_order: bool):
+    """A closed file without a chunk index, read record by record (bounded); its messages
+    must already be in log-time order when that order is asked for (nothing to merge by)."""
+    scan = FileScan(file)
+    last = None
+    for item in scan.messages():
+        if log_time_order and last is not None and item.message.log_time < last:
+            raise BagReadError(f"MCAP file {str(file)!r} has no chunk index and its messages "
+                               "are not in log-time order")
+        last = item.message.log_time
+        if item.channel.topic in selected:
+            yield item.schema, item.channel, item.message
+    if scan.damage is not None:
+        raise BagReadError(f"MCAP file {str(file)!r}: {scan.damage.reason}")
 
 
 def _iterate(files: list[Path], selected: set[str], decode: bool, log_time_order: bool,
@@ -318,6 +410,8 @@ def _iterate(files: list[Path], selected: set[str], decode: bool, log_time_order
                 schema, channel, message = next(records)
             except StopIteration:
                 break
+            except (BagReadError, ChunkLimitError) as exc:  # each names the file
+                raise BagReadError(f"{exc}; " + RECOVER_HINT.format(bag=bag)) from None
             except Exception as exc:  # noqa: BLE001 - corrupt data raises assorted errors
                 raise BagReadError(
                     f"MCAP file {str(file)!r} is corrupt: reading failed after {count} "

@@ -33,6 +33,7 @@ from mcap.writer import CompressionType
 from mcap.writer import Writer as McapWriter
 
 from aero_dva.atomic_io import atomic_output
+from aero_dva.bag.chunk_limits import MAX_CHUNK_BYTES
 from aero_dva.bag.schemas import Nodetype, message_definition, normalize_type_name, typestore
 
 __all__ = [
@@ -332,8 +333,11 @@ class BagWriter:
         if compression not in COMPRESSIONS:
             raise ValueError(
                 f"compression must be one of {sorted(COMPRESSIONS)}, got {compression!r}")
-        if isinstance(chunk_size, bool) or not isinstance(chunk_size, int) or chunk_size < 1:
-            raise ValueError(f"chunk_size must be a positive integer, got {chunk_size!r}")
+        if isinstance(chunk_size, bool) or not isinstance(chunk_size, int) or \
+                not 1 <= chunk_size <= MAX_CHUNK_BYTES // 2:
+            raise ValueError(f"chunk_size must be an integer in [1, {MAX_CHUNK_BYTES // 2}] "
+                             f"bytes (readers read chunks of at most {MAX_CHUNK_BYTES}), got "
+                             f"{chunk_size!r}")
         self.directory, self.mcap_path = create_bag_directory(directory)
         self._msg_dirs = tuple(msg_dirs)
         self._ros_distro = default_ros_distro(ros_distro)

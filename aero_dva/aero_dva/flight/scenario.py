@@ -25,6 +25,12 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from aero_dva.flight.flight_limits import (
+    MAX_BLOCK_SIZE,
+    MAX_FLIGHT_SAMPLES,
+    MAX_FORCE_STD,
+    SAMPLE_RATE_RANGE,
+)
 from aero_dva.flight.hidden_plant import PlantOptions
 
 AIRSPEED_KINDS = ("constant", "ramp", "steps")
@@ -123,8 +129,22 @@ def validate(s: Scenario) -> None:
     """Raise :class:`ScenarioError` naming the first bad field of ``s``."""
     _positive("duration", s.duration)
     _positive("sample_rate", s.sample_rate)
-    if not isinstance(s.block_size, int) or s.block_size < 1:
-        raise ScenarioError(f"block_size must be a positive integer, got {s.block_size!r}")
+    low, high = SAMPLE_RATE_RANGE
+    if not low <= s.sample_rate <= high:
+        raise ScenarioError(f"sample_rate must be in [{low:g}, {high:g}] Hz, got "
+                            f"{s.sample_rate:g}")
+    if isinstance(s.block_size, bool) or not isinstance(s.block_size, int) \
+            or not 1 <= s.block_size <= MAX_BLOCK_SIZE:
+        raise ScenarioError(f"block_size must be an integer in [1, {MAX_BLOCK_SIZE}], got "
+                            f"{s.block_size!r}")
+    samples = s.duration * s.sample_rate
+    if samples > MAX_FLIGHT_SAMPLES:
+        raise ScenarioError(f"duration x sample_rate = {s.duration:g} s x {s.sample_rate:g} Hz "
+                            f"= {samples:,.0f} samples, more than the {MAX_FLIGHT_SAMPLES:,} a "
+                            "flight may have")
+    if round(samples) < s.block_size:
+        raise ScenarioError(f"duration {s.duration:g} s is shorter than one block "
+                            f"({s.block_size} samples at {s.sample_rate:g} Hz)")
     if s.airspeed.kind not in AIRSPEED_KINDS:
         raise ScenarioError(
             f"airspeed.kind must be one of {AIRSPEED_KINDS}, got {s.airspeed.kind!r}"
@@ -147,8 +167,9 @@ def validate(s: Scenario) -> None:
     if not 0.0 <= s.density_variation < 1.0:
         raise ScenarioError(f"density_variation (mu) must be in [0, 1), got {s.density_variation}")
     _positive("density_frequency", s.density_frequency)
-    if not (math.isfinite(s.force_std) and s.force_std >= 0):
-        raise ScenarioError(f"force_std must be finite and >= 0 N, got {s.force_std}")
+    if not (isinstance(s.force_std, (int, float)) and 0 < s.force_std <= MAX_FORCE_STD):
+        raise ScenarioError(f"force_std must be in (0, {MAX_FORCE_STD:g}] N (a flight needs "
+                            f"its excitation), got {s.force_std!r}")
     if s.airspeed.kind == "steps":
         _positive("dwell", s.dwell)
         if not s.sweep_damping:

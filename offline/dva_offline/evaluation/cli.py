@@ -56,7 +56,10 @@ def register(subparsers) -> None:
                    help=f"airspeeds U/U_cr of the leading-edge RMS (default "
                         f"{DEFAULT_RMS_RANGE}; the first 2 s are left out)")
     p.add_argument("--scenario", metavar="FILE",
-                   help="base ramp scenario YAML (default the package's scenario_ramp.yaml)")
+                   help="base ramp scenario YAML (default the package's scenario_ramp.yaml); "
+                        "a flight holds its traces, about 160 bytes per sample: at most "
+                        "6,710,886 samples (duration x sample rate, 1 GiB) per flight, and "
+                        "the seeds of a batch together within 1 GiB")
     p.add_argument("--schedule", metavar="FILE", help="airspeed schedule JSON (default: made "
                    "by dva control schedule into DIR/inputs)")
     p.add_argument("--fixed-c2", type=float, default=None,
@@ -170,6 +173,7 @@ def _paired(args) -> int:
     from dva_offline.evaluation.flights import (
         EvaluationSetup,
         case_table,
+        flight_memory_problem,
         fly_paired,
         oracle_table,
         stability_boundaries,
@@ -216,6 +220,9 @@ def _paired(args) -> int:
     if config.scenario.airspeed.kind != "ramp":
         raise ValueError(f"--scenario {scenario_path}: the evaluation flies a ramp, got "
                          f"airspeed kind {config.scenario.airspeed.kind!r}")
+    problem = flight_memory_problem(config.scenario.n_samples)
+    if problem is not None:
+        raise ValueError(f"--scenario {scenario_path}: {problem}")
     started = time.monotonic()
     out, made, given = evaluation_directory(args, controllers)
     model = AeroelasticModel(config.wing, config.absorber, config.aero)

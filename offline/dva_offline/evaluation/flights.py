@@ -32,7 +32,8 @@ from dva_offline.evaluation.closed_loop import (
 from dva_offline.evaluation.closed_loop_batch import fly_batch
 from dva_offline.evaluation.paired import DensityCase, FlightRecord, case_scenario, flight_record
 
-__all__ = ["BATCH_SEEDS", "EvaluationSetup", "case_table", "fly_paired", "fly_seed", "fly_seeds",
+__all__ = ["BATCH_MEMORY", "BATCH_SEEDS", "EvaluationSetup", "batch_seeds",
+           "flight_memory_problem", "case_table", "fly_paired", "fly_seed", "fly_seeds",
            "oracle_table", "seed_batches", "stability_boundaries"]
 
 
@@ -136,15 +137,40 @@ def fly_seeds(setup: EvaluationSetup, controllers: Sequence[str], keep_seed: int
 BATCH_SEEDS = 32
 """Most seeds in one batch: its flights' traces are held whole (about 2 MB per flight of the
 default ramp), and from a few tens of flights on the per-block cost is already shared."""
+#: [bytes] what a flight of the evaluation holds per sample (its traces; measured 78 B for the
+#: fixed controller's batch route, the RBF network's windows add more: docs/reliability.md).
+FLIGHT_BYTES_PER_SAMPLE = 160
+#: [bytes] most the flights of one batch (one job of one process) may hold.
+BATCH_MEMORY = 2**30
 
 
-def seed_batches(seeds: Sequence[int], cases: int, workers: int) -> list[tuple[int, ...]]:
+def batch_seeds(samples: int) -> int:
+    """Most seeds per batch for flights of ``samples`` samples: :data:`BATCH_SEEDS`, fewer when
+    their traces would pass :data:`BATCH_MEMORY`."""
+    return max(1, min(BATCH_SEEDS, BATCH_MEMORY // max(1, samples * FLIGHT_BYTES_PER_SAMPLE)))
+
+
+def flight_memory_problem(samples: int) -> str | None:
+    """Why one evaluation flight of ``samples`` samples may not be flown (it would hold more
+    than :data:`BATCH_MEMORY`), or None."""
+    need = samples * FLIGHT_BYTES_PER_SAMPLE
+    if need <= BATCH_MEMORY:
+        return None
+    return (f"a flight of {samples:,} samples would hold about {need / 2**20:,.0f} MiB of "
+            f"traces, more than the {BATCH_MEMORY // 2**20:,} MiB an evaluation flight may "
+            f"take (at most {BATCH_MEMORY // FLIGHT_BYTES_PER_SAMPLE:,} samples: duration x "
+            "sample rate)")
+
+
+def seed_batches(seeds: Sequence[int], cases: int, workers: int,
+                 samples: int = 0) -> list[tuple[int, ...]]:
     """The seeds of a case cut into batches: as few as keep ``workers`` busy (at least two jobs
-    per worker over all ``cases``) and hold at most :data:`BATCH_SEEDS` seeds each, as large as
-    possible otherwise (the per-block cost of a batch is paid once for all its flights)."""
+    per worker over all ``cases``) and hold at most :func:`batch_seeds` seeds each for flights
+    of ``samples`` samples, as large as possible otherwise (the per-block cost of a batch is
+    paid once for all its flights)."""
     seeds = tuple(seeds)
     parts = 1 if workers <= 1 else max(1, min(len(seeds), -(-2 * workers // max(cases, 1))))
-    parts = max(parts, -(-len(seeds) // BATCH_SEEDS))
+    parts = max(parts, -(-len(seeds) // batch_seeds(samples)))
     size = -(-len(seeds) // parts)
     return [seeds[i:i + size] for i in range(0, len(seeds), size)]
 
@@ -176,7 +202,8 @@ def fly_paired(setup: EvaluationSetup, cases: Sequence[DensityCase], seeds: Sequ
             for case in cases}
     if batch:
         jobs = [(case, part) for case in cases if todo[case.name]
-                for part in seed_batches(todo[case.name], len(cases), workers)]
+                for part in seed_batches(todo[case.name], len(cases), workers,
+                                         setup.config.scenario.n_samples)]
         # The jobs whose outcomes come back (large) first, so they are not the last to finish.
         jobs.sort(key=lambda job: keep_seed not in job[1])
         work = partial(fly_seeds, setup, tuple(controllers), keep_seed)

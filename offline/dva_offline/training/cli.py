@@ -71,7 +71,8 @@ def register(subparsers) -> None:
                         "dva train rbf, run reports and replays need the displacement")
     g = s.add_argument_group("scenario sweep (one continuous flight instead of a plan)")
     g.add_argument("--scenario", metavar="FILE", help="stepped sweep scenario YAML (e.g. "
-                   "the package's scenario_sweep.yaml)")
+                   "the package's scenario_sweep.yaml); at most 20,000,000 samples "
+                   "(duration x sample rate, 100..20000 Hz)")
     g.add_argument("--c2", metavar="MIN:MAX:N", default=None,
                    help=f"c2 values at each airspeed [N s/m] (default {SCENARIO_C2}; "
                         "'scenario' keeps the file's list)")
@@ -143,7 +144,9 @@ def _plan_options(p) -> None:
     p.add_argument("--max-offset", type=float, default=None,
                    help="[N s/m] c2 within c2* +- this (default 300)")
     p.add_argument("--window", type=float, default=None,
-                   help="[s] window = dwell of a plan (default 2, the study's)")
+                   help="[s] window = dwell of a plan (default 2, the study's); at most "
+                        "600,000 samples (10 min at 1 kHz), and the whole plan at most "
+                        "20,000,000 samples (dwells x window x sample rate)")
     p.add_argument("--seed", type=int, default=None, help="excitation seed (default 7)")
 
 

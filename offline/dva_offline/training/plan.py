@@ -30,6 +30,12 @@ import numpy as np
 from aero_dva.control.optimal_damping import optimal_damping
 from aero_dva.control.stationary_rms import stationary_rms
 from aero_dva.flight.damper import DAMPER_RANGE, damping_problem
+from aero_dva.flight.flight_limits import (
+    MAX_FLIGHT_SAMPLES,
+    MAX_FORCE_STD,
+    MAX_WINDOW_SAMPLES,
+    SAMPLE_RATE_RANGE,
+)
 
 __all__ = [
     "DEFAULT_FACTORS",
@@ -102,8 +108,13 @@ class PlanSettings:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
-        if not (math.isfinite(self.force_std) and self.force_std > 0):
-            raise ValueError(f"force_std must be > 0 N, got {self.force_std}")
+        if not (math.isfinite(self.force_std) and 0 < self.force_std <= MAX_FORCE_STD):
+            raise ValueError(f"force_std must be in (0, {MAX_FORCE_STD:g}] N, got "
+                             f"{self.force_std}")
+        low, high = SAMPLE_RATE_RANGE
+        if not low <= self.sample_rate <= high:
+            raise ValueError(f"sample_rate must be in [{low:g}, {high:g}] Hz, got "
+                             f"{self.sample_rate:g}")
         low, high = (float(v) for v in self.damping_range)
         if not (math.isfinite(low) and math.isfinite(high) and 0 <= low < high):
             raise ValueError(f"damping_range must be 0 <= low < high N s/m, got "
@@ -112,6 +123,10 @@ class PlanSettings:
         if problem is not None:
             raise ValueError(problem)
         n = self.window * self.sample_rate
+        if n > MAX_WINDOW_SAMPLES:
+            raise ValueError(f"window x sample_rate = {self.window:g} s x "
+                             f"{self.sample_rate:g} Hz = {n:,.0f} samples, more than the "
+                             f"{MAX_WINDOW_SAMPLES:,} a window may have")
         if abs(n - round(n)) > 1e-6 * n or round(n) < 2:
             raise ValueError(f"window * sample_rate must be a whole number >= 2 of samples, "
                              f"got {self.window} s * {self.sample_rate} Hz")
@@ -272,6 +287,10 @@ def make_training_plan(model, critical_airspeed: float, base_density: float,
     if not rows:
         raise ValueError("no (U, rho) of the plan has a c2 that decays at "
                          f"{s.min_decay} 1/s or faster: nothing to record")
+    if len(rows) * s.window_samples > MAX_FLIGHT_SAMPLES:
+        raise ValueError(f"the plan's {len(rows):,} dwells x {s.window_samples:,} samples "
+                         f"are more than the {MAX_FLIGHT_SAMPLES:,} samples a recording may "
+                         "have (fewer airspeeds, densities or c2 values, or a shorter window)")
     table = np.array(rows)
     return TrainingPlan(settings=s, critical_airspeed=float(critical_airspeed),
                         base_density=float(base_density), optimal_damping=best,

@@ -20,6 +20,7 @@ import numpy as np
 
 from aero_dva.atomic_io import atomic_output
 from aero_dva.flight.damper import damping_problem
+from aero_dva.flight.flight_limits import MAX_FLIGHT_SAMPLES
 from aero_dva.safe_files import read_json
 from dva_offline.training.plan import PlanSettings, TrainingPlan
 
@@ -96,6 +97,9 @@ def plan_from_dict(data, where: str = "training plan") -> TrainingPlan:
     problem = plan_damping_problem(plan, where)
     if problem is not None:
         raise ValueError(problem)
+    if n * settings.window_samples > MAX_FLIGHT_SAMPLES:
+        raise ValueError(f"{where}: {n:,} dwells x {settings.window_samples:,} samples are "
+                         f"more than the {MAX_FLIGHT_SAMPLES:,} samples a recording may have")
     return plan
 
 

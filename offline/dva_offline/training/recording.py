@@ -27,6 +27,8 @@ from aero_dva.wing.model import AeroelasticModel
 __all__ = ["BATCH", "DwellBatch", "simulate_dwells", "stationary_draw"]
 
 BATCH = 250  # dwells per batch: 250 x 2 s x 8 channels of float64 = 32 MB
+#: Most samples of one batch (the default's 250 x 2000): longer windows fly fewer at a time.
+BATCH_SAMPLES = 500_000
 
 
 @dataclass(frozen=True)
@@ -73,7 +75,8 @@ def simulate_dwells(model: AeroelasticModel, plan, *, batch: int = BATCH,
         The wing with the tunable Maxwell DVA the plan was made for.
     plan : TrainingPlan
     batch : int
-        Dwells simulated together (bounds memory).
+        Dwells simulated together (bounds memory; fewer when their samples would pass
+        :data:`BATCH_SAMPLES`).
     dwells : slice, optional
         Only these dwells (default all); each is the same data as in the whole flight.
 
@@ -88,6 +91,7 @@ def simulate_dwells(model: AeroelasticModel, plan, *, batch: int = BATCH,
         raise ValueError(f"batch must be a positive integer, got {batch!r}")
     s = plan.settings
     n = s.window_samples
+    batch = max(1, min(batch, BATCH_SAMPLES // n))  # a dwell's data do not depend on it
     index = np.arange(plan.n_dwells)[dwells if dwells is not None else slice(None)]
     for start in range(0, index.size, batch):
         k = index[start:start + batch]

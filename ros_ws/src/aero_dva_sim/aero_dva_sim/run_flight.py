@@ -336,7 +336,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "recorder as separate processes), record it to MCAP and print a summary.")
     parser.add_argument("--scenario", default="",
                         help="scenario YAML (default: the package's scenario_ramp.yaml, "
-                             "0.8 -> 1.2 U_cr in 30 s)")
+                             "0.8 -> 1.2 U_cr in 30 s); at most 20,000,000 samples "
+                             "(duration x sample rate, 100..20000 Hz)")
     parser.add_argument("--wing", default="", help="wing YAML (default: the chapter-6 wing)")
     parser.add_argument("--absorber", choices=("maxwell", "none"), default="maxwell")
     parser.add_argument("--controller", choices=CONTROLLERS, default="fixed",

@@ -62,8 +62,9 @@ SPEC = NodeSpec(
             "the latest accepted dva/damper_command (range, lag, stale fallback, rejection of "
             "absurd commands); a stepped-sweep scenario applies its own c2 values.",
     params=(
-        Param("scenario", "", "scenario YAML", default_text="the package's scenario_ramp.yaml "
-              "(0.8 -> 1.2 U_cr in 30 s)"),
+        Param("scenario", "", "scenario YAML: at most 20,000,000 samples (duration x "
+              "sample rate, 100..20000 Hz), at least one block",
+              default_text="the package's scenario_ramp.yaml (0.8 -> 1.2 U_cr in 30 s)"),
         Param("wing", "", "wing YAML", default_text="the package's chapter-6 wing"),
         Param("absorber", "maxwell", "absorber on the wing", choices=("maxwell", "none")),
         Param("absorber_mass", _NAN, "DVA mass", "kg", 0.0, 1.0e5, nan_means=_DESIGN),

@@ -1,0 +1,19 @@
+"""The limits every flight, scenario and training plan is held to (pure constants, no imports,
+so that ``dva --help`` can state them without loading the numerics).
+
+Past them a scenario or plan is refused at the door, in one line (exit code 2); the memory a
+flight takes per sample on each route is in docs/reliability.md.
+"""
+
+#: [samples] most a flight may have (duration x sample rate): 20,000,000, 5.6 h at 1 kHz (the
+#: study's training sweep has 6.84 million, the default training plan 10.26 million).
+MAX_FLIGHT_SAMPLES = 20_000_000
+#: [Hz] sample rates a flight may have: below 100 Hz the wing's modes (up to about 30 Hz with
+#: the DVA) and the 5-20 Hz spectra are not sampled; above 20 kHz nothing is gained.
+SAMPLE_RATE_RANGE = (100.0, 20_000.0)
+#: Most samples in one published block (a second at the highest rate).
+MAX_BLOCK_SIZE = 20_000
+#: [N] largest standard deviation of the aileron force (the study's is 1 kN).
+MAX_FORCE_STD = 1.0e6
+#: [samples] longest window (dwell) of a training plan: 10 minutes at 1 kHz (the study's: 2 s).
+MAX_WINDOW_SAMPLES = 600_000
