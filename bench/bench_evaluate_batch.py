@@ -5,7 +5,7 @@ Run (after ./test.sh or ./run.sh has set everything up)::
 
     source scripts/env.sh && python bench/bench_evaluate_batch.py [--seeds 30]
         [--reference-seeds 5] [--cases rho0,x0.9,x1.1,slow,1Hz,2f]
-        [--controllers fixed,schedule,rbf,oracle] [--network F.npz --schedule F.json
+        [--controllers C1,C2,...] [--network F.npz --schedule F.json
         --fixed-c2 C] [--json FILE]
 
 The default is the default evaluation: 6 cases x 4 controllers x 30 seeds = 720 flights, flown
@@ -33,6 +33,15 @@ from pathlib import Path
 RECORD_RTOL = 1e-9  # as tests/unit/dva_offline/evaluation/test_paired.py (why there)
 
 
+
+def _default_controllers() -> tuple[str, ...]:
+    """What ``dva evaluate`` flies by default (the controller table's block-rate laws and
+    references)."""
+    from aero_dva.control.controllers import BLOCK, REFERENCE, names
+
+    return names((BLOCK, REFERENCE), builtin_only=True)
+
+
 def _made_inputs(tmp: Path, cases: str, controllers: str) -> dict:
     argv = [sys.executable, "-m", "dva_offline.cli", "evaluate", "--out", str(tmp / "prep"),
             "--seeds", "1", "--cases", cases.split(",")[0], "--controllers", controllers,
@@ -47,12 +56,10 @@ def _made_inputs(tmp: Path, cases: str, controllers: str) -> dict:
 
 def _setup(args, inputs: dict):
     from aero_dva import data_files
-    from aero_dva.control.rbf_io import load_rbf_network
-    from aero_dva.control.rbf_network import SPECTRUM_INPUT_DIM
-    from aero_dva.control.schedule_io import load_schedule
     from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
     from aero_dva.wing.flutter import flutter_speed
     from aero_dva.wing.model import AeroelasticModel
+    from dva_offline.evaluation.cli import evaluation_laws
     from dva_offline.evaluation.flights import EvaluationSetup, oracle_table
     from dva_offline.evaluation.paired import default_cases
 
@@ -65,14 +72,15 @@ def _setup(args, inputs: dict):
     cases = [c for c in default_cases(frequency).values() if c.name in names]
     ramp = tuple(v / (1.0 if config.scenario.airspeed.relative else u_cr)
                  for v in config.scenario.airspeed.values)
+    controllers = args.controllers.split(",")
     table = oracle_table(model, u_cr, config.scenario.density, cases, ramp) \
-        if "oracle" in args.controllers else None
+        if "oracle" in controllers else None
+    made = {"fixed_c2": {"damping": fixed}, **{k: inputs[k] for k in ("schedule", "network")
+                                               if inputs.get(k)}}
     setup = EvaluationSetup(
-        config=config, model=model, critical_airspeed=u_cr, fixed_damping=fixed,
-        schedule=load_schedule(inputs["schedule"]) if inputs.get("schedule") else None,
-        network=load_rbf_network(inputs["network"], expected_input_dim=SPECTRUM_INPUT_DIM)
-        if inputs.get("network") else None,
-        table=table, rms_range=(0.8 * u_cr, 1.05 * u_cr))
+        config=config, model=model, critical_airspeed=u_cr,
+        laws=evaluation_laws(controllers, made, config.damper, table),
+        rms_range=(0.8 * u_cr, 1.05 * u_cr))
     return setup, cases
 
 
@@ -105,7 +113,7 @@ def main() -> int:
     parser.add_argument("--seeds", type=int, default=30)
     parser.add_argument("--reference-seeds", type=int, default=5)
     parser.add_argument("--cases", default="rho0,x0.9,x1.1,slow,1Hz,2f")
-    parser.add_argument("--controllers", default="fixed,schedule,rbf,oracle")
+    parser.add_argument("--controllers", default=",".join(_default_controllers()))
     parser.add_argument("--network")
     parser.add_argument("--schedule")
     parser.add_argument("--fixed-c2", type=float)

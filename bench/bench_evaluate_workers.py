@@ -3,7 +3,7 @@
 Run (after ./test.sh or ./run.sh has set everything up)::
 
     source scripts/env.sh && python bench/bench_evaluate_workers.py [--runs 3] [--workers 2]
-        [--seeds 10] [--cases rho0,x0.9,x1.1] [--controllers fixed,schedule,rbf,oracle]
+        [--seeds 10] [--cases rho0,x0.9,x1.1] [--controllers C1,C2,...]
         [--network FILE.npz] [--json FILE]
 
 The default campaign is the one a user waits for: 4 controllers x 3 densities x 10 seeds = 120
@@ -29,6 +29,15 @@ import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
+
+
+
+def _default_controllers() -> tuple[str, ...]:
+    """What ``dva evaluate`` flies by default (the controller table's block-rate laws and
+    references)."""
+    from aero_dva.control.controllers import BLOCK, REFERENCE, names
+
+    return names((BLOCK, REFERENCE), builtin_only=True)
 
 
 def _dva(*args: str) -> list[str]:
@@ -57,7 +66,7 @@ def main() -> int:
     parser.add_argument("--workers", type=int, default=2, help="workers of the parallel run")
     parser.add_argument("--seeds", type=int, default=10)
     parser.add_argument("--cases", default="rho0,x0.9,x1.1")
-    parser.add_argument("--controllers", default="fixed,schedule,rbf,oracle")
+    parser.add_argument("--controllers", default=",".join(_default_controllers()))
     parser.add_argument("--network", help="RBF network (default: trained once, untimed)")
     parser.add_argument("--json", help="write every run here")
     args = parser.parse_args()

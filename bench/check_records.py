@@ -58,7 +58,7 @@ def compare(base: Path, new: Path) -> tuple[dict[str, float], list[str]]:
         for (_, x), (_, y) in zip(_numbers(a[key]), _numbers(b[key]), strict=True):
             worst[key[0]] = max(worst.get(key[0], 0.0), _relative(x, y))
     ra, rb = (json.loads((p / "results.json").read_text()) for p in (base, new))
-    for section in ("switching",):
+    for section in ("switching", "boundaries"):
         if section in ra or section in rb:
             if section not in ra or section not in rb:
                 missing.append(f"section {section!r} in one results.json only")

@@ -138,10 +138,12 @@ fi
 rm -f "$SITE/dva_workspace_sources.pth"
 
 # ---------------------------------------------------------------- 2. colcon build of ros_ws
-# Only files that change what colcon installs count (Python sources are symlinked).
+# Only files that change what colcon installs count (Python sources are symlinked); the
+# controller table names the aliases of dva_controller's generic node (its setup.py reads it).
 build_inputs=$(cd "$WS/src" && find . -type f \( -name package.xml -o -name setup.py -o -name setup.cfg \
   -o -name CMakeLists.txt -o -name '*.msg' -o -path '*/resource/*' -o -path '*/config/*' \) | sort)
-build_stamp="$venv_stamp:$(cd "$WS/src" && { echo "$build_inputs"; cat $build_inputs; } | sha256sum | cut -c1-16)"
+table="$REPO/aero_dva/aero_dva/control/controllers.py"
+build_stamp="$venv_stamp:$(cd "$WS/src" && { echo "$build_inputs"; cat $build_inputs "$table"; } | sha256sum | cut -c1-16)"
 if [[ -f "$WS/install/.dva-build-stamp" && "$(cat "$WS/install/.dva-build-stamp")" == "$build_stamp" ]]; then
   say "workspace build up to date ($WS/install)"
 else

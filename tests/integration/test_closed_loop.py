@@ -26,9 +26,7 @@ from aero_dva.wing.flutter import flutter_speed, growth_rate
 from aero_dva.wing.model import AeroelasticModel
 from aero_dva.wing.wing_io import load_wing
 from aero_dva_sim.simulator_node import Simulator
-from dva_controller.airspeed_controller_node import AirspeedController
-from dva_controller.fixed_controller_node import FixedController
-from dva_controller.rbf_controller_node import RBFController
+from dva_controller.controller_node import law_node
 from dva_controller.spectrum_node import SpectrumNode
 from dva_msgs.msg import (
     AccelerationBlock,
@@ -37,6 +35,9 @@ from dva_msgs.msg import (
     FlightCondition,
     ForceBlock,
 )
+
+AirspeedController, FixedController, RBFController = (
+    law_node(n) for n in ("schedule", "fixed", "rbf"))
 
 pytestmark = pytest.mark.ros
 

@@ -24,14 +24,15 @@ from aero_dva.control.rbf_io import save_rbf_network
 from aero_dva.control.rbf_network import spectrum_input_names, train_rbf_ols
 from aero_dva.control.schedule_io import save_schedule
 from aero_dva.control.spectrum import scaled_spectrum
-from dva_controller.airspeed_controller_node import AirspeedController
-from dva_controller.rbf_controller_node import RBFController
+from dva_controller.controller_node import law_node
 from dva_controller.spectrum_node import SpectrumNode
 from dva_msgs.msg import AccelerationBlock, DamperCommand, DamperState, FlightCondition
 from dva_msgs.msg import ScaledSpectrum as ScaledSpectrumMsg
 from dva_ros_common import conversions
 
 from .conftest import ros2_run_path
+
+AirspeedController, RBFController = law_node("schedule"), law_node("rbf")
 
 pytestmark = pytest.mark.ros
 
@@ -400,7 +401,9 @@ def test_rbf_controller_corrupt_file_exits_2(start_process, tmp_path):
 # ---------------------------------------------------------------------------- config files
 @pytest.mark.parametrize("node_class", [SpectrumNode, AirspeedController, RBFController])
 def test_example_parameter_files_load(ros_context, trained, node_class):
-    name = node_class.__module__.rsplit(".", 1)[1].removesuffix("_node")
+    spec = getattr(node_class, "SPEC", None) or \
+        __import__(node_class.__module__, fromlist=["SPEC"]).SPEC
+    name = spec.name
     path = Path(get_package_share_directory("dva_controller")) / "config" / f"{name}.yaml"
     params = yaml.safe_load(path.read_text())[name]["ros__parameters"]
     args = ["--ros-args", "--params-file", str(path)]

@@ -6,9 +6,10 @@ from rclpy.parameter import Parameter
 
 from aero_dva_sim.mcap_recorder_node import McapRecorder
 from aero_dva_sim.simulator_node import Simulator
-from dva_controller.airspeed_controller_node import AirspeedController
-from dva_controller.fixed_controller_node import FixedController
+from dva_controller.controller_node import law_node
 from dva_controller.spectrum_node import SpectrumNode
+
+AirspeedController, FixedController = law_node("schedule"), law_node("fixed")
 
 pytestmark = pytest.mark.ros
 
@@ -21,13 +22,14 @@ ROS_OWN = ("use_sim_time", "start_type_description_service")  # rclpy declares t
 def test_declared_parameters_are_the_table(node_class, ros_context, tmp_path):
     overrides = [Parameter("output", value=str(tmp_path / "bag"))] \
         if node_class is McapRecorder else []
-    module = __import__(node_class.__module__, fromlist=["SPEC"])
+    spec = getattr(node_class, "SPEC", None) or \
+        __import__(node_class.__module__, fromlist=["SPEC"]).SPEC
     node = node_class(context=ros_context, parameter_overrides=overrides)
     try:
         declared = set(node.get_parameters_by_prefix("")) - set(ROS_OWN)
-        assert declared == {p.name for p in module.SPEC.params}
+        assert declared == {p.name for p in spec.params}
         # a parameter read at start-up refuses a change while the node runs
-        fixed = module.SPEC.read_at_start[0]
+        fixed = spec.read_at_start[0]
         result = node.set_parameters([Parameter(fixed, value=node.get_parameter(fixed).value)])
         assert not result[0].successful and "start-up" in result[0].reason
     finally:

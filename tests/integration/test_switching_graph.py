@@ -16,7 +16,7 @@ from rclpy.parameter import Parameter
 
 from aero_dva.data_files import data_file
 from aero_dva_sim.simulator_node import Simulator
-from dva_controller.fixed_controller_node import FixedController
+from dva_controller.controller_node import law_node
 from dva_controller.switching_controller_node import SwitchingController
 from dva_msgs.msg import (
     AccelerationBlock,
@@ -26,6 +26,8 @@ from dva_msgs.msg import (
     ForceBlock,
 )
 from dva_ros_common.node_tools import close_executor
+
+FixedController = law_node("fixed")
 
 pytestmark = pytest.mark.ros
 

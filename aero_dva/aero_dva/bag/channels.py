@@ -23,6 +23,7 @@ __all__ = [
     "EXCITATION",
     "FLIGHT_CONDITION",
     "FLIGHT_DIAGNOSTIC_NAME",
+    "LAW_INPUTS",
     "SIMULATOR_BLOCK",
     "SIMULATOR_HARDWARE_ID",
     "SPECTRUM",
@@ -55,6 +56,10 @@ DAMPER_STATE = Channel("dva/damper_state", "dva_msgs/msg/DamperState")
 DAMPER_COMMAND = Channel("dva/damper_command", "dva_msgs/msg/DamperCommand")
 SPECTRUM = Channel("dva/spectrum", "dva_msgs/msg/ScaledSpectrum")
 DIAGNOSTICS = Channel("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray")
+
+#: The topic of each input a control law reads (aero_dva.control.controllers: CONDITION, ...).
+LAW_INPUTS = {"condition": FLIGHT_CONDITION, "spectrum": SPECTRUM, "displacement": DISPLACEMENT,
+              "damper_state": DAMPER_STATE, "acceleration": ACCELERATION}
 
 #: What the simulator publishes per block of samples, in its publish order.
 SIMULATOR_BLOCK = (CLOCK, ACCELERATION, DISPLACEMENT, EXCITATION, FLIGHT_CONDITION,

@@ -13,7 +13,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["AirspeedSchedule", "ScheduleFit", "fit_airspeed_schedule"]
+__all__ = ["MAX_AIRSPEED", "AirspeedSchedule", "ScheduleFit", "fit_airspeed_schedule"]
+
+#: [m/s] a measured airspeed above this is a sensor or unit error, never a schedule's input
+#: (the airspeed controller rejects it).
+MAX_AIRSPEED = 400.0
 
 
 def _real(value, name: str) -> float:

@@ -33,7 +33,8 @@ from aero_dva.safe_files import check_file_header, parse_json
 from aero_dva.text_input import read_text_input
 
 __all__ = ["FILE_FORMAT", "FILE_VERSION", "UNITS", "SwitchingGains", "SwitchingGainsError",
-           "gains_from_dict", "gains_to_dict", "load_gains", "save_gains", "with_switching"]
+           "gains_from_dict", "gains_to_dict", "load_gains", "save_gains", "supervised_law",
+           "with_switching"]
 
 FILE_FORMAT = "dva_switching_gains"
 FILE_VERSION = 1
@@ -177,6 +178,15 @@ def load_gains(path, damping_range=DAMPER_RANGE) -> SwitchingGains:
     data = parse_json(text, f"switching gains {str(path)!r}", SwitchingGainsError,
                       nonfinite=True)  # each field is checked by name
     return gains_from_dict(data, repr(str(path)), damping_range)
+
+
+def supervised_law(values) -> SwitchingGains:
+    """The ``switching`` controller's law (its table entry's loader): the gains of the
+    parameter ``gains_file`` (empty: the package's file), read and checked
+    (:class:`SwitchingGainsError`, a ValueError, naming what is wrong)."""
+    from aero_dva.data_files import data_file
+
+    return load_gains(values.get("gains_file") or data_file("switching_gains.json"))
 
 
 def with_switching(config, path: str, wing: str | None = None):

@@ -59,18 +59,3 @@ def control_problem(blocks: int, controlled: int, fallback: int, max_fallback_sh
         return (f"{fallback} of {blocks} blocks ({share:.1%}) were flown on the fallback c2, "
                 f"more than the {max_fallback_share:.1%} allowed")
     return None
-
-
-def expected_commands(controller: str, blocks: int, block_duration: float, spectra: int,
-                      fixed_rate: float) -> int:
-    """Commands the simulator should receive over a flight of ``blocks`` blocks: one per block
-    but the last (the airspeed schedule answers every flight condition; the answer to the last
-    one comes after the flight), one per spectrum (RBF network), one per period of sim time
-    (fixed, and the switching law's supervisor), none without a controller."""
-    if controller == "schedule":
-        return max(blocks - 1, 0)
-    if controller == "rbf":
-        return spectra
-    if controller in ("fixed", "switching"):
-        return int(blocks * block_duration * fixed_rate + 1e-9)
-    return 0

@@ -36,6 +36,8 @@ import numpy as np
 
 __all__ = [
     "DAMPER_RANGE",
+    "DEFAULT_STALE_TIMEOUT",
+    "MAX_DAMPING",
     "CommandResult",
     "DamperConfig",
     "DamperMode",
@@ -54,6 +56,11 @@ SWITCHING_SOURCE = "switching"
 
 #: [N s/m] the damper's default range of c2 (the simulator's, and the controllers' clamp).
 DAMPER_RANGE = (0.0, 2500.0)
+#: [N s/m] far above any damper of this size class: a larger c2 parameter is a unit error.
+MAX_DAMPING = 1.0e6
+#: [s] sim time without an accepted command before the damper falls back (the simulator's
+#: default).
+DEFAULT_STALE_TIMEOUT = 0.5
 
 
 def damping_problem(values, what: str, damping_range=DAMPER_RANGE) -> str | None:
@@ -137,7 +144,7 @@ class DamperConfig:
     max_damping: float
     fallback_damping: float
     initial_damping: float | None = None
-    stale_timeout: float = 0.5
+    stale_timeout: float = DEFAULT_STALE_TIMEOUT
     time_constant: float = 0.0
     absurd_factor: float = 10.0
 

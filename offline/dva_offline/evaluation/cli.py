@@ -1,8 +1,10 @@
 """``dva evaluate``: can the controllers be told apart? Paired flights, differences, boundaries.
 
 Flies the study's ramp (0.8 -> 1.2 U_cr in 30 s, 1 kN white aileron force) for the controllers
-``fixed`` (the best constant c2), ``schedule`` (eq. 7.1), ``rbf`` (spectrum + network) and
-``oracle`` (c2*(U, rho) at the true airspeed and density: the upper bound) in six density cases
+of the controller table (aero_dva.control.controllers; by default the project's block-rate
+laws and references: ``fixed``, the best constant c2; ``schedule``, eq. 7.1; ``rbf``, spectrum
++ network; ``oracle``, c2*(U, rho) at the true airspeed and density: the upper bound; a law
+another package registers is flown when named) in six density cases
 (constant rho0, x0.9, x1.1; mu = 0.1 with a 20 s period, at 1 Hz, and near twice the flutter
 frequency), each with the same excitation seeds, so the controllers meet the same gusts. All
 in one process (the simulator node's runtime with the nodes' arithmetic in the loop, command lag
@@ -33,9 +35,15 @@ DEFAULT_RMS_RANGE = "0.8:1.05"
 
 def register(subparsers) -> None:
     """Add the ``evaluate`` command."""
+    from aero_dva.control import controllers as table
+    from aero_dva.control.controllers import BLOCK, NONE, REFERENCE, SAMPLE
+
+    in_process = table.names((BLOCK, REFERENCE))
+    default = table.names((BLOCK, REFERENCE), builtin_only=True)
+    graph = (NONE, *table.names((BLOCK, SAMPLE)))
     p = subparsers.add_parser(
-        "evaluate", help="paired evaluation flights: best fixed c2, schedule, RBF, oracle x "
-                         "density cases x seeds; differences with 95 %% intervals",
+        "evaluate", help="paired evaluation flights: controllers x density cases x seeds; "
+                         "differences to the best fixed c2 with 95 %% intervals",
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", metavar="DIR",
                    help="evaluation directory (default runs/evaluation_<UTC time>)")
@@ -43,10 +51,11 @@ def register(subparsers) -> None:
                    help=f"excitation seeds per case (default {DEFAULT_SEEDS}; --graph: 10)")
     p.add_argument("--first-seed", type=int, default=1, help="first excitation seed (1)")
     p.add_argument("--controllers", default=None,
-                   help="subset of fixed,schedule,rbf,oracle,switching (default all but "
-                        "switching; fixed is always flown, the reference); --graph: of "
-                        "none,fixed,schedule,rbf. switching: the per-sample law against the "
-                        "best constant c2 in the constant-density cases (its own flights)")
+                   help=f"subset of {','.join(in_process + table.names((SAMPLE,)))} (default "
+                        f"{','.join(default)}; fixed is always flown, the reference); --graph: "
+                        f"of {','.join(graph)}. A per-sample law "
+                        f"({','.join(table.names((SAMPLE,)))}): against the best constant c2 "
+                        "in the constant-density cases (its own flights)")
     p.add_argument("--gains", metavar="FILE", default=None,
                    help="switching gains JSON for --controllers switching (default: the "
                         "package's)")
@@ -110,12 +119,13 @@ def _evaluate(args) -> int:
     from dva_offline.cli_tools import not_with
 
     if args.graph:
-        from dva_offline.evaluation.graph import GRAPH_CONTROLLERS, evaluate_graph
+        from dva_offline.evaluation.graph import evaluate_graph
+        from dva_offline.evaluation.graph_cases import DEFAULT_CONTROLLERS
 
         not_with(args, "is not an option of --graph (the in-process evaluation's only)",
                  *PAIRED_ONLY)
         args.seeds = 10 if args.seeds is None else args.seeds
-        args.controllers = args.controllers or ",".join(GRAPH_CONTROLLERS)
+        args.controllers = args.controllers or ",".join(DEFAULT_CONTROLLERS)
         for dest, value in GRAPH_DEFAULTS.items():
             if getattr(args, dest) is None:
                 setattr(args, dest, value)
@@ -125,24 +135,33 @@ def _evaluate(args) -> int:
     return _paired(args)
 
 
+#: Options that give a controller's input, and the option of the controller table they fill.
+INPUT_OPTIONS = {"--schedule": "schedule", "--network": "network", "--sweep-bag": "network",
+                 "--gains": "gains"}
+
+
 def check_inputs_used(args, controllers) -> None:
     """Refuse an input file or value for a controller that is not flown (one line, exit 2)."""
+    from aero_dva.control import controllers as table
     from dva_offline.cli_tools import not_with
+    from dva_offline.evaluation.paired import REFERENCE_CONTROLLER
 
     chosen = ",".join(controllers)
-    for option, controller in (("--schedule", "schedule"), ("--network", "rbf"),
-                               ("--sweep-bag", "rbf"), ("--fixed-c2", "fixed"),
-                               ("--gains", "switching")):
-        if controller not in controllers:
-            not_with(args, f"is for the {controller} controller, which is not flown "
-                           f"(--controllers {chosen})", option)
+    users = {flag: [c.name for c in table.controllers() if c.option(option)]
+             for flag, option in INPUT_OPTIONS.items()}
+    users["--fixed-c2"] = [REFERENCE_CONTROLLER]
+    for flag, names in users.items():
+        if not set(names) & set(controllers):
+            not_with(args, f"is for the {' or '.join(names)} controller, which is not flown "
+                           f"(--controllers {chosen})", flag)
     if args.network:
         not_with(args, "trains a network, but --network gives one", "--sweep-bag")
 
 
-def _choose(option: str, text: str | None, known: tuple[str, ...]) -> tuple[str, ...]:
+def _choose(option: str, text: str | None, known: tuple[str, ...],
+            default: tuple[str, ...] | None = None) -> tuple[str, ...]:
     if text is None:
-        return known
+        return known if default is None else default
     names = [v.strip() for v in text.split(",") if v.strip()]
     bad = [n for n in names if n not in known]
     if bad or not names:
@@ -165,9 +184,8 @@ def _paired(args) -> int:
     from tqdm import tqdm
 
     from aero_dva import data_files
-    from aero_dva.control.rbf_io import load_rbf_network
-    from aero_dva.control.rbf_network import SPECTRUM_INPUT_DIM
-    from aero_dva.control.schedule_io import load_schedule
+    from aero_dva.control import controllers as table
+    from aero_dva.control.controllers import BLOCK, REFERENCE, SAMPLE
     from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
     from aero_dva.wing.model import AeroelasticModel
     from dva_offline.evaluation.flights import (
@@ -181,7 +199,7 @@ def _paired(args) -> int:
     from dva_offline.evaluation.inputs import evaluation_directory, log
     from dva_offline.evaluation.paired import (
         CASE_NAMES,
-        EVALUATION_CONTROLLERS,
+        REFERENCE_CONTROLLER,
         default_cases,
         summarise,
     )
@@ -191,13 +209,16 @@ def _paired(args) -> int:
     if seeds_n < 1 or args.first_seed < 0:
         raise ValueError(f"--seeds must be >= 1 and --first-seed >= 0, got {seeds_n}, "
                          f"{args.first_seed}")
+    known = table.names((BLOCK, REFERENCE))
     wanted = [c.strip() for c in (args.controllers or "").split(",") if c.strip()]
-    switching = "switching" in wanted
+    per_sample = [c for c in wanted if c in table.names((SAMPLE,))]
+    switching = bool(per_sample)
     if switching:  # its own flights (dva_offline/evaluation/switching_section.py)
-        wanted.remove("switching")
-        args.controllers = ",".join(wanted) or "fixed"
-    controllers = _choose("--controllers", args.controllers, EVALUATION_CONTROLLERS)
-    controllers = tuple(c for c in EVALUATION_CONTROLLERS if c in controllers or c == "fixed")
+        wanted = [c for c in wanted if c not in per_sample]
+        args.controllers = ",".join(wanted) or REFERENCE_CONTROLLER
+    controllers = _choose("--controllers", args.controllers, known,
+                          table.names((BLOCK, REFERENCE), builtin_only=True))
+    controllers = tuple(c for c in known if c in controllers or c == REFERENCE_CONTROLLER)
     case_names = _choose("--cases", args.cases, CASE_NAMES)
     if switching:
         from dva_offline.evaluation.switching_section import SWITCHING_CASES
@@ -211,7 +232,7 @@ def _paired(args) -> int:
             from aero_dva.control.switching_io import load_gains
 
             load_gains(args.gains)
-    check_inputs_used(args, (*controllers, *(("switching",) if switching else ())))
+    check_inputs_used(args, (*controllers, *per_sample))
     rms_low, rms_high = _rms_range(args.rms_range or DEFAULT_RMS_RANGE)
     seeds = list(range(args.first_seed, args.first_seed + seeds_n))
     scenario_path = Path(args.scenario) if args.scenario else \
@@ -224,7 +245,7 @@ def _paired(args) -> int:
     if problem is not None:
         raise ValueError(f"--scenario {scenario_path}: {problem}")
     started = time.monotonic()
-    out, made, given = evaluation_directory(args, controllers)
+    out, made, _ = evaluation_directory(args, controllers)
     model = AeroelasticModel(config.wing, config.absorber, config.aero)
     u_cr = FlightRuntime(config).critical_airspeed
     fixed = made["fixed_c2"]
@@ -234,16 +255,13 @@ def _paired(args) -> int:
     ramp = config.scenario.airspeed.values
     if not config.scenario.airspeed.relative:
         ramp = tuple(v / u_cr for v in ramp)
-    table = oracle_table(model, u_cr, config.scenario.density, list(cases.values()), ramp) \
-        if "oracle" in controllers else None
+    references = [c for c in controllers if table.controller(c).runs == REFERENCE]
+    oracle = oracle_table(model, u_cr, config.scenario.density, list(cases.values()), ramp) \
+        if references else None
     setup = EvaluationSetup(
-        config=config, model=model, critical_airspeed=u_cr, fixed_damping=fixed["damping"],
-        schedule=given.get("schedule") or (
-            load_schedule(made["schedule"]) if "schedule" in made else None),
-        network=given.get("network") or (
-            load_rbf_network(made["network"], expected_input_dim=SPECTRUM_INPUT_DIM)
-            if "network" in made else None),
-        table=table, rms_range=(rms_low * u_cr, rms_high * u_cr))
+        config=config, model=model, critical_airspeed=u_cr,
+        laws=evaluation_laws(controllers, made, config.damper, oracle),
+        rms_range=(rms_low * u_cr, rms_high * u_cr))
     total = len(cases) * len(seeds) * len(controllers)
     bar = tqdm(total=total, desc="flights", unit="flight", file=sys.stderr, leave=False)
 
@@ -308,6 +326,26 @@ def _paired(args) -> int:
             print(markdown(payload["switching"]))
         print(f"results: {out / 'results.md'} ({len(records)} flights in {flight_time:.0f} s)")
     return 0
+
+
+def evaluation_laws(controllers, made: dict, damper, oracle_table) -> dict:
+    """Each controller's law, made from its table entry with the evaluation's inputs: its
+    options' values from ``made`` (the best fixed c2 for ``--damping``, the schedule and network
+    files), the damper's range for a law that clamps to it, a reference's table."""
+    from aero_dva.control import controllers as table
+
+    given = {"damping": made.get("fixed_c2", {}).get("damping"), **made}
+    laws = {}
+    for name in controllers:
+        entry = table.controller(name)
+        values = {o.param: given[o.name] for o in entry.options if given.get(o.name) is not None}
+        params = {p.name for p in entry.params}
+        if {"damping_min", "damping_max"} <= params:
+            values.update(damping_min=damper.min_damping, damping_max=damper.max_damping)
+        if entry.runs == table.REFERENCE:
+            values["table"] = oracle_table
+        laws[name] = entry.make_law(values)
+    return laws
 
 
 def _flutter_frequency(model, config, damping: float) -> float:

@@ -3,21 +3,21 @@
 The flights of one controller in one case differ only in their aileron force, so they are
 flown together and the controller's arithmetic runs once for all of them:
 
-- ``fixed``, ``schedule`` and ``oracle`` command from the block's time and flight condition
-  alone, the same for every flight: the controller of :mod:`.closed_loop` and the damper give
-  the c2 of every block first (:func:`~aero_dva.flight.seed_batch.damper_schedule`), then
-  every seed's whole flight is simulated at once
-  (:func:`~aero_dva.flight.seed_batch.fly_held_commands`) and cut after the block in which
-  it diverged;
-- ``rbf``: the flights step block by block together
-  (:class:`~aero_dva.flight.seed_batch.SeedBatchRuntime`, each its own c2) and
-  :class:`BatchSpectrumRBF`, the ``spectrum`` + ``rbf_controller`` arithmetic of
-  :class:`.closed_loop.SpectrumRBFControl` (eq. 7.3 windows of 2 s every 0.1 s, the network's
-  clamped c2 from each completed window, the last one acting) on every flight's window at once.
+- a law whose commands depend on the block's time and flight condition alone (its table entry's
+  ``shared_commands``: the fixed controller, the schedule, the oracle), the same for every
+  flight: the law in its :class:`.closed_loop.LawControl` and the damper give the c2 of every
+  block first (:func:`~aero_dva.flight.seed_batch.damper_schedule`), then every seed's whole
+  flight is simulated at once (:func:`~aero_dva.flight.seed_batch.fly_held_commands`) and cut
+  after the block in which it diverged;
+- the RBF network (:class:`~aero_dva.control.command_laws.RBFLaw` on spectra): the flights step
+  block by block together (:class:`~aero_dva.flight.seed_batch.SeedBatchRuntime`, each its own
+  c2) and :class:`BatchSpectrumRBF`, the ``spectrum`` + ``rbf_controller`` arithmetic (eq. 7.3
+  windows of 2 s every 0.1 s, the network's clamped c2 from each completed window, the last one
+  acting) on every flight's window at once.
 
 :func:`fly_batch` returns one :class:`~.closed_loop.FlightOutcome` per seed, equal to what
 :func:`.closed_loop.fly` gives for that seed up to rounding (products over several flights may
-sum in another order). Other controllers (none here) and flights the batch cannot fly
+sum in another order). Other laws and flights the batch cannot fly
 (:func:`~aero_dva.flight.seed_batch.batch_problem`) fly one at a time.
 """
 from __future__ import annotations
@@ -28,6 +28,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from aero_dva.control.command_laws import RBFLaw
 from aero_dva.flight.scenario import resolve_airspeeds
 from aero_dva.flight.seed_batch import (
     SeedBatchRuntime,
@@ -37,28 +38,23 @@ from aero_dva.flight.seed_batch import (
 )
 from aero_dva.wing.flutter import bare_critical_airspeed
 from aero_dva.wing.model import LEADING_EDGE
-from dva_offline.evaluation.closed_loop import (
-    FixedControl,
-    FlightOutcome,
-    OracleControl,
-    ScheduleControl,
-    SpectrumRBFControl,
-    fly,
-)
+from dva_offline.evaluation.closed_loop import FlightOutcome, LawControl, fly
 
 __all__ = ["BatchSpectrumRBF", "batchable", "fly_batch"]
 
-#: Controllers whose command depends on the block's time and flight condition only.
-SHARED_COMMANDS = (FixedControl, ScheduleControl, OracleControl)
+
+def _spectrum_rbf(controller) -> bool:
+    return controller.sliding is not None and isinstance(controller.law, RBFLaw)
 
 
 def batchable(controller) -> bool:
-    """``controller`` (of :mod:`.closed_loop`) can fly a seed batch."""
-    return isinstance(controller, (*SHARED_COMMANDS, SpectrumRBFControl))
+    """``controller`` (a :class:`.closed_loop.LawControl`) can fly a seed batch."""
+    return isinstance(controller, LawControl) and (controller.entry.shared_commands
+                                                   or _spectrum_rbf(controller))
 
 
 class BatchSpectrumRBF:
-    """:class:`~.closed_loop.SpectrumRBFControl` for the flights of a batch.
+    """The RBF network's :class:`~.closed_loop.LawControl` for the flights of a batch.
 
     Each flight's accelerations (plunge, pitch) and applied c2 are kept whole; every completed
     window (all flights' at once) gives eq. 7.3 spectra, the network's input (spectra, mean
@@ -70,12 +66,13 @@ class BatchSpectrumRBF:
     k-th turned by ``exp(-2 pi j f k hop / fs)``. The same spectra up to rounding.
     """
 
-    def __init__(self, control: SpectrumRBFControl, flights: int, samples: int):
+    def __init__(self, control: LawControl, flights: int, samples: int):
         sliding = control.sliding
         if sliding.window_function != "rectangular" or \
-                sliding.window_length % sliding.hop_length:
-            raise ValueError("the batch spectrum needs a rectangular window of whole hops")
-        self.network = control.network
+                sliding.window_length % sliding.hop_length or control._rows != [0, 1]:
+            raise ValueError("the batch spectrum needs the plunge and pitch in a rectangular "
+                             "window of whole hops")
+        self.network = control.law.network
         self.low, self.high = control.law.damping_range
         self.window = sliding.window_length
         self.hop = sliding.hop_length
@@ -149,7 +146,7 @@ def fly_batch(config, make_controller: Callable[[], object], seeds: Sequence[int
     if critical_airspeed is None:
         critical_airspeed = bare_critical_airspeed(config.wing, config.scenario.density,
                                                    config.aero)
-    if isinstance(controller, SHARED_COMMANDS):
+    if controller.entry.shared_commands:
         return _fly_shared(config, controller, seeds, critical_airspeed)
     runtime = SeedBatchRuntime(config, seeds, critical_airspeed)
     f, total = len(seeds), runtime.scenario.n_samples
@@ -170,7 +167,7 @@ def fly_batch(config, make_controller: Callable[[], object], seeds: Sequence[int
             break
         c2 = spectra.command(_without_diverged(block))
         if c2 is not None:
-            runtime.command(c2, controller.name)
+            runtime.command(c2, controller.entry.source)
     outcomes = []
     for i in range(f):
         k = int(samples[i])
@@ -188,7 +185,8 @@ def _fly_shared(config, controller, seeds, critical_airspeed) -> list[FlightOutc
     every seed's whole flight with that c2 at once."""
     view = SimpleNamespace(scenario=resolve_airspeeds(config.scenario, critical_airspeed))
     damping = damper_schedule(config, critical_airspeed,
-                              lambda block: controller.command(block, view), controller.name)
+                              lambda block: controller.command(block, view),
+                              controller.entry.source)
     flights = fly_held_commands(config, seeds, damping, critical_airspeed)
     rate = config.scenario.sample_rate
     return [FlightOutcome(diverged=bool(flights.diverged[i]), samples=int(k), sample_rate=rate,

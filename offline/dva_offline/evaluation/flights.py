@@ -8,27 +8,23 @@ records up to rounding. :func:`stability_boundaries` gives, per case, where the
 linear wing stops being stable under each analysable control law: the frozen-density
 eigenvalue boundary (at the case's density, or at the worst density of its cycle) and, for a
 varying density, the Floquet boundary of the periodic system
-(:mod:`aero_dva.control.periodic_stability`). The RBF network's law depends on the spectra, so
-it has no such boundary; its flights are the measurement.
+(:mod:`aero_dva.control.periodic_stability`). A law that reads more than time and the flight
+condition (the RBF network's spectra) has no such boundary; its flights are the measurement.
 """
 from __future__ import annotations
 
+import copy
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from functools import partial
 
 import numpy as np
 
+from aero_dva.control import controllers as table
+from aero_dva.control.oracle import OptimalDampingTable
 from aero_dva.control.periodic_stability import floquet_boundary, frozen_boundary
-from dva_offline.evaluation.closed_loop import (
-    FixedControl,
-    OptimalDampingTable,
-    OracleControl,
-    ScheduleControl,
-    SpectrumRBFControl,
-    fly,
-)
+from dva_offline.evaluation.closed_loop import LawControl, fly
 from dva_offline.evaluation.closed_loop_batch import fly_batch
 from dva_offline.evaluation.paired import DensityCase, FlightRecord, case_scenario, flight_record
 
@@ -49,10 +45,9 @@ class EvaluationSetup:
         The wing with its Maxwell DVA.
     critical_airspeed : float
         [m/s] U_cr of the bare wing at the base density.
-    fixed_damping : float
-        [N s/m] the best fixed c2.
-    schedule, network, table
-        AirspeedSchedule, RBFNetwork, OptimalDampingTable (None where not flown).
+    laws : mapping
+        Controller name -> its law as made from the evaluation's inputs (each flight flies a
+        copy, so a law's state is its flight's own).
     rms_range : (float, float)
         [m/s] airspeeds of the RMS.
     """
@@ -60,24 +55,14 @@ class EvaluationSetup:
     config: object
     model: object
     critical_airspeed: float
-    fixed_damping: float
-    schedule: object = None
-    network: object = None
-    table: OptimalDampingTable | None = None
+    laws: Mapping[str, object] = field(default_factory=dict)
     rms_range: tuple[float, float] = (80.0, 105.0)
 
-    def controller(self, name: str):
-        if name == "fixed":
-            return FixedControl(self.fixed_damping)
-        damper = self.config.damper
-        if name == "schedule":
-            return ScheduleControl(self.schedule, (damper.min_damping, damper.max_damping))
-        if name == "rbf":
-            return SpectrumRBFControl(self.network, self.config.scenario.sample_rate,
-                                      (damper.min_damping, damper.max_damping))
-        if name == "oracle":
-            return OracleControl(self.table)
-        raise ValueError(f"unknown controller {name!r}")
+    def controller(self, name: str) -> LawControl:
+        if name not in self.laws:
+            raise ValueError(f"no law for controller {name!r} in this evaluation")
+        return LawControl(table.controller(name), copy.deepcopy(self.laws[name]),
+                          self.config.scenario.sample_rate)
 
 
 def oracle_table(model, critical_airspeed: float, base_density: float,
@@ -231,12 +216,10 @@ def _finish(key, records, results, finished, progress) -> None:
 
 
 def _laws(setup: EvaluationSetup, controllers: Sequence[str]) -> dict:
-    laws = {"fixed": setup.fixed_damping}
-    if "schedule" in controllers and setup.schedule is not None:
-        laws["schedule"] = lambda u, rho: setup.schedule.evaluate(u)
-    if "oracle" in controllers and setup.table is not None:
-        laws["oracle"] = setup.table
-    return laws
+    """c2 as a function of the flight condition (a number, or ``c2(U, rho)``) of each flown
+    law that has one (``condition_law``)."""
+    return {name: setup.laws[name].condition_law() for name in controllers
+            if name in setup.laws and hasattr(setup.laws[name], "condition_law")}
 
 
 def stability_boundaries(setup: EvaluationSetup, cases: Sequence[DensityCase],

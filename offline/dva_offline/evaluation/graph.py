@@ -1,8 +1,9 @@
 """``dva evaluate --graph``: the study's evaluation flights through the ROS 2 graph, over seeds.
 
 Flies the ramp 0.8 -> 1.2 U_cr in 30 s (1 kN white aileron force) with air density
-rho0 (1 + mu sin 2 pi t), for each controller (none = the wing without DVA, fixed = the best
-constant c2, schedule = eq. 7.1, rbf = the spectrum-based network) x mu x excitation seed. Each
+rho0 (1 + mu sin 2 pi t), for each controller (none = the wing without DVA, or a controller of
+the table that flies through the graph: by default fixed = the best constant c2, schedule =
+eq. 7.1, rbf = the spectrum-based network) x mu x excitation seed. Each
 flight is one ``run_flight`` (simulator, controller and recorder as separate processes over DDS);
 its record is saved as soon as it ends, so an interrupted evaluation resumes where it stopped
 (run the same command again) and a failed flight is reported in the table, not fatal.
@@ -22,14 +23,13 @@ import sys
 import time
 from pathlib import Path
 
-__all__ = ["GRAPH_CONTROLLERS", "bag_problem", "evaluate_graph"]
-
-GRAPH_CONTROLLERS = ("none", "fixed", "schedule", "rbf")
+__all__ = ["bag_problem", "evaluate_graph"]
 
 RATIO_KEY = "divergence_ratio_sliding"  # what the table reports (1 s windows, 0.05 s hop)
 
 
 def _flight_argv(case, scenario: Path, bag: Path, made: dict, args) -> list[str]:
+    from aero_dva.control.controllers import NONE, controller
     from aero_dva_sim.run_flight import executable
 
     try:
@@ -38,14 +38,15 @@ def _flight_argv(case, scenario: Path, bag: Path, made: dict, args) -> list[str]
         raise ValueError(str(exc).replace("run_flight: error: ", "")) from None
     argv = [exe, "--scenario", str(scenario), "--output", str(bag), "--json",
             "--real-time-factor", str(args.real_time_factor), "--timeout", str(args.timeout)]
-    if case.controller == "none":
-        argv += ["--controller", "none", "--absorber", "none"]
-    elif case.controller == "fixed":
-        argv += ["--controller", "fixed", "--damping", repr(made["fixed_c2"]["damping"])]
-    elif case.controller == "schedule":
-        argv += ["--controller", "schedule", "--schedule", made["schedule"]]
-    else:
-        argv += ["--controller", "rbf", "--network", made["network"]]
+    argv += ["--controller", case.controller]
+    if case.controller == NONE:
+        return argv + ["--absorber", "none"]
+    # its options from the made inputs: --damping the best fixed c2, --schedule, --network
+    given = {"damping": repr(made["fixed_c2"]["damping"]) if "fixed_c2" in made else None,
+             "schedule": made.get("schedule"), "network": made.get("network")}
+    for option in controller(case.controller).options:
+        if given.get(option.name) is not None:
+            argv += [f"--{option.name}", given[option.name]]
     return argv
 
 
@@ -242,7 +243,7 @@ def evaluate_graph(args) -> int:
 def _outputs(out, args, mus, controllers, seeds, records, stats, key, table, made, log) -> dict:
     """results.md, plots, per-run reports; returns the files written."""
     from aero_dva.bag.flight_log_io import load_flight_log
-    from dva_offline.evaluation.graph_cases import CONTROLLER_LABELS
+    from dva_offline.evaluation.graph_cases import label
     from dva_offline.evaluation.graph_io import plot_summary, plot_traces
     from dva_offline.report.files import write_report
 
@@ -290,8 +291,8 @@ def _outputs(out, args, mus, controllers, seeds, records, stats, key, table, mad
         lines.append(f"- network: `{made['network']}`")
     lines += ["", table, ""]
     for k in key:
-        lines.append(f"- mu = {k.mu:g}: {CONTROLLER_LABELS['rbf']} {k.rbf_mean:.3f} vs "
-                     f"{CONTROLLER_LABELS['schedule']} {k.schedule_mean:.3f}: difference "
+        lines.append(f"- mu = {k.mu:g}: {label('rbf')} {k.rbf_mean:.3f} vs "
+                     f"{label('schedule')} {k.schedule_mean:.3f}: difference "
                      f"{k.difference:+.3f} (SE {k.standard_error:.3f}): **{k.verdict}**")
     failed = [r for r in records.values() if not r.get("ok")]
     if failed:

@@ -6,9 +6,10 @@ airspeed at which the response starts to grow quickly: one flight per case. Here
 (controller x mu) is flown with several excitation seeds, and the divergence airspeed ratio
 U_div / U_cr (U_cr: the wing without DVA at the base density) is summarised over them.
 
-Controllers: ``none`` (the wing without DVA), ``fixed`` (the Maxwell DVA with a constant c2, see
-:func:`best_fixed_damping`), ``schedule`` (eq. 7.1 from the airspeed) and ``rbf`` (the network
-from the scaled spectra).
+Controllers: ``none`` (the wing without DVA) and those of the controller table that fly through
+the graph (:mod:`aero_dva.control.controllers`; by default ``fixed``, the Maxwell DVA with a
+constant c2, see :func:`best_fixed_damping`, ``schedule``, eq. 7.1 from the airspeed, and
+``rbf``, the network from the scaled spectra).
 """
 from __future__ import annotations
 
@@ -20,9 +21,7 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 
 __all__ = [
-    "CONTROLLERS",
-    "CONTROLLER_LABELS",
-    "STUDY_RATIOS",
+    "DEFAULT_CONTROLLERS",
     "CaseStats",
     "FixedDampingChoice",
     "FlightCase",
@@ -32,22 +31,48 @@ __all__ = [
     "case_grid",
     "compare_rbf_with_schedule",
     "evaluation_scenario",
+    "graph_controllers",
+    "label",
     "markdown_table",
     "parse_controllers",
     "parse_mu_list",
+    "study_ratios",
 ]
 
-CONTROLLERS = ("none", "fixed", "schedule", "rbf")
-CONTROLLER_LABELS = {"none": "no DVA", "fixed": "best fixed c2", "schedule": "airspeed schedule",
-                     "rbf": "RBF network"}
-# The study's single flights (U_div / U_cr): fig. 7.5-7.7 (schedule), fig. 7.13, 7.15, 7.16 (RBF
-# network). Without DVA the wing flutters at U_cr by definition (fig. 6.4); the study flies no
-# fixed-c2 Maxwell DVA in chapter 7.
-STUDY_RATIOS = {
-    "none": {0.0: 1.00},
-    "schedule": {0.0: 1.17, 0.05: 1.11, 0.1: 1.04},
-    "rbf": {0.0: 1.16, 0.05: 1.13, 0.1: 1.11},
-}
+def graph_controllers(builtin_only: bool = False) -> tuple[str, ...]:
+    """``none`` and the controllers of the table that fly through the graph (block-rate and
+    per-sample laws), in the table's order."""
+    from aero_dva.control.controllers import BLOCK, NONE, SAMPLE, names
+
+    return (NONE, *names((BLOCK, SAMPLE), builtin_only))
+
+
+def _default_controllers() -> tuple[str, ...]:
+    from aero_dva.control.controllers import BLOCK, NONE, names
+
+    return (NONE, *names((BLOCK,), builtin_only=True))
+
+
+#: What ``--graph`` flies unless told: the wing without DVA and the project's block-rate laws.
+DEFAULT_CONTROLLERS = _default_controllers()
+
+
+def label(controller: str) -> str:
+    """A controller's label in tables and plots (its table entry's; ``none``: no DVA)."""
+    from aero_dva.control.controllers import NONE, NONE_LABEL
+    from aero_dva.control.controllers import controller as entry
+
+    return NONE_LABEL if controller == NONE else entry(controller).label
+
+
+def study_ratios(controller: str) -> dict[float, float]:
+    """The study's single flights (U_div / U_cr) by mu: the table entry's (fig. 7.5-7.7 for the
+    schedule, fig. 7.13, 7.15, 7.16 for the RBF network); without DVA the wing flutters at U_cr
+    by definition (fig. 6.4); the study flies no fixed-c2 Maxwell DVA in chapter 7."""
+    from aero_dva.control.controllers import NONE
+    from aero_dva.control.controllers import controller as entry
+
+    return {0.0: 1.00} if controller == NONE else dict(entry(controller).study_ratios)
 
 
 @dataclass(frozen=True)
@@ -59,8 +84,9 @@ class FlightCase:
     seed: int
 
     def __post_init__(self):
-        if self.controller not in CONTROLLERS:
-            raise ValueError(f"controller must be one of {CONTROLLERS}, got {self.controller!r}")
+        if self.controller not in graph_controllers():
+            raise ValueError(f"controller must be one of {graph_controllers()}, got "
+                             f"{self.controller!r}")
         if not (math.isfinite(self.mu) and 0.0 <= self.mu < 1.0):
             raise ValueError(f"mu must be in [0, 1) (the density must stay positive), "
                              f"got {self.mu}")
@@ -92,12 +118,13 @@ def parse_mu_list(text: str) -> tuple[float, ...]:
 
 def parse_controllers(text: str) -> tuple[str, ...]:
     """``"none,rbf"`` -> ('none', 'rbf') in the canonical order; errors name the bad one."""
+    known = graph_controllers()
     names = [v.strip() for v in text.split(",") if v.strip()]
-    bad = [n for n in names if n not in CONTROLLERS]
+    bad = [n for n in names if n not in known]
     if bad or not names:
         raise ValueError(f"--controllers must be a comma-separated subset of "
-                         f"{','.join(CONTROLLERS)}, got {text!r}")
-    return tuple(c for c in CONTROLLERS if c in names)
+                         f"{','.join(known)}, got {text!r}")
+    return tuple(c for c in known if c in names)
 
 
 def case_grid(controllers: Sequence[str], mus: Sequence[float],
@@ -222,12 +249,23 @@ class CaseStats:
         out = {k: clean(getattr(self, k)) for k in self.__dataclass_fields__}
         out["ratios"] = [clean(r) for r in self.ratios]
         out["standard_error"] = clean(self.standard_error)
-        out["label"] = CONTROLLER_LABELS[self.controller]
+        out["label"] = _label_or_name(self.controller)
         return out
 
 
+def _label_or_name(controller: str) -> str:
+    try:
+        return label(controller)
+    except ValueError:  # a record of a controller no longer in the table
+        return controller
+
+
 def _study_ratio(controller: str, mu: float) -> float | None:
-    for m, value in STUDY_RATIOS.get(controller, {}).items():
+    try:
+        ratios = study_ratios(controller)
+    except ValueError:
+        return None
+    for m, value in ratios.items():
         if abs(m - mu) < 1e-9:
             return value
     return None
@@ -246,7 +284,7 @@ def aggregate(records: Iterable[Mapping],
     A record is a mapping with ``controller``, ``mu``, ``seed``, ``ok`` (bool) and, when ok, the
     run_flight summary keys ``leading_edge_rms``, ``mean_damping`` and the divergence ratio
     under ``ratio_key`` (None if not diverged). Cases come out in the order controller
-    (``CONTROLLERS``), then mu.
+    (:func:`graph_controllers`), then mu.
     """
     groups: dict[tuple[str, float], list[Mapping]] = {}
     for record in records:
@@ -255,8 +293,9 @@ def aggregate(records: Iterable[Mapping],
                 raise ValueError(f"flight record lacks {key!r}: {dict(record)}")
         groups.setdefault((record["controller"], float(record["mu"])), []).append(record)
     stats = []
-    for (controller, mu) in sorted(groups, key=lambda k: (CONTROLLERS.index(k[0])
-                                                          if k[0] in CONTROLLERS else 99, k[1])):
+    order = graph_controllers()
+    for (controller, mu) in sorted(groups, key=lambda k: (order.index(k[0])
+                                                          if k[0] in order else 99, k[1])):
         flights = groups[(controller, mu)]
         ok = [r for r in flights if r["ok"]]
         ratios = np.array([_number(r, ratio_key) for r in ok])
@@ -298,7 +337,7 @@ def markdown_table(stats: Sequence[CaseStats]) -> str:
         if s.n_failed:
             diverged += f", {s.n_failed} failed"
         lines.append(
-            f"| {CONTROLLER_LABELS.get(s.controller, s.controller)} | {s.mu:g} | "
+            f"| {_label_or_name(s.controller)} | {s.mu:g} | "
             f"{s.n_flights} | {diverged} | {_fmt(s.mean)} | {_fmt(s.std)} | {_fmt(s.min)} | "
             f"{_fmt(s.max)} | {_fmt(s.study_ratio, '.2f')} | {_fmt(s.mean_rms * 1e3, '.3f')} | "
             f"{_fmt(s.mean_damping, '.0f')} |")

@@ -21,14 +21,15 @@ import numpy as np
 import yaml
 
 from aero_dva.atomic_io import atomic_output
+from aero_dva.control.controllers import NONE
 from aero_dva.flight.scenario_io import scenario_from_dict
 from aero_dva.safe_files import read_yaml
 from aero_dva.wing.model import LEADING_EDGE
 from dva_offline.evaluation.graph_cases import (
-    CONTROLLER_LABELS,
-    CONTROLLERS,
     CaseStats,
     FlightCase,
+    graph_controllers,
+    label,
 )
 
 __all__ = ["flight_bag", "flight_record_path", "load_base_scenario", "load_records",
@@ -102,7 +103,7 @@ def plot_traces(path, mu: float, runs: Mapping[str, object], u_cr: float) -> Pat
     from aero_dva.flight.divergence import divergence_airspeed_sliding
 
     plt = _plt()
-    names = [c for c in CONTROLLERS if c in runs]
+    names = [c for c in graph_controllers() if c in runs]
     fig, axes = plt.subplots(len(names), 3, figsize=(13, 2.6 * len(names) + 0.6),
                              squeeze=False)
     for row, controller in zip(axes, names):
@@ -113,12 +114,12 @@ def plot_traces(path, mu: float, runs: Mapping[str, object], u_cr: float) -> Pat
         u_div = divergence_airspeed_sliding(log.airspeed[valid], edge[valid],
                                             log.sample_rate) / u_cr  # as in the table
         # without the DVA the recorded c2 acts on nothing: leave its panel empty
-        c2 = log.applied_damping if controller != "none" else np.full(ratio.shape, np.nan)
-        if controller == "none":
-            row[2].text(0.5, 0.5, "no DVA", ha="center", transform=row[2].transAxes)
-        for ax, values, label in ((row[0], log.displacements[0] * 1e3, "w [mm]"),
-                                  (row[1], log.displacements[1] * 1e3, "alpha [mrad]"),
-                                  (row[2], c2, "c2 [N s/m]")):
+        c2 = log.applied_damping if controller != NONE else np.full(ratio.shape, np.nan)
+        if controller == NONE:
+            row[2].text(0.5, 0.5, label(NONE), ha="center", transform=row[2].transAxes)
+        for ax, values, ylabel in ((row[0], log.displacements[0] * 1e3, "w [mm]"),
+                                   (row[1], log.displacements[1] * 1e3, "alpha [mrad]"),
+                                   (row[2], c2, "c2 [N s/m]")):
             ax.plot(ratio, values, lw=0.5)
             if u_div is not None and math.isfinite(u_div):
                 ax.axvline(u_div, color="r", lw=0.8, ls="--")
@@ -127,12 +128,12 @@ def plot_traces(path, mu: float, runs: Mapping[str, object], u_cr: float) -> Pat
                 before = np.abs(values[np.isfinite(values) & (ratio <= u_div)])
                 if ax is not row[2] and before.size and before.max() > 0:
                     ax.set_ylim(-1.3 * before.max(), 1.3 * before.max())
-            ax.set_ylabel(label)
+            ax.set_ylabel(ylabel)
             ax.grid(True, alpha=0.3)
             ax.set_xlim(0.8, max(1.2, float(np.nanmax(ratio))))
         div = f"U_div = {u_div:.3f} U_cr" if u_div is not None and math.isfinite(u_div) \
             else "no divergence"
-        row[0].set_title(f"{CONTROLLER_LABELS[controller]}: {div}", fontsize=9, loc="left")
+        row[0].set_title(f"{label(controller)}: {div}", fontsize=9, loc="left")
     for ax in axes[-1]:
         ax.set_xlabel("U / U_cr [-]")
     fig.suptitle(f"ramp 0.8 -> 1.2 U_cr, density variation mu = {mu:g} (one excitation seed); "
@@ -148,14 +149,14 @@ def plot_summary(path, stats: Sequence[CaseStats]) -> Path:
     """U_div / U_cr versus mu per controller: mean, std, min..max, the study's flight."""
     plt = _plt()
     fig, ax = plt.subplots(figsize=(7, 4.5))
-    for k, controller in enumerate(c for c in CONTROLLERS if any(s.controller == c
+    for k, controller in enumerate(c for c in graph_controllers() if any(s.controller == c
                                                                   for s in stats)):
         rows = sorted((s for s in stats if s.controller == controller), key=lambda s: s.mu)
         mu = np.array([s.mu for s in rows]) + (k - 1.5) * 0.002  # side by side
         mean = np.array([s.mean for s in rows])
         std = np.nan_to_num(np.array([s.std for s in rows]))
         line = ax.errorbar(mu, mean, yerr=std, marker="o", capsize=3,
-                           label=CONTROLLER_LABELS[controller])
+                           label=label(controller))
         color = line[0].get_color()
         ax.vlines(mu, [s.min for s in rows], [s.max for s in rows], color=color, lw=4,
                   alpha=0.25)

@@ -62,11 +62,20 @@ def evaluation_directory(args, controllers) -> tuple[Path, dict, dict]:
         raise
 
 
+def needed_options(controllers) -> set[str]:
+    """The options of the chosen controllers' table entries (what their laws are made from:
+    ``schedule``, ``network``, ``damping``, ...)."""
+    from aero_dva.control.controllers import NONE, controller
+
+    return {o.name for name in controllers if name != NONE for o in controller(name).options}
+
+
 def inputs(args, controllers, inputs: Path, log) -> dict:
-    """Schedule, fixed c2 and network for the chosen controllers (given or made)."""
+    """Schedule, fixed c2 and network for the chosen controllers' options (given or made)."""
     made: dict = {}
     inputs.mkdir(parents=True, exist_ok=True)
-    if "schedule" in controllers:
+    needed = needed_options(controllers)
+    if "schedule" in needed:
         if args.schedule:
             made["schedule"] = str(Path(args.schedule).resolve())
         else:
@@ -78,7 +87,7 @@ def inputs(args, controllers, inputs: Path, log) -> dict:
             made["schedule"] = str(path)
         if not Path(made["schedule"]).is_file():
             raise FileNotFoundError(f"--schedule: no file {made['schedule']}")
-    if "fixed" in controllers:
+    if "damping" in needed:
         if args.fixed_c2 is not None:
             from aero_dva.flight.damper import check_damping
 
@@ -90,7 +99,7 @@ def inputs(args, controllers, inputs: Path, log) -> dict:
                 log("choosing the fixed c2 (highest flutter airspeed)")
                 _save(path, best_fixed_damping_of(None))
             made["fixed_c2"] = json.loads(path.read_text())
-    if "rbf" in controllers:
+    if "network" in needed:
         if args.network:
             made["network"] = str(Path(args.network).resolve())
             if not Path(made["network"]).is_file():
@@ -126,11 +135,12 @@ def check_given_inputs(args, controllers) -> dict:
     from aero_dva.control.schedule_io import load_schedule
 
     given = {}
-    if "schedule" in controllers and args.schedule:
+    needed = needed_options(controllers)
+    if "schedule" in needed and args.schedule:
         given["schedule"] = load_schedule(args.schedule)
-    if "rbf" in controllers and args.network:
+    if "network" in needed and args.network:
         given["network"] = load_rbf_network(args.network, expected_input_dim=SPECTRUM_INPUT_DIM)
-    elif "rbf" in controllers and args.sweep_bag:
+    elif "network" in needed and args.sweep_bag:
         bag_topics(args.sweep_bag)
     return given
 

@@ -35,13 +35,12 @@ from scipy import stats
 from aero_dva.flight.divergence import divergence_airspeed_sliding
 from aero_dva.flight.scenario import AirspeedProfile, Scenario
 
-__all__ = ["CASE_NAMES", "EVALUATION_CONTROLLERS", "DensityCase", "FlightRecord",
+__all__ = ["CASE_NAMES", "REFERENCE_CONTROLLER", "DensityCase", "FlightRecord",
            "PairedStat", "case_scenario", "default_cases", "flight_record", "paired",
            "summarise"]
 
-EVALUATION_CONTROLLERS = ("fixed", "schedule", "rbf", "oracle")
 CASE_NAMES = ("rho0", "x0.9", "x1.1", "slow", "1Hz", "2f")
-REFERENCE = "fixed"  # every ratio is to the best fixed c2 on the same seed
+REFERENCE_CONTROLLER = "fixed"  # every ratio is to the best fixed c2 on the same seed
 
 
 @dataclass(frozen=True)
@@ -189,7 +188,7 @@ def summarise(records: Sequence[FlightRecord], controllers: Sequence[str],
             own = [r for (c, k, _), r in table.items() if c == controller and k == case]
             if not own:
                 continue
-            ref = {r.seed: table.get((REFERENCE, case, r.seed)) for r in own}
+            ref = {r.seed: table.get((REFERENCE_CONTROLLER, case, r.seed)) for r in own}
             oracle = {r.seed: table.get(("oracle", case, r.seed)) for r in own}
             schedule = {r.seed: table.get(("schedule", case, r.seed)) for r in own}
             div = [r.divergence_ratio for r in own]

@@ -22,8 +22,14 @@ from aero_dva.atomic_io import atomic_output
 
 __all__ = ["markdown_results", "plot_paired", "write_paired_results"]
 
-LABELS = {"fixed": "best fixed c2", "schedule": "airspeed schedule", "rbf": "RBF network",
-          "oracle": "oracle c2*(U, rho)"}
+def label(name: str) -> str:
+    """A controller's label in tables and plots (its table entry's), or its name."""
+    from aero_dva.control import controllers as table
+
+    try:
+        return table.controller(name).label
+    except ValueError:
+        return name
 
 
 def _f(value, spec: str) -> str:
@@ -67,7 +73,7 @@ def markdown_results(payload: Mapping) -> str:
             div += f" ({row['flights'] - row['diverged']} reached the end)"
         fixed = row["controller"] == "fixed"
         lines.append(
-            f"| {row['case']} | {LABELS.get(row['controller'], row['controller'])} | {div} | "
+            f"| {row['case']} | {label(row['controller'])} | {div} | "
             f"{'-' if fixed else _interval(row['divergence_difference'], 1.0, '+.4f')} | "
             f"{_oracle(row)} | {_f(row['mean_rms_ratio'], '.4f')} | "
             f"{'-' if fixed else _interval(row['rms_change'], 100.0, '+.2f')} | "
@@ -82,12 +88,11 @@ def markdown_results(payload: Mapping) -> str:
                   f"{_interval(r['rms_to_schedule'], 100.0, '+.2f')} |" for r in rbf]
     bounds = payload.get("boundaries") or {}
     if bounds:
-        laws = sorted({law for rows in bounds.values() for law in rows},
-                      key=lambda n: list(LABELS).index(n))
+        laws = list(dict.fromkeys(law for rows in bounds.values() for law in rows))
         lines += ["", "Stability boundaries of the control laws [U/U_cr] (frozen: eigenvalues "
                   "at the case's density, or the lowest over its cycle; Floquet: the periodic "
                   "system):", "",
-                  "| case | " + " | ".join(f"{LABELS[n]} frozen | Floquet" for n in laws) + " |",
+                  "| case | " + " | ".join(f"{label(n)} frozen | Floquet" for n in laws) + " |",
                   "|---|" + "---|---|" * len(laws)]
         for case, rows in bounds.items():
             cells = []
@@ -134,7 +139,7 @@ def plot_paired(out, payload: Mapping, kept: Mapping, critical_airspeed: float) 
             low = np.array([_num(rows[c][key]["ci95"][0]) * scale for c in cases])
             high = np.array([_num(rows[c][key]["ci95"][1]) * scale for c in cases])
             ax.errorbar(x, mean, yerr=[mean - low, high - mean], fmt="o", capsize=3,
-                        label=LABELS[controller], color=f"C{k}")
+                        label=label(controller), color=f"C{k}")
     for ax, title, unit in (
             (axes[0], "leading-edge RMS change against the best fixed c2", "RMS change [%]"),
             (axes[1], "U_div/U_cr difference to the best fixed c2", "U_div/U_cr difference [-]")):
@@ -158,7 +163,7 @@ def plot_paired(out, payload: Mapping, kept: Mapping, critical_airspeed: float) 
                 if hit:
                     ax.plot(hit[0].airspeed / critical_airspeed, hit[0].damping, lw=0.8,
                             color=f"C{k - 1}" if controller != "fixed" else "k",
-                            label=LABELS[controller])
+                            label=label(controller))
             ax.set_title(case, fontsize=9)
             ax.set_xlabel("U / U_cr [-]")
             ax.set_ylabel("applied c2 [N s/m]")

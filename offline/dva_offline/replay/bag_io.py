@@ -43,8 +43,8 @@ class FlightRecording:
     ----------
     inputs : list of BlockInput and StateInput
         Acceleration blocks and damper states in the bag's (log-time) order.
-    conditions : list of (int, float)
-        (stamp [ns], airspeed [m/s]) of the flight conditions in order.
+    conditions : list of (int, float, float)
+        (stamp [ns], airspeed [m/s], air density [kg/m^3]) of the flight conditions in order.
     spectra : list of SpectrumRecord
         The recorded ``dva/spectrum`` (empty if none was recorded).
     commands : list of CommandRecord
@@ -106,7 +106,7 @@ def read_recording(bag) -> FlightRecording:
         elif topic == DAMPER_STATE:
             inputs.append(StateInput(_stamp(msg), float(msg.applied_damping)))
         elif topic == CONDITION:
-            conditions.append((_stamp(msg), float(msg.airspeed)))
+            conditions.append((_stamp(msg), float(msg.airspeed), float(msg.air_density)))
         elif topic == SPECTRUM:
             spectra.append(_spectrum(msg))
         else:

@@ -1,21 +1,21 @@
 """``dva replay``: re-run a controller on a recorded flight, open loop, and compare.
 
 The recorded controller inputs (``wing/acceleration`` and ``dva/damper_state`` for the spectrum
-and RBF network, ``flight/condition`` for the airspeed schedule) go through the controller
-again, and its spectra and commands are recorded as a new bag and compared, stamp by stamp,
-with the ones the flight recorded. With the network or schedule that flew, they are equal;
-with another one, the difference is what that controller would have commanded on the same data
-(the wing does not respond: open loop).
+node and a law of spectra such as the RBF network, ``flight/condition`` for a law of flight
+conditions such as the airspeed schedule) go through the controller's law again (any block-rate
+law of the controller table, aero_dva.control.controllers), and its spectra and commands are
+recorded as a new bag and compared, stamp by stamp, with the ones the flight recorded. With the
+network or schedule that flew, they are equal; with another one, the difference is what that
+controller would have commanded on the same data (the wing does not respond: open loop).
 
 Two paths, the same numbers:
   (default)   the ROS 2 graph: bag_player -> [spectrum ->] controller -> mcap_recorder, as
               separate processes on sim time (``ros2 run aero_dva_sim replay_flight``);
               needs the ROS environment (source scripts/env.sh)
-  --offline   the nodes' own code without ROS (aero_dva.control.spectrum_stream,
-              command_laws), much faster
+  --offline   the nodes' own code without ROS (aero_dva.control.spectrum_stream, the
+              law), much faster
 
-The spectra use the nodes' defaults: channels plunge and pitch, 5..20 Hz in 1 Hz steps, a 2 s
-rectangular window every 0.1 s; commands are clamped to 0..2500 N s/m.
+The spectra and the law use the nodes' defaults (the spectra's shape, the damper's range).
 """
 from __future__ import annotations
 
@@ -28,15 +28,18 @@ from pathlib import Path
 
 import numpy as np
 
-from aero_dva.flight.damper import DAMPER_RANGE
-
 __all__ = ["register"]
 
-CHANNELS = ("plunge", "pitch")  # the spectrum and rbf_controller nodes' defaults
-FREQUENCIES = np.arange(5.0, 21.0, 1.0)
-WINDOW_DURATION, HOP, WINDOW = 2.0, 0.1, "rectangular"
-MAX_AIRSPEED = 400.0  # [m/s] the airspeed controller's default
-FIXED_DAMPING = 1500.0  # [N s/m] the fixed controller's default
+HOP = 0.1  # [s] the spectrum node's default hop
+
+
+def _spectrum_shape() -> tuple:
+    """(channels, frequencies, window duration, window) of the spectrum node's defaults."""
+    from aero_dva.control.controllers import SPECTRUM_SHAPE
+
+    shape = {p.name: p.default for p in SPECTRUM_SHAPE}
+    return (tuple(shape["channels"]), np.asarray(shape["frequencies"], dtype=float),
+            float(shape["window_duration"]), shape["window"])
 
 
 def register(subparsers) -> None:
@@ -46,11 +49,13 @@ def register(subparsers) -> None:
                        "graph or --offline) and compare with the recorded commands",
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("bag", metavar="BAG", help="recorded flight (bag directory or .mcap file)")
-    p.add_argument("--controller", choices=("rbf", "schedule", "fixed"), required=True)
-    p.add_argument("--network", metavar="FILE.npz", help="RBF network (rbf)")
-    p.add_argument("--schedule", metavar="FILE.json", help="airspeed schedule (schedule)")
-    p.add_argument("--damping", type=float, default=None,
-                   help=f"[N s/m] c2 of the fixed controller (default {FIXED_DAMPING:g})")
+    from aero_dva.control import controllers as table
+
+    laws = table.controllers((table.BLOCK,))
+    p.add_argument("--controller", choices=[c.name for c in laws], required=True,
+                   help="the block-rate law to re-run: "
+                        + "; ".join(f"{c.name}: {c.label}" for c in laws))
+    table.add_options(p, laws)
     p.add_argument("--out", metavar="DIR", required=True, help="new bag directory to create")
     p.add_argument("--offline", action="store_true", help="without ROS (the nodes' code)")
     p.add_argument("--rate", type=float, default=None,
@@ -63,25 +68,31 @@ def register(subparsers) -> None:
 
 
 def _check_args(args) -> None:
+    from aero_dva.control.controllers import BLOCK, controller, controllers
+    from aero_dva.flight.damper import check_damping
     from dva_offline.cli_tools import CliError, not_with
 
-    for option, needed in (("network", "rbf"), ("schedule", "schedule")):
-        if args.controller == needed and not getattr(args, option):
-            raise CliError(f"--controller {needed} needs --{option} FILE")
-    for option, needed in (("--network", "rbf"), ("--schedule", "schedule"),
-                           ("--damping", "fixed")):
-        if args.controller != needed:
-            not_with(args, f"is for --controller {needed}, not {args.controller}", option)
+    entry = controller(args.controller)
+    for option in entry.options:
+        if option.required and not getattr(args, option.name, None):
+            raise CliError(f"--controller {entry.name} needs --{option.name} FILE")
+    for other in controllers((BLOCK,)):
+        for option in other.options:
+            if entry.option(option.name) is None:
+                not_with(args, f"is for --controller {other.name}, not {entry.name}",
+                         f"--{option.name}")
     if args.offline:
         not_with(args, "is an option of the ROS path: drop it or --offline", "--rate",
                  "--retries")
     if args.retries is None:
         args.retries = 1
-    if args.controller == "fixed":
-        from aero_dva.flight.damper import check_damping
-
-        check_damping(FIXED_DAMPING if args.damping is None else args.damping, "--damping",
-                      error=CliError)
+    defaults = entry.defaults()
+    for option in entry.options:  # a c2 the damper would clip or reject, refused at the door
+        if option.kind == "number":
+            value = getattr(args, option.name)
+            check_damping(defaults[option.param] if value is None else value,
+                          f"--{option.name}", error=CliError)
+    args.law = _law(args)  # a bad value or file ends the run here, naming it
     if Path(args.out).exists():
         raise CliError(f"--out {args.out} exists; choose another directory")
     if args.retries < 0:
@@ -90,36 +101,28 @@ def _check_args(args) -> None:
         raise CliError(f"--rate must be > 0, got {args.rate:g}")
 
 
-def _offline(args, recording):
-    from aero_dva.control.command_laws import RBFLaw, ScheduleLaw
-    from aero_dva.control.rbf_io import load_rbf_network
-    from aero_dva.control.rbf_network import spectrum_input_names
-    from aero_dva.control.schedule_io import load_schedule
-    from dva_offline.replay.rerun import (
-        CommandRecord,
-        rbf_commands,
-        schedule_commands,
-        spectra_from_inputs,
-    )
+def _law(args):
+    """The law of ``--controller`` with its options' values over its node's defaults."""
+    from aero_dva.control.controllers import controller
 
-    if args.controller == "rbf":
-        dim = len(CHANNELS) * FREQUENCIES.size + 1
-        network = load_rbf_network(args.network, expected_input_dim=dim)
-        names, units = spectrum_input_names(CHANNELS, FREQUENCIES)
-        if network.input_names != names or network.input_units != units:
-            raise ValueError(f"RBF network {args.network!r}: its inputs are not the spectra of "
-                             f"{list(CHANNELS)} at 5..20 Hz and c2")
-        spectra = spectra_from_inputs(recording.inputs, CHANNELS, WINDOW_DURATION, HOP,
-                                      FREQUENCIES, WINDOW)
-        return spectra, rbf_commands(spectra, RBFLaw(network, DAMPER_RANGE))
-    if args.controller == "schedule":
-        schedule = load_schedule(args.schedule)
-        low = max(DAMPER_RANGE[0], schedule.damping_range[0])
-        high = min(DAMPER_RANGE[1], schedule.damping_range[1])
-        law = ScheduleLaw(schedule, (low, high), True, MAX_AIRSPEED)
-        return [], schedule_commands(recording.conditions, law)
-    damping = FIXED_DAMPING if args.damping is None else args.damping
-    return [], [CommandRecord(stamp, damping, "fixed") for stamp, _ in recording.conditions]
+    entry = controller(args.controller)
+    return entry.make_law({o.param: getattr(args, o.name) for o in entry.options
+                           if getattr(args, o.name, None) is not None})
+
+
+def _offline(args, recording):
+    import copy
+
+    from aero_dva.control.controllers import SPECTRUM, controller
+    from dva_offline.replay.rerun import law_commands, spectra_from_inputs
+
+    entry = controller(args.controller)
+    shape = _spectrum_shape()
+    channels, frequencies, duration, window = shape
+    spectra = spectra_from_inputs(recording.inputs, channels, duration, HOP, frequencies,
+                                  window) if SPECTRUM in entry.inputs else []
+    law = copy.deepcopy(args.law)  # a fresh law for each re-run
+    return spectra, law_commands(entry, law, recording.conditions, spectra, shape)
 
 
 def _ros(args, expected: list[int]) -> dict:
@@ -134,17 +137,33 @@ def _ros(args, expected: list[int]) -> dict:
         raise ValueError(str(exc).replace("run_flight: error: ", "")) from None
     argv = [exe, str(args.bag), "--controller", args.controller, "--out", str(args.out),
             "--json"]
-    for option in ("network", "schedule", "damping", "rate"):
+    from aero_dva.control.controllers import controller
+
+    for option in (*(o.name for o in controller(args.controller).options), "rate"):
         value = getattr(args, option)
         if value is not None:
             argv += [f"--{option}", str(value)]
-    if args.controller != "fixed":  # the graph must give what the nodes' code says
+    if not _timed(args):  # the graph must give what the nodes' code says
         argv += ["--expect-spectra", str(expected[0]), "--expect-commands", str(expected[1])]
     result = subprocess.run(argv, capture_output=True, text=True)
     if result.returncode != 0:
         lines = (result.stderr or result.stdout).strip().splitlines()
         raise ValueError(lines[-1] if lines else f"replay_flight exited {result.returncode}")
     return json.loads(result.stdout)
+
+
+def _timed(args) -> bool:
+    """The law answers its node's own timer, not the played inputs (its commands in the graph
+    come at other times: nothing to count)."""
+    from aero_dva.control.controllers import TICK, controller
+
+    return controller(args.controller).inputs[0] == TICK
+
+
+def _reads_spectra(args) -> bool:
+    from aero_dva.control.controllers import SPECTRUM, controller
+
+    return SPECTRUM in controller(args.controller).inputs
 
 
 def _discard(out: Path) -> None:
@@ -164,8 +183,8 @@ def _replay(args) -> int:
     recording = read_recording(args.bag)
     if args.offline:
         spectra, commands = _offline(args, recording)
-        write_outputs(args.out, spectra, commands, CHANNELS, FREQUENCIES, WINDOW_DURATION, HOP,
-                      WINDOW)
+        channels, frequencies, duration, window = _spectrum_shape()
+        write_outputs(args.out, spectra, commands, channels, frequencies, duration, HOP, window)
         path = "offline (the nodes' code without ROS)"
     else:
         # What the graph must give: the nodes' code says how many, so a message lost between
@@ -174,7 +193,7 @@ def _replay(args) -> int:
         for attempt in range(1 + args.retries):
             summary = _ros(args, expected)
             spectra, commands = read_outputs(args.out)
-            if [len(spectra), len(commands)] == expected or args.controller == "fixed":
+            if [len(spectra), len(commands)] == expected or _timed(args):
                 break
             lost = (f"the graph delivered {len(spectra)} spectra and {len(commands)} commands "
                     f"of {expected[0]} and {expected[1]} to the recorder")
@@ -188,7 +207,7 @@ def _replay(args) -> int:
         "bag": str(args.bag), "controller": args.controller, "path": path, "out": str(args.out),
         "recorded": {"spectra": len(recording.spectra), "commands": len(recording.commands),
                      "duration_s": recording.duration},
-        "spectra": compare(recording.spectra, spectra).to_dict() if args.controller == "rbf"
+        "spectra": compare(recording.spectra, spectra).to_dict() if spectra or _reads_spectra(args)
         else None,
         "commands": compare(recording.commands, commands).to_dict(),
         "wall_time_s": wall,

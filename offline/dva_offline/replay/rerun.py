@@ -1,33 +1,39 @@
 """Open-loop re-runs of a recorded flight's controller without ROS, and their comparison.
 
 The inputs a controller saw in a recorded flight (acceleration blocks and damper states for the
-spectrum and RBF network, flight conditions for the airspeed schedule) are fed, in the bag's
+spectrum node and a law of spectra, flight conditions for a law of them) are fed, in the bag's
 order, through the very code the nodes run (:class:`~aero_dva.control.spectrum_stream.
-SpectrumStream`, :mod:`aero_dva.control.command_laws`). With the network or schedule that flew,
-the spectra and commands equal the recorded ones; with another, they are that controller's
-commands on the same data. ``dva replay`` runs this (``--offline``) or the same through the
-node graph, and compares either with the recording (:func:`compare`).
+SpectrumStream`, the law of the controller's table entry, :mod:`aero_dva.control.controllers`).
+With the network or schedule that flew, the spectra and commands equal the recorded ones; with
+another, they are that controller's commands on the same data. ``dva replay`` runs this
+(``--offline``) or the same through the node graph, and compares either with the recording
+(:func:`compare`).
 
 The re-run is open loop: the wing does not respond to the new commands (the recorded
 accelerations and applied c2 are replayed as they were).
 """
 from __future__ import annotations
 
-import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from aero_dva.control.command_laws import RBFLaw, ScheduleLaw
+from aero_dva.control.controllers import (
+    CONDITION,
+    SPECTRUM,
+    Condition,
+    Controller,
+    SpectrumInput,
+)
 from aero_dva.control.spectrum_stream import SpectrumStream
+from aero_dva.wing.model import ACCELERATION_NAMES
 
-__all__ = ["CONTROLLERS", "Comparison", "CommandRecord", "SpectrumRecord", "compare",
-           "rbf_commands", "schedule_commands", "spectra_from_inputs"]
+__all__ = ["Comparison", "CommandRecord", "SpectrumRecord", "compare", "law_commands",
+           "spectra_from_inputs"]
 
-CONTROLLERS = ("rbf", "schedule", "fixed")
 #: Channels of an acceleration block, in the order read from a bag (dva_msgs/AccelerationBlock).
-ACCELERATION_CHANNELS = ("plunge", "pitch", "leading_edge")
+ACCELERATION_CHANNELS = ACCELERATION_NAMES
 
 
 @dataclass(frozen=True)
@@ -87,27 +93,30 @@ def spectra_from_inputs(inputs: Iterable[BlockInput | StateInput], channels: Seq
             for s in spectra]
 
 
-def rbf_commands(spectra: Iterable[SpectrumRecord], law: RBFLaw) -> list[CommandRecord]:
-    """The RBF controller's commands for each spectrum (a spectrum without a valid c2, or with
-    no finite network output, gives none, as in the node)."""
+def law_commands(entry: Controller, law, conditions, spectra: Iterable[SpectrumRecord],
+                 shape: tuple) -> list[CommandRecord]:
+    """The commands of ``entry``'s ``law`` on a recording, input by input as its node would
+    give them: for each spectrum (a law of spectra; ``shape`` = channels, frequencies,
+    window duration, window function of the spectra), for each flight condition (stamp [ns],
+    airspeed [m/s], density [kg/m^3]) (a law of them), and a law on its own timer at each
+    flight condition's stamp (one per block, the recording's clock). An input the law rejects
+    gives none, as in the node."""
+    kind = entry.inputs[0]
+    if kind == SPECTRUM:
+        channels, frequencies, duration, window = shape
+        items = [(s.stamp_ns, SpectrumInput(s.stamp_ns, tuple(channels),
+                                            np.asarray(frequencies, dtype=float), s.magnitudes,
+                                            float(duration), window, "band_sum", s.damping))
+                 for s in spectra]
+    elif kind == CONDITION:
+        items = [(stamp, Condition(u, rho)) for stamp, u, rho in conditions]
+    else:
+        items = [(stamp, None) for stamp, *_ in conditions]
     out = []
-    for s in spectra:
-        if not (math.isfinite(s.damping) and s.damping >= 0.0):
-            continue
-        c2, _ = law.command(s.magnitudes, s.damping)
-        if math.isfinite(c2):
-            out.append(CommandRecord(s.stamp_ns, c2, "rbf_network"))
-    return out
-
-
-def schedule_commands(conditions: Iterable[tuple[int, float]],
-                      law: ScheduleLaw) -> list[CommandRecord]:
-    """The airspeed controller's commands for (stamp [ns], airspeed [m/s]) conditions."""
-    out = []
-    for stamp_ns, airspeed in conditions:
-        result = law.step(stamp_ns, airspeed)
-        if result.kind == "command":
-            out.append(CommandRecord(stamp_ns, result.damping, "airspeed_schedule"))
+    for stamp_ns, value in items:
+        step = law.answer(kind, stamp_ns, value)
+        if step.kind == "command":
+            out.append(CommandRecord(stamp_ns, step.damping, entry.source))
     return out
 
 

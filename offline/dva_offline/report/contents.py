@@ -15,15 +15,16 @@ import numpy as np
 
 from aero_dva.bag.flight_log_io import FlightLog
 from aero_dva.bag.flight_summary import FlightSummary, summarize
+from aero_dva.control.controllers import by_source
 from aero_dva.flight.divergence import divergence_airspeed_sliding
 from aero_dva.wing.model import LEADING_EDGE
 
 __all__ = ["RunData", "RunReport", "SpectrumTrack", "build_report", "report_markdown"]
 
-# DamperCommand / DamperState sources -> the controller that produced them.
-SOURCE_CONTROLLERS = {"rbf_network": "rbf", "airspeed_schedule": "schedule", "fixed": "fixed",
-                      "sweep": "sweep (set by the simulator)", "initial": "none",
-                      "fallback": "none (fallback c2)"}
+# DamperState sources that no controller sends: what set c2 then (the controllers' own sources
+# are their table entries', aero_dva.control.controllers.by_source).
+DAMPER_SOURCES = {"sweep": "sweep (set by the simulator)", "initial": "none",
+                  "fallback": "none (fallback c2)"}
 
 
 @dataclass(frozen=True)
@@ -84,7 +85,8 @@ def _controller(data: RunData) -> str:
     if not counts:
         return "unknown (no damper state recorded)"
     source = counts.most_common(1)[0][0]
-    return SOURCE_CONTROLLERS.get(source, source)
+    entry = by_source(source)
+    return entry.name if entry is not None else DAMPER_SOURCES.get(source, source)
 
 
 def _scenario(log: FlightLog, summary: FlightSummary, metadata: Mapping) -> dict:

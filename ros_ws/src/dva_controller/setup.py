@@ -3,7 +3,13 @@ from glob import glob
 
 from setuptools import find_packages, setup
 
+# The controller table (aero_dva, installed before the workspace is built) names the project's
+# block-rate laws; their nodes' executables are aliases of the generic controller node.
+from aero_dva.control.controllers import BLOCK, controllers
+
 PACKAGE = "dva_controller"
+ALIASES = [f"{entry.node} = dva_controller.controller_node:main"
+           for entry in controllers((BLOCK,), builtin_only=True)]
 
 setup(
     name=PACKAGE,
@@ -23,10 +29,9 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
-            "fixed_controller = dva_controller.fixed_controller_node:main",
+            "controller = dva_controller.controller_node:main",
+            *ALIASES,
             "spectrum = dva_controller.spectrum_node:main",
-            "airspeed_controller = dva_controller.airspeed_controller_node:main",
-            "rbf_controller = dva_controller.rbf_controller_node:main",
             "switching_controller = dva_controller.switching_controller_node:main",
         ],
     },

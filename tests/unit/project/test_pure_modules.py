@@ -64,7 +64,7 @@ def test_domain_and_cli_import_without_ros():
 
 def test_the_blocker_really_blocks():
     """The check above would catch a leak: a node module fails to import behind the blocker."""
-    result = _import_all(["dva_controller.fixed_controller_node"], ROS_ONLY)
+    result = _import_all(["dva_controller.controller_node"], ROS_ONLY)
     assert result.returncode != 0
     assert "ROS is not installed" in result.stderr
 

@@ -33,6 +33,19 @@ def entry_points() -> list[tuple[str, str, str]]:
 ENTRY_POINTS = entry_points()
 
 
+def node_spec(executable: str, module: str):
+    """The parameter table an executable's node declares: its module's ``SPEC``, or for an
+    alias of the generic controller node its law's (None: a plain command)."""
+    spec = getattr(importlib.import_module(module), "SPEC", None)
+    if spec is None and module == "dva_controller.controller_node":
+        from aero_dva.control.controllers import by_node
+        from dva_controller.controller_node import node_spec as law_spec
+
+        entry = by_node(executable)
+        spec = None if entry is None else law_spec(entry)
+    return spec
+
+
 def _run(package: str, executable: str, *args: str) -> subprocess.CompletedProcess:
     path = Path(get_package_prefix(package)) / "lib" / package / executable
     return subprocess.run([str(path), *args], capture_output=True, text=True,
@@ -52,8 +65,8 @@ def test_help_lists_every_parameter_and_exits_0(package, executable, module, fla
     result = _run(package, executable, flag)
     assert result.returncode == 0, result.stderr
     assert result.stdout.startswith("usage:") and not result.stderr.strip(), result.stderr
-    spec = getattr(importlib.import_module(module), "SPEC", None)
-    if spec is None:  # a plain command (run_flight): argparse's help
+    spec = node_spec(executable, module)
+    if spec is None:  # a plain command (run_flight, the generic controller): its own help
         return
     assert spec.name == executable and spec.package == package
     for param in spec.params:
@@ -70,7 +83,7 @@ def test_unknown_option_is_refused_with_exit_2(package, executable, module):
     assert result.returncode == 2, result.stdout + result.stderr
     last = result.stderr.strip().splitlines()[-1]  # argparse prints its usage first
     assert f"{executable}: error: " in last and "Traceback" not in result.stderr, result.stderr
-    if getattr(importlib.import_module(module), "SPEC", None) is not None:
+    if node_spec(executable, module) is not None:
         assert "unrecognized arguments: --no-such-option" in last, result.stderr
 
 
@@ -85,6 +98,18 @@ def test_help_does_not_start_the_node(tmp_path):
     assert result.returncode == 0 and "output (string)" in result.stdout and not bag.exists()
 
 
+def test_the_generic_controller_runs_a_law_of_the_table_by_name():
+    aliased = _run("dva_controller", "rbf_controller", "--help")
+    named = _run("dva_controller", "controller", "rbf", "--help")
+    assert named.returncode == 0 and named.stdout == aliased.stdout
+    listing = _run("dva_controller", "controller", "--help")
+    assert listing.returncode == 0 and "laws: fixed, schedule, rbf" in listing.stdout
+    unknown = _run("dva_controller", "controller", "nope")
+    assert unknown.returncode == 2 and "unknown controller 'nope'" in unknown.stderr
+    sample = _run("dva_controller", "controller", "switching")
+    assert sample.returncode == 2 and "does not run in a controller node" in sample.stderr
+
+
 def test_malformed_ros_arguments_are_one_line_errors():
     result = _run("dva_controller", "fixed_controller", "--ros-args", "-p", "damping")
     assert result.returncode == 2 and "Traceback" not in result.stderr
@@ -95,8 +120,8 @@ def test_malformed_ros_arguments_are_one_line_errors():
 def test_example_config_files_set_only_declared_parameters(package):
     """The config/*.yaml examples name parameters of the node's table (no drift)."""
     specs = {}
-    for *_, module in ENTRY_POINTS:
-        spec = getattr(importlib.import_module(module), "SPEC", None)
+    for _, executable, module in ENTRY_POINTS:
+        spec = node_spec(executable, module)
         if spec is not None:
             specs[spec.name] = spec
     files = sorted(Path(get_package_share_directory(package), "config").glob("*.yaml"))

@@ -22,6 +22,8 @@ import time
 from pathlib import Path
 
 from aero_dva.bag import channels as ch
+from aero_dva.control import controllers as table
+from aero_dva.control.controllers import BLOCK, CONDITION, SPECTRUM
 from aero_dva_sim.run_flight import (
     controller_commands,
     controller_files_given,
@@ -34,7 +36,6 @@ from aero_dva_sim.run_flight import (
 )
 from dva_ros_common.shared_memory import clear_dead_ports
 
-CONTROLLERS = ("rbf", "schedule", "fixed")
 INPUTS = tuple(c.absolute() for c in (ch.ACCELERATION, ch.DAMPER_STATE, ch.FLIGHT_CONDITION))
 DEFAULT_RATE = 10.0  # x recorded speed; docs/replay.md: what the graph keeps up with here
 
@@ -45,10 +46,12 @@ OUTPUT_WAIT = 60.0  # [s] wall time at most for the outputs after the bag has be
 
 def watched_channels(controller: str) -> list[ch.Channel]:
     """The outputs :class:`OutputWatch` counts: a controller's commands follow its inputs one
-    for one (the fixed controller's come from its own timer: nothing to wait for)."""
-    if controller == "rbf":
+    for one, a law of spectra's after the spectra (a law on its own timer, such as the fixed
+    controller, answers no input: nothing to wait for)."""
+    kind = table.controller(controller).inputs[0]
+    if kind == SPECTRUM:
         return [ch.SPECTRUM, ch.DAMPER_COMMAND]
-    return [ch.DAMPER_COMMAND] if controller == "schedule" else []
+    return [ch.DAMPER_COMMAND] if kind == CONDITION else []
 
 
 def build_commands(args, inputs: list[str]) -> dict[str, list[str]]:
@@ -68,8 +71,9 @@ def build_commands(args, inputs: list[str]) -> dict[str, list[str]]:
     # The links between the nodes must be up before the first message, not only the nodes:
     # the spectra reach the network and the recorder, the commands the recorder (and both the
     # watch).
-    links = [f"/dva/spectrum:{2 + watch}", f"/dva/damper_command:{1 + watch}"] \
-        if args.controller == "rbf" else [f"/dva/damper_command:{1 + watch}"]
+    links = [f"{ch.DAMPER_COMMAND.absolute()}:{1 + watch}"]
+    if SPECTRUM in table.controller(args.controller).inputs:
+        links.insert(0, f"{ch.SPECTRUM.absolute()}:{2 + watch}")
     commands["bag_player"] = [
         executable("aero_dva_sim", "bag_player"), "--ros-args",
         *ros_params(bag=args.bag, rate=args.rate, wait_for_subscribers=1,
@@ -201,12 +205,11 @@ def build_parser() -> argparse.ArgumentParser:
                     "record its spectra and commands as a new bag. `dva replay` compares them "
                     "with the recorded ones.")
     parser.add_argument("bag", help="recorded flight (bag directory or .mcap file)")
-    parser.add_argument("--controller", choices=CONTROLLERS, required=True)
-    parser.add_argument("--network", default=None, help="RBF network .npz (rbf)")
-    parser.add_argument("--schedule", default=None, help="airspeed schedule JSON (schedule)")
-    parser.add_argument("--damping", type=float, default=None,
-                        help="c2 [N s/m] for --controller fixed, inside the damper's range "
-                             "0..2500 (default: the node's default)")
+    laws = table.controllers((BLOCK,))
+    parser.add_argument("--controller", choices=[c.name for c in laws], required=True,
+                        help="the block-rate law to re-run: "
+                             + "; ".join(f"{c.name}: {c.label}" for c in laws))
+    table.add_options(parser, laws)
     parser.add_argument("--out", required=True, help="bag directory to create")
     parser.add_argument("--rate", type=float, default=DEFAULT_RATE,
                         help=f"playing speed, x recorded (default {DEFAULT_RATE:g})")
@@ -215,10 +218,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--timeout", type=float, default=600.0,
                         help="[s] wall time allowed for playing (default 600)")
     parser.add_argument("--expect-spectra", type=int, default=None, metavar="N",
-                        help="spectra the graph will publish (rbf): wait for them after "
-                             "playing (default: until none came for 2 s)")
+                        help="spectra the graph will publish (a law of spectra): wait for them "
+                             "after playing (default: until none came for 2 s)")
     parser.add_argument("--expect-commands", type=int, default=None, metavar="N",
-                        help="commands the controller will publish (rbf, schedule): likewise")
+                        help="commands the controller will publish (a law of inputs): likewise")
     parser.add_argument("--json", action="store_true", help="print the summary as JSON")
     return parser
 

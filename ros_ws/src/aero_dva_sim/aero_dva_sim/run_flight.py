@@ -1,7 +1,8 @@
 """``run_flight``: fly one scenario through the node graph and summarise the recorded bag.
 
 Starts the nodes as separate processes, exactly as ``ros2 run`` would (recorder, the chosen
-controller and, for the RBF network, the spectrum node; the simulator last), waits for the
+controller's nodes as its entry of the controller table says, :mod:`aero_dva.control.controllers`:
+its node, and the spectrum node for a law of spectra; the simulator last), waits for the
 simulator to end the flight, stops the others with SIGINT so the recorder closes its bag, then
 reads the bag back and prints a summary. Every node uses sim time from the simulator's /clock.
 
@@ -21,20 +22,19 @@ import sys
 import time
 from pathlib import Path
 
-CONTROLLERS = ("fixed", "schedule", "rbf", "switching", "none")
-# Default bound [s sim] on how far the flight may run ahead of the newest command's input:
-# one 50 ms block for the per-block schedule, the 20 Hz period for the fixed controller, one
-# 0.1 s spectrum hop plus a block for the RBF network.
-DEFAULT_COMMAND_LAG = {"schedule": 0.05, "fixed": 0.1, "rbf": 0.15, "switching": 0.1,
-                       "none": 0.0}
-FIXED_RATE = 20.0  # [Hz sim] of the fixed controller's commands (and the switching supervisor's)
-SWITCHING_LAG = 0.01  # [s] the damper's lag with --controller switching (the gains' design)
-SPECTRUM_WINDOW = 2.0  # [s] the spectrum node's default window: the RBF network's first input
-# Subscribers (besides the recorder) each of the simulator's topics needs before the first
-# block, per controller: the schedule reads the flight condition, the spectrum node the
-# accelerations and damper states.
-CONTROLLER_INPUTS = {"schedule": ("flight/condition",),
-                     "rbf": ("wing/acceleration", "dva/damper_state")}
+from aero_dva.bag import channels as ch
+from aero_dva.control import controllers as table
+from aero_dva.control.controllers import BLOCK, NONE, SAMPLE, SPECTRUM, TICK
+
+
+def entry_of(name: str) -> table.Controller | None:
+    """The controller table's entry of ``--controller name`` (None: ``none``)."""
+    return None if name == NONE else table.controller(name)
+
+
+def spectrum_window() -> float:
+    """[s] the spectrum node's default window: a law of spectra's first input ends it."""
+    return next(p.default for p in table.SPECTRUM_SHAPE if p.name == "window_duration")
 
 
 def executable(package: str, name: str) -> str:
@@ -79,12 +79,14 @@ def graph_links(controller: str, others: list[str]) -> list[str]:
     """``TOPIC:N`` entries the simulator waits for before its first block: the recorder and the
     controller's nodes subscribed to what they read, every node to /clock, the recorder to the
     commands (and spectra) it must record from the first one on."""
-    links = [f"{ch}:2" for ch in CONTROLLER_INPUTS.get(controller, ())]
+    entry = entry_of(controller)
+    reads = () if entry is None else entry.node_reads
+    links = [f"{ch.LAW_INPUTS[kind].name}:2" for kind in reads]
     links.append(f"/clock:{len(others)}")
-    if controller != "none":
-        links.append("dva/damper_command:2")
-    if controller == "rbf":
-        links.append("dva/spectrum:2")
+    if entry is not None:
+        links.append(f"{ch.DAMPER_COMMAND.name}:2")
+    if entry is not None and SPECTRUM in entry.inputs:
+        links.append(f"{ch.SPECTRUM.name}:2")
     return links
 
 
@@ -92,7 +94,8 @@ def simulator_command(args, others: list[str]) -> list[str]:
     """The simulator's command line: the flight starts once the graph is complete (every node
     up and every link matched, or it fails after --wait-timeout) and holds at the controller's
     first input until its first command has arrived."""
-    lag = DEFAULT_COMMAND_LAG[args.controller] if args.max_command_lag is None \
+    entry = entry_of(args.controller)
+    lag = (0.0 if entry is None else entry.command_lag) if args.max_command_lag is None \
         else args.max_command_lag
     return [
         executable("aero_dva_sim", "simulator"), "--ros-args",
@@ -101,48 +104,59 @@ def simulator_command(args, others: list[str]) -> list[str]:
                  wait_for_nodes="[" + ",".join(others) + "]",
                  wait_for_topics="[" + ",".join(f'"{t}"' for t in graph_links(
                      args.controller, others)) + "]",
-                 wait_for_command_publishers=0 if args.controller == "none" else 1,
+                 wait_for_command_publishers=0 if entry is None else 1,
                  wait_timeout=args.wait_timeout, wait_timeout_fails=True,
                  max_command_lag=lag,
                  first_input_time=first_input_time(args),
                  first_command_timeout=args.wait_timeout,
                  command_wait_timeout=args.command_wait_timeout,
-                 damper_timeout=1e9 if args.controller == "none" else args.damper_timeout,
-                 **switching_params(args)),
+                 damper_timeout=1e9 if entry is None else args.damper_timeout,
+                 **per_sample_params(args)),
     ]
 
 
 def first_input_time(args) -> float:
     """[s] sim time of the controller's first input: the flight flies the block holding that
     sample, then holds until the first command has come, which then acts from the next block
-    on (as in process, docs/evaluation.md). The RBF network's first input is the last sample of
-    its first 2 s spectrum window. The fixed controller (and the switching supervisor) command
-    on a timer of the flight's clock, first at 1/FIXED_RATE, which the clock reaches only
+    on (as in process, docs/evaluation.md). A law of spectra's first input is the last sample
+    of its first 2 s spectrum window. A law on a timer (the fixed controller, the switching
+    supervisor) commands on the flight's clock, first at 1/rate, which the clock reaches only
     after the sample before it: that sample. (The window's end itself, 2 s, let the flight fly
     one more block before it held; 0 for the timers held blocks shorter than their period at
-    the first block's end, for a command that could never come.) The schedule answers each
-    block: its first input is the first block's."""
-    if args.controller not in ("rbf", "fixed", "switching"):
+    the first block's end, for a command that could never come.) A law of flight conditions
+    answers each block: its first input is the first block's."""
+    entry = entry_of(args.controller)
+    if entry is None or entry.inputs[0] not in (SPECTRUM, TICK):
         return 0.0
     from aero_dva import data_files
     from aero_dva.flight.scenario_io import load_scenario
 
     path = args.scenario or data_files.data_file("scenario_ramp.yaml")
     sample = 1.0 / load_scenario(path).sample_rate
-    return (SPECTRUM_WINDOW if args.controller == "rbf" else 1.0 / FIXED_RATE) - sample
+    first = spectrum_window() if entry.inputs[0] == SPECTRUM else 1.0 / table.flight_rate(entry)
+    return first - sample
 
 
-def switching_params(args) -> dict:
-    """The simulator's damper-path parameters for ``--controller switching``: the gains file
-    (the package's by default) and the damper's lag (10 ms by default, as designed)."""
+def per_sample_params(args) -> dict:
+    """The simulator's damper-path parameters for a per-sample law: its files (the package's
+    by default) and the damper's lag (as the law was designed, by default)."""
     lag = getattr(args, "damper_time_constant", None)
-    if args.controller != "switching":
+    entry = entry_of(args.controller)
+    if entry is None or entry.runs != SAMPLE:
         return {} if lag is None else {"damper_time_constant": lag}
-    from aero_dva.data_files import data_file
+    out = {o.simulator: option_value(args, o) for o in entry.options if o.simulator}
+    out["damper_time_constant"] = entry.damper_lag if lag is None else lag
+    return out
 
-    return {"switching_gains": getattr(args, "gains", None) or str(
-        data_file("switching_gains.json")),
-            "damper_time_constant": SWITCHING_LAG if lag is None else lag}
+
+def option_value(args, option: table.Option):
+    """The value of a controller's option in ``args``, or its package file, or None."""
+    value = getattr(args, option.name, None)
+    if value is None and option.default_file:
+        from aero_dva.data_files import data_file
+
+        value = str(data_file(option.default_file))
+    return value
 
 
 def die_with_parent() -> None:
@@ -246,9 +260,8 @@ def applied_control(args, final: dict, bag: Path) -> dict:
     """What the flight was flown with, from the simulator's end-of-flight report in the bag:
     blocks on the controller's, the start-up and the fallback c2, commands received, expected
     and recorded, and ``control_problem``: why the flight must not count as controlled."""
-    from aero_dva.bag.channels import DAMPER_COMMAND, SPECTRUM
     from aero_dva.bag.reader import bag_topics
-    from aero_dva.flight.applied_control import control_problem, expected_commands
+    from aero_dva.flight.applied_control import control_problem
 
     counts = {name: info.message_count for name, info in bag_topics(bag).items()}
     blocks = int(final.get("blocks", 0))
@@ -260,10 +273,11 @@ def applied_control(args, final: dict, bag: Path) -> dict:
     out["switching_rate_mean"] = float(final.get("switching_rate_mean", 0.0))
     out.update(bag_completeness(final, counts))
     out.update(
-        commands_expected=expected_commands(args.controller, blocks, block_duration,
-                                            counts.get(SPECTRUM.absolute(), 0), FIXED_RATE),
-        commands_recorded=counts.get(DAMPER_COMMAND.absolute(), 0),
-        control_problem=None if args.controller == "none" else control_problem(
+        commands_expected=table.expected_commands(entry_of(args.controller), blocks,
+                                                  block_duration,
+                                                  counts.get(ch.SPECTRUM.absolute(), 0)),
+        commands_recorded=counts.get(ch.DAMPER_COMMAND.absolute(), 0),
+        control_problem=None if args.controller == NONE else control_problem(
             blocks, out["blocks_controlled"], out["blocks_fallback"], args.max_fallback_share))
     return out
 
@@ -274,8 +288,6 @@ def bag_completeness(final: dict, counts: dict) -> dict:
     ``data_published``, ``data_recorded`` and ``data_missing`` (None without the report).
     A recorder starved of CPU can lose the last messages a writer sent before it exited; a
     flight's divergence is judged from its last seconds, so such a bag must not pass as whole."""
-    from aero_dva.bag import channels as ch
-
     data = [c for c in ch.SIMULATOR_BLOCK if c != ch.CLOCK]
     recorded = sum(counts.get(c.absolute(), 0) for c in data)
     if not final:
@@ -309,9 +321,11 @@ def _format(summary: dict) -> str:
             else "none within the flight"),
         f"leading-edge RMS     {number('leading_edge_rms', '.3e')} m (before divergence)",
         f"mean applied c2      {number('mean_damping', '.0f')} N s/m",
-        *([f"switching law        {summary.get('blocks_switching', 0)} blocks, "
+        *([f"{entry_of(summary['controller']).label:21s}"
+           f"{summary.get('blocks_switching', 0)} blocks, "
            f"{number('switching_rate_mean', '.1f')} switches/s (mean over them)"]
-          if summary["controller"] == "switching" else []),
+          if summary["controller"] != NONE
+          and entry_of(summary["controller"]).runs == SAMPLE else []),
         f"c2 applied from      the controller in {summary['blocks_controlled']} of "
         f"{summary['blocks']} blocks, start-up {summary['blocks_startup']}, fallback "
         f"{summary['blocks_fallback']}",
@@ -340,26 +354,25 @@ def build_parser() -> argparse.ArgumentParser:
                              "(duration x sample rate, 100..20000 Hz)")
     parser.add_argument("--wing", default="", help="wing YAML (default: the chapter-6 wing)")
     parser.add_argument("--absorber", choices=("maxwell", "none"), default="maxwell")
-    parser.add_argument("--controller", choices=CONTROLLERS, default="fixed",
-                        help="who commands c2 (default: fixed)")
-    parser.add_argument("--damping", type=float, default=None,
-                        help="c2 [N s/m] for --controller fixed, the safe constant c2 for "
-                             "--controller switching, inside the damper's range 0..2500 "
-                             "(default: the node's default)")
-    parser.add_argument("--schedule", default=None, help="airspeed schedule JSON (schedule)")
-    parser.add_argument("--network", default=None, help="RBF network .npz (rbf)")
-    parser.add_argument("--gains", default=None,
-                        help="switching gains JSON (switching; default: the package's "
-                             "switching_gains.json)")
+    flown = table.controllers((BLOCK, SAMPLE))
+    parser.add_argument("--controller", choices=(*(c.name for c in flown), NONE),
+                        default="fixed",
+                        help="who commands c2 (default: fixed): "
+                             + "; ".join(f"{c.name}: {c.label}" for c in flown)
+                             + f"; {NONE}: nothing (the damper holds its start-up c2)")
+    table.add_options(parser, flown)
+    lags = ", ".join(f"{c.damper_lag:g} with --controller {c.name}" for c in flown
+                     if c.damper_lag is not None)
     parser.add_argument("--damper-time-constant", type=float, default=None,
-                        help="[s] the damper's first-order lag (default: 0.01 with --controller "
-                             "switching, as its gains were designed; else the simulator's 0)")
+                        help=f"[s] the damper's first-order lag (default: {lags}, as designed; "
+                             "else the simulator's 0)")
     parser.add_argument("--real-time-factor", type=float, default=20.0,
                         help="sim seconds per wall second; 0 = as fast as possible (default 20)")
     parser.add_argument("--max-command-lag", type=float, default=None,
                         help="[s] sim time the flight may run ahead of the newest command's "
-                             "input (default per controller: schedule 0.05, fixed 0.1, rbf 0.15; "
-                             "0 = free running)")
+                             "input (default per controller: "
+                             + ", ".join(f"{c.name} {c.command_lag:g}" for c in flown)
+                             + "; 0 = free running)")
     parser.add_argument("--damper-timeout", type=float, default=0.5,
                         help="[s] sim time without commands before the fallback c2 applies")
     parser.add_argument("--max-fallback-share", type=float, default=0.02,
@@ -385,63 +398,66 @@ def build_parser() -> argparse.ArgumentParser:
 
 def controller_commands(args, command_readers: int = 0, spectrum_readers: int = 2,
                         **params) -> dict[str, list[str]]:
-    """Node name -> command line of the controller nodes ``args.controller`` needs (rbf: the
-    spectrum node and the network; none: no node), each with the ROS parameters ``params``.
-    With ``command_readers``, the controller holds its first commands until that many
-    subscribers have matched them (the spectrum node its spectra until ``spectrum_readers``
-    have: the network and the recorder)."""
-    def node(package, name, **own):
-        return [executable(package, name), "--ros-args", *ros_params(**own, **params)]
+    """Node name -> command line of the controller nodes ``args.controller`` needs (its
+    helpers, such as the spectrum node for a law of spectra, then its own; none: no node),
+    each with the ROS parameters ``params``. Its options in ``args`` set its parameters. With
+    ``command_readers``, the controller holds its first commands until that many subscribers
+    have matched them (the spectrum node its spectra until ``spectrum_readers`` have: the law
+    and the recorder)."""
+    entry = entry_of(args.controller)
+    if entry is None:
+        return {}
 
-    hold = {"hold_until_subscribers": command_readers} if command_readers else {}
-    if args.controller == "rbf":
-        return {"spectrum": node("dva_controller", "spectrum",
-                                 **({"hold_until_subscribers": spectrum_readers}
-                                    if command_readers else {})),
-                "rbf_controller": node("dva_controller", "rbf_controller",
-                                       network_file=args.network, **hold)}
-    if args.controller == "schedule":
-        return {"airspeed_controller": node("dva_controller", "airspeed_controller",
-                                            schedule_file=args.schedule, **hold)}
-    if args.controller == "fixed":
-        return {"fixed_controller": node("dva_controller", "fixed_controller",
-                                         damping=args.damping, rate=FIXED_RATE, **hold)}
-    if args.controller == "switching":
-        return {"switching_controller": node("dva_controller", "switching_controller",
-                                             gains_file=getattr(args, "gains", None),
-                                             wing=getattr(args, "wing", ""),
-                                             safe_damping=args.damping,
-                                             rate=FIXED_RATE, **hold)}
-    return {}
+    def node(name, *law, **own):
+        return [executable("dva_controller", name), *law, "--ros-args",
+                *ros_params(**own, **params)]
+
+    out = {helper: node(helper, **({"hold_until_subscribers": spectrum_readers}
+                                   if command_readers else {}))
+           for helper in entry.helpers}
+    own = {o.param: getattr(args, o.name, None) for o in entry.options}
+    own.update(entry.flight_values)
+    if any(p.name == "wing" for p in entry.params):  # a law made for the wing it flies
+        own["wing"] = getattr(args, "wing", "")
+    if command_readers:
+        own["hold_until_subscribers"] = command_readers
+    # The project's laws keep their own executables; another package's runs in the generic
+    # node, named first.
+    law = () if entry.runs != BLOCK or not entry.origin else (entry.name,)
+    out[entry.node] = node("controller" if law else entry.node, *law, **own)
+    return out
 
 
 def controller_files_given(prog: str, args) -> bool:
-    """--controller schedule / rbf need --schedule / --network; False (and the error said)
-    when one is missing."""
-    for option, needed in (("schedule", "schedule"), ("network", "rbf")):
-        if args.controller == needed and not getattr(args, option):
-            print(f"{prog}: error: --controller {needed} needs --{option} FILE", file=sys.stderr)
+    """A controller's required options (--schedule, --network) must be given; False (and the
+    error said) when one is missing."""
+    entry = entry_of(args.controller)
+    for option in () if entry is None else entry.options:
+        if option.required and not getattr(args, option.name, None):
+            print(f"{prog}: error: --controller {entry.name} needs --{option.name} FILE",
+                  file=sys.stderr)
             return False
     return True
 
 
-def switching_gains_readable(prog: str, args) -> bool:
-    """--controller switching with --gains: the file must load and check (the nodes would only
-    fall back to the safe c2); False (and the error said) when it does not."""
-    if getattr(args, "controller", None) != "switching" or not getattr(args, "gains", None):
+def per_sample_law_readable(prog: str, args) -> bool:
+    """A per-sample law's files given as options must load and check (the nodes would only
+    fall back to the safe c2); False (and the error said) when they do not."""
+    entry = entry_of(getattr(args, "controller", NONE))
+    if entry is None or entry.runs != SAMPLE or \
+            not any(getattr(args, o.name, None) for o in entry.options if o.kind == "file"):
         return True
-    from aero_dva.control.switching_io import SwitchingGainsError, load_gains
-
     try:
-        load_gains(args.gains)
-    except SwitchingGainsError as exc:
+        entry.make_law({o.param: getattr(args, o.name, None) for o in entry.options
+                        if getattr(args, o.name, None) is not None})
+    except ValueError as exc:
         print(f"{prog}: error: {exc}", file=sys.stderr)
         return False
     return True
 
 
 def damping_in_range(prog: str, args) -> bool:
-    """--damping inside the damper's range (the simulator's, 0..2500 N s/m): a c2 the damper
+    """--damping inside the damper's range (the simulator's default): a c2 the damper
     would clip or reject is refused at the door; False (and the error said) when it is not."""
     if getattr(args, "damping", None) is None:
         return True
@@ -475,7 +491,7 @@ def run_on_domain(prog: str, run, args) -> tuple[dict | None, int]:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if not controller_files_given("run_flight", args) or \
-            not switching_gains_readable("run_flight", args) or \
+            not per_sample_law_readable("run_flight", args) or \
             not damping_in_range("run_flight", args):
         return 2
     summary, code = run_on_domain("run_flight", run, args)

@@ -20,39 +20,26 @@ import sys
 from rclpy.node import Node
 
 from aero_dva.bag import channels as ch
+from aero_dva.control.controllers import controller
 from aero_dva.control.switching_supervisor import SwitchingSupervisor
-from dva_controller.shared_params import MAX_DAMPING
+from dva_controller.shared_params import param
 from dva_msgs.msg import DamperCommand, DamperState, DisplacementBlock
 from dva_ros_common import conversions
 from dva_ros_common.held_publisher import HOLD_PARAM, HeldPublisher
-from dva_ros_common.node_params import NodeSpec, Param, declare_parameters
+from dva_ros_common.node_params import NodeSpec, declare_parameters
 from dva_ros_common.node_tools import run_node
 
+#: The switching law's entry of the controller table: its supervisor's parameters, its sources.
+ENTRY = controller("switching")
+
 SPEC = NodeSpec(
-    name="switching_controller",
+    name=ENTRY.node,
     package="dva_controller",
-    summary="Supervise the per-sample switching c2 law that runs in the damper's own "
-            "controller (the simulator's damper path): arm it, or hold a safe constant c2 on an "
-            "invalid gains file or after a burst (leading edge beyond peak_limit), and say why. "
-            "When this node falls silent the damper's stale-command fallback ends the law.",
-    params=(
-        Param("gains_file", "", "switching gains JSON (dva switching design)",
-              default_text="the package's switching_gains.json"),
-        Param("wing", "", "wing YAML the gains must be made for",
-              default_text="the package's chapter-6 wing"),
-        Param("safe_damping", 624.7, "constant c2 held when the law is not armed (the best "
-              "constant c2 of the chapter-6 wing)", "N s/m", 0.0, MAX_DAMPING),
-        Param("peak_limit", 0.013, "leading-edge displacement that counts as a burst (20x the "
-              "fixed damper's RMS at 0.8 U_cr, docs/switching.md)", "m", 1.0e-9, 1.0e3),
-        Param("rearm_after", 2.0, "sim time after a burst's last sample before the law is "
-              "armed again", "s", 0.0, 1.0e12),
-        Param("rate", 20.0, "command rate, in ROS time (sim time with use_sim_time)", "Hz",
-              0.01, 1000.0),
-        HOLD_PARAM,
-    ),
-    topics="""
-publishes dva/damper_command (dva_msgs/DamperCommand, source "switching" or
-  "switching_fallback"), /diagnostics (each fallback and its reason)
+    summary=ENTRY.summary,
+    params=(*(param(row) for row in ENTRY.params), HOLD_PARAM),
+    topics=f"""
+publishes dva/damper_command (dva_msgs/DamperCommand, source "{ENTRY.source}" or
+  "{ENTRY.sources[0]}"), /diagnostics (each fallback and its reason)
 subscribes wing/displacement (burst detector), dva/damper_state (whether the damper runs the law)
 """,
 )

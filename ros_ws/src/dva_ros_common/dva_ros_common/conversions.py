@@ -20,6 +20,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rosgraph_msgs.msg import Clock
 
 from aero_dva.bag.channels import DIAGNOSTIC_LEVELS, WING_FRAME, diagnostic_text
+from aero_dva.control.controllers import SpectrumInput
 from aero_dva.control.spectrum import ScaledSpectrum as SpectrumResult
 from aero_dva.wing.model import ACCELERATION_NAMES, DISPLACEMENT_NAMES
 from dva_msgs.msg import (
@@ -311,36 +312,6 @@ def scaled_spectrum_message(
     msg.scaling = ScaledSpectrum.SCALING_BAND_SUM
     msg.damping = float(damping)
     return msg
-
-
-@dataclass(frozen=True)
-class SpectrumInput:
-    """The content of one ``dva_msgs/ScaledSpectrum``.
-
-    Attributes
-    ----------
-    stamp_ns : int
-        [ns] time of the last sample in the window.
-    channel_names : tuple of str
-    frequencies : ndarray, shape (n_freq,)
-        [Hz]
-    magnitudes : ndarray, shape (channels, n_freq)
-        [1] scaled magnitudes (eq. 7.3).
-    window_duration : float
-        [s]
-    window_function, scaling : str
-    damping : float
-        [N s/m] c2 during the window (may be NaN).
-    """
-
-    stamp_ns: int
-    channel_names: tuple[str, ...]
-    frequencies: np.ndarray
-    magnitudes: np.ndarray
-    window_duration: float
-    window_function: str
-    scaling: str
-    damping: float
 
 
 def spectrum_input(msg: ScaledSpectrum) -> SpectrumInput:

@@ -4,13 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 
-import pytest
-
-from aero_dva.flight.applied_control import (
-    AppliedControl,
-    control_problem,
-    expected_commands,
-)
+from aero_dva.flight.applied_control import AppliedControl, control_problem
 from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
 from aero_dva.flight.scenario import AirspeedProfile, Scenario
 
@@ -55,10 +49,3 @@ def test_counts_add_up():
     for source in ("initial", "initial", "airspeed_schedule", "fallback", "fixed"):
         applied.count(source)
     assert (applied.blocks, applied.startup, applied.fallback, applied.controlled) == (5, 2, 1, 2)
-
-
-@pytest.mark.parametrize("controller, expected", [
-    ("schedule", 39), ("rbf", 7), ("fixed", 40), ("none", 0)])
-def test_expected_commands(controller, expected):
-    # 40 blocks of 50 ms: 2 s; the fixed controller commands at 20 Hz
-    assert expected_commands(controller, 40, 0.05, 7, 20.0) == expected

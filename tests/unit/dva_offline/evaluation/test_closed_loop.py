@@ -8,18 +8,14 @@ import pytest
 
 from aero_dva.control.airspeed_schedule import AirspeedSchedule
 from aero_dva.control.optimal_damping import optimal_damping
+from aero_dva.control.oracle import OptimalDampingTable
 from aero_dva.control.rbf_network import InputScaling, RBFNetwork, spectrum_input_names
 from aero_dva.flight.flight_runtime import load_runtime_config
 from aero_dva.flight.scenario import AirspeedProfile, Scenario
 from aero_dva.wing.model import AeroelasticModel
-from dva_offline.evaluation.closed_loop import (
-    FixedControl,
-    OptimalDampingTable,
-    OracleControl,
-    ScheduleControl,
-    SpectrumRBFControl,
-    fly,
-)
+from dva_offline.evaluation.closed_loop import fly
+
+from .controls import fixed_control, oracle_control, rbf_control, schedule_control
 
 CONFIG = load_runtime_config({})
 MODEL = AeroelasticModel(CONFIG.wing, CONFIG.absorber, CONFIG.aero)
@@ -34,8 +30,8 @@ def _config(duration=4.0, airspeed=("ramp", (85.0, 95.0)), density=1.2, mu=0.0, 
 
 def test_fixed_command_acts_from_the_next_block_and_the_force_is_paired():
     config = _config()
-    first = fly(config, FixedControl(300.0))
-    second = fly(config, FixedControl(900.0))
+    first = fly(config, fixed_control(300.0))
+    second = fly(config, fixed_control(900.0))
     initial = CONFIG.damper.initial_damping
     assert np.all(first.damping[:50] == initial) and np.all(first.damping[50:] == 300.0)
     assert np.all(second.damping[50:] == 900.0)
@@ -47,7 +43,7 @@ def test_fixed_command_acts_from_the_next_block_and_the_force_is_paired():
 
 def test_schedule_commands_eq_7_1_of_the_blocks_airspeed():
     schedule = AirspeedSchedule(-1000.0, 15.0, (80.0, 120.0), (0.0, 2500.0))
-    out = fly(_config(), ScheduleControl(schedule))
+    out = fly(_config(), schedule_control(schedule))
     # block k (samples 50 k ..) carries the command made from block k - 1's first airspeed
     for k in (1, 17, 79):
         expected = schedule.evaluate(out.airspeed[50 * (k - 1)])
@@ -70,7 +66,7 @@ def test_oracle_table_holds_the_exact_optimum_and_interpolates():
 def test_oracle_commands_the_optimum_of_the_true_next_condition():
     table = OptimalDampingTable.build(MODEL, np.arange(84.0, 97.0, 1.0),
                                       np.array([1.05, 1.2, 1.35]))
-    out = fly(_config(mu=0.1), OracleControl(table))
+    out = fly(_config(mu=0.1), oracle_control(table))
     k = 40  # block 40 acts at samples 2000..2049; its command used the block's middle
     t = (50 * k + 25) / 1000.0
     u = 85.0 + 10.0 * t / 4.0
@@ -92,7 +88,7 @@ def _network(weight: float) -> RBFNetwork:
 
 def test_spectrum_rbf_control_answers_every_window_with_the_network():
     network = _network(100.0)
-    control = SpectrumRBFControl(network, 1000.0)
+    control = rbf_control(network)
     out = fly(_config(duration=3.0, airspeed=("constant", (90.0,))), control)
     initial = CONFIG.damper.initial_damping
     # no command before the first 2 s window is complete (after block 39), then one per
@@ -104,11 +100,11 @@ def test_spectrum_rbf_control_answers_every_window_with_the_network():
     assert expected == pytest.approx(600.0)  # the neuron sits at c2 = 500
     np.testing.assert_allclose(out.damping[2000:2100], expected, rtol=1e-12)
     clamped = fly(_config(duration=2.2, airspeed=("constant", (90.0,))),
-                  SpectrumRBFControl(_network(1e5), 1000.0, damping_range=(0.0, 2500.0)))
+                  rbf_control(_network(1e5), damping_range=(0.0, 2500.0)))
     assert clamped.damping[-1] == 2500.0
 
 
 def test_a_diverging_flight_stops():
-    out = fly(_config(duration=30.0, airspeed=("constant", (130.0,))), FixedControl(600.0))
+    out = fly(_config(duration=30.0, airspeed=("constant", (130.0,))), fixed_control(600.0))
     assert out.diverged and out.samples < 30000
     assert np.abs(out.leading_edge[-50:]).max() > 0.5 * CONFIG.wing.chord

@@ -7,18 +7,12 @@ import numpy as np
 import pytest
 
 from aero_dva.control.airspeed_schedule import AirspeedSchedule
+from aero_dva.control.oracle import OptimalDampingTable
 from aero_dva.control.rbf_network import InputScaling, RBFNetwork, spectrum_input_names
 from aero_dva.flight.flight_runtime import load_runtime_config
 from aero_dva.flight.scenario import AirspeedProfile, Scenario
 from aero_dva.wing.model import AeroelasticModel
-from dva_offline.evaluation.closed_loop import (
-    FixedControl,
-    OptimalDampingTable,
-    OracleControl,
-    ScheduleControl,
-    SpectrumRBFControl,
-    fly,
-)
+from dva_offline.evaluation.closed_loop import fly
 from dva_offline.evaluation.closed_loop_batch import fly_batch
 from dva_offline.evaluation.flights import (
     BATCH_SEEDS,
@@ -27,6 +21,14 @@ from dva_offline.evaluation.flights import (
     seed_batches,
 )
 from dva_offline.evaluation.paired import default_cases
+
+from .controls import (
+    evaluation_laws,
+    fixed_control,
+    oracle_control,
+    rbf_control,
+    schedule_control,
+)
 
 CONFIG = load_runtime_config({})
 MODEL = AeroelasticModel(CONFIG.wing, CONFIG.absorber, CONFIG.aero)
@@ -76,10 +78,10 @@ TABLE = OptimalDampingTable.build(MODEL, np.arange(86.0, 99.0, 1.0), np.array([1
 
 
 @pytest.mark.parametrize("make", [
-    lambda: FixedControl(624.7),
-    lambda: ScheduleControl(SCHEDULE),
-    lambda: OracleControl(TABLE),
-    lambda: SpectrumRBFControl(_network(), 1000.0),
+    lambda: fixed_control(624.7),
+    lambda: schedule_control(SCHEDULE),
+    lambda: oracle_control(TABLE),
+    lambda: rbf_control(_network()),
 ], ids=["fixed", "schedule", "oracle", "rbf"])
 def test_a_seed_batch_flies_each_seed_as_one_flight_does(make):
     config = _config()
@@ -88,7 +90,7 @@ def test_a_seed_batch_flies_each_seed_as_one_flight_does(make):
     _assert_same_flights(got, _one_at_a_time(config, make, seeds))
     # the seeds are different flights (their forces differ)
     assert not np.allclose(got[0].leading_edge, got[1].leading_edge)
-    if isinstance(make(), SpectrumRBFControl):  # each flight its own c2 from its spectra
+    if make().entry.name == "rbf":  # each flight its own c2 from its spectra
         assert got[0].peak_activation.size == 11
         assert not np.array_equal(got[0].damping[-100:], got[1].damping[-100:])
 
@@ -96,8 +98,8 @@ def test_a_seed_batch_flies_each_seed_as_one_flight_does(make):
 def test_diverging_flights_stop_at_their_own_block_and_the_others_go_on():
     config = _config(duration=2.0, airspeed=("constant", (130.0,)), mu=0.0)
     seeds = (1, 2, 3)
-    got = fly_batch(config, lambda: FixedControl(600.0), seeds)
-    expected = _one_at_a_time(config, lambda: FixedControl(600.0), seeds)
+    got = fly_batch(config, lambda: fixed_control(600.0), seeds)
+    expected = _one_at_a_time(config, lambda: fixed_control(600.0), seeds)
     _assert_same_flights(got, expected)
     assert all(g.diverged for g in got) and len({g.samples for g in got}) == 2
 
@@ -107,8 +109,8 @@ def test_scenarios_the_batch_cannot_fly_go_one_at_a_time():
     scenario = replace(_config().scenario, airspeed=AirspeedProfile("steps", (88.0, 90.0)),
                        duration=1.0, dwell=0.25, sweep_damping=(500.0, 700.0))
     config = replace(CONFIG, scenario=scenario)
-    got = fly_batch(config, lambda: FixedControl(600.0), (1, 2))
-    for g, e in zip(got, _one_at_a_time(config, lambda: FixedControl(600.0), (1, 2))):
+    got = fly_batch(config, lambda: fixed_control(600.0), (1, 2))
+    for g, e in zip(got, _one_at_a_time(config, lambda: fixed_control(600.0), (1, 2))):
         np.testing.assert_array_equal(g.leading_edge, e.leading_edge)
 
 
@@ -129,9 +131,9 @@ def test_batched_records_equal_the_one_flight_records():
     ramp = Scenario("ramp", 8.0, block_size=50, airspeed=AirspeedProfile(
         "ramp", (0.95, 1.25), relative=True), density=1.2, seed=0)
     setup = EvaluationSetup(config=replace(CONFIG, scenario=ramp), model=MODEL,
-                            critical_airspeed=100.0, fixed_damping=624.7, schedule=SCHEDULE,
-                            network=_network(), table=OptimalDampingTable.build(
-                                MODEL, np.arange(93.0, 128.0, 5.0), np.array([1.0, 1.4])),
+                            critical_airspeed=100.0, laws=evaluation_laws(
+                                624.7, SCHEDULE, _network(), OptimalDampingTable.build(
+                                    MODEL, np.arange(93.0, 128.0, 5.0), np.array([1.0, 1.4]))),
                             rms_range=(96.0, 105.0))
     case = default_cases(8.48)["1Hz"]
     controllers = ("fixed", "schedule", "rbf", "oracle")

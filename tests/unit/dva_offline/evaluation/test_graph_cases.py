@@ -12,7 +12,6 @@ from aero_dva.flight.divergence import divergence_airspeed, divergence_airspeed_
 from aero_dva.flight.scenario_io import scenario_from_dict
 from dva_offline import cli
 from dva_offline.evaluation.graph_cases import (
-    STUDY_RATIOS,
     FlightCase,
     aggregate,
     best_fixed_damping,
@@ -22,6 +21,7 @@ from dva_offline.evaluation.graph_cases import (
     markdown_table,
     parse_controllers,
     parse_mu_list,
+    study_ratios,
 )
 from dva_offline.evaluation.graph_io import load_base_scenario, plot_summary, write_scenario
 
@@ -140,7 +140,7 @@ def test_aggregate_counts_diverged_not_diverged_and_failed_flights():
     assert sch0.mean == pytest.approx(1.155) and sch0.std == pytest.approx(np.std([1.16, 1.15],
                                                                                   ddof=1))
     assert (rbf1.n_flights, rbf1.n_failed, rbf1.min, rbf1.max) == (4, 1, 1.10, 1.12)
-    assert sch1.study_ratio == STUDY_RATIOS["schedule"][0.1] == 1.04
+    assert sch1.study_ratio == study_ratios("schedule")[0.1] == 1.04
     assert sch1.mean_rms == pytest.approx(2e-3)
     table = markdown_table(stats)
     assert "| airspeed schedule | 0 | 3 | 2 (1 reached the end) | 1.155 |" in table

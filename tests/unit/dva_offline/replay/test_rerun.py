@@ -8,11 +8,12 @@ import pytest
 
 from aero_dva.bag.writer import BagWriter
 from aero_dva.control.command_laws import RBFLaw
+from aero_dva.control.controllers import controller
 from aero_dva.control.spectrum import scaled_spectrum
 from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
 from dva_offline import cli
 from dva_offline.replay.bag_io import read_outputs, read_recording
-from dva_offline.replay.rerun import CommandRecord, compare, rbf_commands, spectra_from_inputs
+from dva_offline.replay.rerun import CommandRecord, compare, law_commands, spectra_from_inputs
 from tests.unit.dva_offline.small_networks import small_spectrum_network
 
 FREQS = np.arange(5.0, 21.0)
@@ -119,13 +120,15 @@ def test_compare_matches_by_stamp_and_counts_the_unmatched():
                     "rms_difference": 6.0}
 
 
-def test_rbf_commands_skip_spectra_without_a_valid_c2(flight):
+def test_a_law_of_spectra_skips_spectra_without_a_valid_c2(flight):
     recording = read_recording(flight["bag"])
-    spectra = spectra_from_inputs(recording.inputs, ("plunge", "pitch"), 2.0, 0.1, FREQS,
-                                  "rectangular")
+    shape = (("plunge", "pitch"), FREQS, 2.0, "rectangular")
+    spectra = spectra_from_inputs(recording.inputs, shape[0], 2.0, 0.1, FREQS, "rectangular")
     broken = [type(spectra[0])(s.stamp_ns, s.magnitudes, s.band_sums, float("nan"))
               for s in spectra[:3]]
-    assert rbf_commands(broken, RBFLaw(flight["network"], (0.0, 2500.0))) == []
+    law = RBFLaw(flight["network"], (0.0, 2500.0))
+    assert law_commands(controller("rbf"), law, [], broken, shape) == []
+    assert len(law_commands(controller("rbf"), law, [], spectra[:3], shape)) == 3
 
 
 @pytest.mark.parametrize("case", ["no_network", "out_exists", "no_bag", "wrong_network"])
