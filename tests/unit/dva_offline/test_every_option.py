@@ -334,7 +334,12 @@ SOURCES = Path(cli.__file__).parent
 def test_every_option_is_read_by_its_command(command):
     """A cheap guard against an option that nothing reads: its dest appears as ``args.DEST``
     (or as the name ``"DEST"`` that code looks up with getattr) in its command family's code
-    or the shared CLI tools."""
+    or the shared CLI tools; a controller's option (the controller table's, which the code
+    reads through its entry as ``getattr(args, option.name)``) where the family reads the
+    entry's options so."""
+    from aero_dva.control.controllers import controllers
+
+    table_options = {o.name for c in controllers() for o in c.options}
     parser = LEAVES[command]
     family = Path(__import__(parser.get_default("func").__module__,
                              fromlist=["_"]).__file__).parent
@@ -342,5 +347,6 @@ def test_every_option_is_read_by_its_command(command):
     text = "\n".join(f.read_text() for f in files)
     for option, action in _options(parser).items():
         dest = action.dest
-        read = re.search(rf"\bargs\.{dest}\b|[\"']{dest}[\"']", text)
+        read = re.search(rf"\bargs\.{dest}\b|[\"']{dest}[\"']", text) or (
+            dest in table_options and "getattr(args, option.name" in text)
         assert read, f"dva {command}: nothing reads {option} (args.{dest})"
