@@ -48,7 +48,7 @@ from aero_dva.bag.batch_cdr import cdr_layout, sample_fields, split_stamps, stam
 from aero_dva.bag.batch_recorder import BatchRecorder
 from aero_dva.bag.schemas import typestore
 from aero_dva.bag.writer import BagWriter, qos_profile_yaml
-from aero_dva.flight.damper import DamperSnapshot, DamperStatus
+from aero_dva.flight.damper import DAMPER_RANGE, DamperSnapshot, DamperStatus
 from aero_dva.flight.flight_runtime import FlightBlock
 
 RATE = 1000.0
@@ -73,7 +73,8 @@ def make_blocks(count: int, seed: int) -> tuple[list, list]:
                     accelerations=acc[k % pool], diverged=False)
         for k in range(count)]
     state = DamperSnapshot(time=0.0, commanded_damping=math.nan, applied_damping=500.0,
-                           min_damping=0.0, max_damping=2500.0, command_age=math.inf,
+                           min_damping=DAMPER_RANGE[0], max_damping=DAMPER_RANGE[1],
+                           command_age=math.inf,
                            status=DamperStatus.NO_COMMAND, source="initial", rejection=None)
     return blocks, [state] * count
 

@@ -40,6 +40,8 @@ from pathlib import Path
 
 import numpy as np
 
+from aero_dva.flight.damper import DEFAULT_STALE_TIMEOUT
+
 REPO = Path(__file__).resolve().parents[1]
 if str(REPO) not in sys.path:  # run as a script: the bench package sits at the repository root
     sys.path.insert(0, str(REPO))
@@ -49,7 +51,7 @@ from bench.faults import cli_matrix  # noqa: E402
 
 SECTIONS = ("recorder", "controller", "burst", "cli")
 FLUSH_PERIOD = 1.0  # [s] the recorder's default
-DAMPER_TIMEOUT = 0.5  # [s sim] the simulator's default
+DAMPER_TIMEOUT = DEFAULT_STALE_TIMEOUT  # [s sim] the simulator's default
 STALL = 0.5  # [s] recorder frozen (SIGSTOP) right before the signal: a recorder that far behind
 
 

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from aero_dva.bag.flight_log_io import load_flight_log
+from aero_dva.flight.damper import DAMPER_RANGE
 
 try:  # the batch recorder's module before and after the bag layer was split
     from aero_dva.bag.batch_recorder import BatchRecorder
@@ -39,8 +40,9 @@ def write_bag(path: Path, blocks: int) -> None:
     total = blocks * N
     ones = np.ones(blocks)
     damper = {"time": np.arange(blocks) * N / RATE, "commanded_damping": 300.0 * ones,
-              "applied_damping": 300.0 * ones, "min_damping": 0.0 * ones,
-              "max_damping": 2500.0 * ones, "command_age": 0.0 * ones, "status": 0.0 * ones}
+              "applied_damping": 300.0 * ones, "min_damping": DAMPER_RANGE[0] * ones,
+              "max_damping": DAMPER_RANGE[1] * ones, "command_age": 0.0 * ones,
+              "status": 0.0 * ones}
     with BatchRecorder(path, RATE) as recorder:
         recorder.write_samples(0, rng.standard_normal((3, total)),
                                1e-3 * rng.standard_normal((4, total)),

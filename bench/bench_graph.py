@@ -32,6 +32,7 @@ from aero_dva.bag.reader import bag_topics
 from aero_dva.control.airspeed_schedule import fit_airspeed_schedule
 from aero_dva.control.dva_design import best_damping_curve
 from aero_dva.control.schedule_io import save_schedule
+from aero_dva.flight.damper import DAMPER_RANGE
 from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
 from aero_dva.wing.model import AeroelasticModel
 from aero_dva.wing.wing_io import load_wing
@@ -55,7 +56,7 @@ def schedule_file(directory: Path) -> Path:
     tuned = [s for s in best_damping_curve(model, np.linspace(95.0, 125.0, 13), 1.2)
              if s.min_damping_ratio > 0]
     fit = fit_airspeed_schedule([s.airspeed for s in tuned], [s.damping for s in tuned],
-                                (0.0, 2500.0))
+                                DAMPER_RANGE)
     return save_schedule(fit.schedule, directory / "schedule.json")
 
 

@@ -130,9 +130,10 @@ def _scenario_dict(name: str = "scenario_ramp.yaml") -> dict:
 def _schedule_dict() -> dict:
     from aero_dva.control.airspeed_schedule import AirspeedSchedule
     from aero_dva.control.schedule_io import schedule_to_dict
+    from aero_dva.flight.damper import DAMPER_RANGE
 
     return schedule_to_dict(AirspeedSchedule(a0=-2000.0, a1=25.0, airspeed_range=(95.0, 120.0),
-                                             damping_range=(0.0, 2500.0)))
+                                             damping_range=DAMPER_RANGE))
 
 
 @functools.lru_cache(maxsize=1)

@@ -30,6 +30,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from aero_dva.flight.damper import DAMPER_RANGE
 from bench.faults.bad_inputs import (
     CSV_FORMATS,
     HUGE_LINES,
@@ -42,6 +43,8 @@ from bench.faults.bad_inputs import (
     write_binary,
     write_huge,
 )
+
+C2_RANGE = "{:g}:{:g}:6".format(*DAMPER_RANGE)  # a short c2 grid over the damper's range
 
 # --------------------------------------------------------------------------------------------
 # Commands
@@ -84,10 +87,10 @@ COMMANDS: tuple[Command, ...] = (
         ("sim.png",)),
     Command("control optimal-c2", "--wing", "wing", lambda f, o: [
         "control", "optimal-c2", "--wing", f, "--airspeeds", "0.8:1.0:3", "--relative",
-        "--c2-range", "0:2500:6", "--plot", str(o / "c2.png")], ("c2.png",)),
+        "--c2-range", C2_RANGE, "--plot", str(o / "c2.png")], ("c2.png",)),
     Command("control schedule", "--wing", "wing", lambda f, o: [
         "control", "schedule", "--wing", f, "--airspeeds", "0.9:1.1:5", "--relative",
-        "--c2-range", "0:2500:6", "--out", str(o / "schedule.json")], ("schedule.json",)),
+        "--c2-range", C2_RANGE, "--out", str(o / "schedule.json")], ("schedule.json",)),
     Command("isolator identify", "FILE", "frf", lambda f, o: [
         "isolator", "identify", f, "--mass", "1", "--static-stiffness", "12000", "--elements",
         "2", "--plot", str(o / "fit.png")], ("fit.png",), odd_path_ok=True),

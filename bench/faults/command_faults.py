@@ -20,12 +20,12 @@ from pathlib import Path
 import numpy as np
 from builtin_interfaces.msg import Time
 
+from aero_dva.flight.damper import DAMPER_RANGE
 from bench.faults.recorder_faults import TrialError
 from bench.faults.ros_processes import ros_session, wait_until, write_scenario
 from dva_msgs.msg import DamperCommand
 
 BASELINE = 800.0  # [N s/m]
-DAMPER_RANGE = (0.0, 2500.0)  # [N s/m] the simulator's default damper_min, damper_max
 STATUS_NAMES = {0: "ok", 1: "saturated", 2: "fallback", 3: "rejected", 4: "no command"}
 
 
@@ -126,7 +126,7 @@ def run_burst_session(kind: str, bursts: int, work: Path, *, rate: float = 10_00
     """``bursts`` bursts of one kind in one flight, in the empty directory ``work``."""
     rng = np.random.default_rng(seed)
     value_of = KINDS[kind]
-    quiet = 0.8  # [s] after a burst: longer than the 0.5 s stale timeout
+    quiet = 0.8  # [s] after a burst: longer than the stale timeout
     cycle = 0.4 + burst_seconds + quiet
     # The flight ends soon after the last burst: its summary counts the rejected commands.
     duration = round(bursts * cycle + 3.0, 1)

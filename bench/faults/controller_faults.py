@@ -19,6 +19,7 @@ from collections import Counter
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+from aero_dva.flight.damper import DEFAULT_STALE_TIMEOUT
 from bench.faults.recorder_faults import TrialError
 from bench.faults.ros_processes import ros_session, wait_until, write_scenario
 
@@ -88,7 +89,8 @@ class ControllerTrial:
 
 
 def run_controller_trial(mode: str, kill_after: float, work: Path, *, damping: float = 1500.0,
-                         real_time_factor: float = 10.0, damper_timeout: float = 0.5,
+                         real_time_factor: float = 10.0,
+                         damper_timeout: float = DEFAULT_STALE_TIMEOUT,
                          start_timeout: float = 60.0) -> ControllerTrial:
     """One trial in the empty directory ``work`` (scenario and node logs go there)."""
     flight = (kill_after + 10.0) * real_time_factor

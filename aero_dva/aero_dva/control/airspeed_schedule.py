@@ -13,11 +13,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["MAX_AIRSPEED", "AirspeedSchedule", "ScheduleFit", "fit_airspeed_schedule"]
+from aero_dva.flight.scenario import MAX_AIRSPEED
 
-#: [m/s] a measured airspeed above this is a sensor or unit error, never a schedule's input
-#: (the airspeed controller rejects it).
-MAX_AIRSPEED = 400.0
+__all__ = ["MAX_AIRSPEED", "AirspeedSchedule", "ScheduleFit", "fit_airspeed_schedule"]
 
 
 def _real(value, name: str) -> float:

@@ -17,11 +17,13 @@ need gradients). Critical airspeeds are bracketed on a grid and solved with Bren
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import brentq, minimize, minimize_scalar
 
+from aero_dva.flight.damper import DAMPER_RANGE
 from aero_dva.wing.absorbers import MaxwellAbsorber, PassiveAbsorber
 from aero_dva.wing.checks import positive
 from aero_dva.wing.flutter import NoFlutterError, bare_critical_airspeed, flutter_speed
@@ -38,11 +40,15 @@ __all__ = [
     "CriticalRatio",
     "DEFAULT_DAMPING_BOUNDS",
     "DEFAULT_STIFFNESS_BOUNDS",
+    "FixedDampingChoice",
     "TunedSetting",
     "bare_critical_airspeed",
     "best_damping_curve",
+    "best_fixed_damping",
     "constant_absorber_study",
     "critical_frequency",
+    "flutter_airspeed_of",
+    "maximise_on_grid",
     "mass_study",
     "maxwell_study",
     "min_damping_map",
@@ -389,3 +395,72 @@ def maxwell_study(wing, density: float, designs=STUDY_MAXWELL_DESIGNS,
                                 f"Maxwell DVA({i + 1})",
                                 damping_bounds=(1e-3 * c2_max, c2_max)))
     return out
+
+
+# -- the best constant c2 ------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class FixedDampingChoice:
+    """The constant c2 whose wing + Maxwell DVA has the highest flutter airspeed.
+
+    Attributes
+    ----------
+    damping : float
+        [N s/m] the best constant c2 (refined between grid points).
+    critical_airspeed : float
+        [m/s] flutter airspeed with that c2 held fixed (inf: none found up to 1e5 m/s).
+    grid, grid_critical_airspeed : (n,) the c2 grid [N s/m] and its flutter airspeeds [m/s]
+        (inf where no flutter was found).
+    """
+
+    damping: float
+    critical_airspeed: float
+    grid: np.ndarray
+    grid_critical_airspeed: np.ndarray
+
+
+def flutter_airspeed_of(model: AeroelasticModel, density: float):
+    """c2 [N s/m] -> flutter airspeed [m/s] of ``model`` with that c2 held fixed, inf when no
+    flutter or divergence is found (the search goes up to 1e5 m/s: a c2 that keeps the wing
+    stable that far is the best a constant c2 can do, so it must rank above every finite
+    airspeed; NaN would drop it from the comparison and a worse c2 would be taken for the
+    best without a word)."""
+    def critical(c2: float) -> float:
+        try:
+            return flutter_speed(model, density, damping=float(c2)).critical_airspeed
+        except NoFlutterError:
+            return math.inf
+
+    return critical
+
+
+def maximise_on_grid(critical_airspeed, grid) -> FixedDampingChoice:
+    """The c2 of ``grid`` (increasing, at least 3) that maximises ``critical_airspeed(c2)``,
+    refined by bounded Brent search between its two neighbours (the flutter airspeed is
+    continuous but has kinks where the critical mode changes, so no derivative is used)."""
+    c2 = np.asarray(grid, dtype=float)
+    if c2.ndim != 1 or c2.size < 3 or np.any(np.diff(c2) <= 0) or c2[0] < 0 \
+            or not np.all(np.isfinite(c2)):
+        raise ValueError("grid must hold at least 3 increasing finite c2 values >= 0")
+    speeds = np.array([float(critical_airspeed(float(c))) for c in c2])
+    if np.any(np.isnan(speeds)):
+        raise ValueError("a flutter airspeed of the grid is NaN: no c2 can be called best")
+    i = int(np.argmax(speeds))
+    if math.isinf(speeds[i]):  # stable to the end of the search: nothing to refine
+        return FixedDampingChoice(float(c2[i]), math.inf, c2, speeds)
+    low, high = c2[max(i - 1, 0)], c2[min(i + 1, c2.size - 1)]
+    res = minimize_scalar(lambda c: -float(critical_airspeed(float(c))), bounds=(low, high),
+                          method="bounded", options={"xatol": 1e-3 * (high - low)})
+    best, u_best = (float(res.x), float(-res.fun)) if -res.fun >= speeds[i] \
+        else (float(c2[i]), float(speeds[i]))
+    return FixedDampingChoice(best, u_best, c2, speeds)
+
+
+def best_fixed_damping(model: AeroelasticModel, density: float,
+                       damping_range: tuple[float, float] = DAMPER_RANGE,
+                       points: int = 51) -> FixedDampingChoice:
+    """The best constant c2: in ``damping_range`` (``points`` evenly spaced, then refined),
+    the c2 with the highest flutter airspeed of ``model`` (eigenvalues at ``density``). The
+    evaluation's fixed controller and the switching law's safe c2 and reference are this c2."""
+    return maximise_on_grid(flutter_airspeed_of(model, density),
+                            np.linspace(*damping_range, int(points)))

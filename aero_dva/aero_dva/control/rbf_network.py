@@ -27,6 +27,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from aero_dva.control.spectrum import DEFAULT_FREQUENCIES
+
 __all__ = [
     "SPECTRUM_INPUT_DIM",
     "InputScaling",
@@ -524,7 +526,7 @@ def spectrum_input_names(
         ``"<channel>_<f>Hz"`` per channel and frequency (channel-major, unit "1"), then
         ``"damping"`` (unit "N s/m"): 33 entries for the study's network.
     """
-    freqs = np.arange(5.0, 21.0) if frequencies is None else np.asarray(frequencies, float)
+    freqs = DEFAULT_FREQUENCIES if frequencies is None else np.asarray(frequencies, float)
     names = [f"{c}_{f:g}Hz" for c in channel_names for f in freqs] + ["damping"]
     units = ["1"] * (len(names) - 1) + ["N s/m"]
     return tuple(names), tuple(units)

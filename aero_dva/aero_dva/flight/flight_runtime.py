@@ -18,6 +18,7 @@ from aero_dva import data_files
 from aero_dva.flight.applied_control import AppliedControl
 from aero_dva.flight.damper import (
     DAMPER_RANGE,
+    DEFAULT_STALE_TIMEOUT,
     CommandResult,
     DamperConfig,
     DamperMode,
@@ -138,7 +139,7 @@ def load_runtime_config(params: dict) -> RuntimeConfig:
     damper = DamperConfig(
         min_damping=low, max_damping=high, fallback_damping=fallback,
         initial_damping=_nan_or(params.get("damper_initial"), fallback),
-        stale_timeout=float(params.get("damper_timeout", 0.5)),
+        stale_timeout=float(params.get("damper_timeout", DEFAULT_STALE_TIMEOUT)),
         time_constant=float(params.get("damper_time_constant", 0.0)),
     )
     problem = sweep_problem(scenario, damper)

@@ -36,6 +36,10 @@ from aero_dva.flight.hidden_plant import PlantOptions
 AIRSPEED_KINDS = ("constant", "ramp", "steps")
 
 
+#: [m/s] a subsonic wing: an airspeed above this, in a scenario or measured in flight, is a
+#: unit or sensor error (the airspeed controller ignores it).
+MAX_AIRSPEED = 400.0
+
 class ScenarioError(ValueError):
     """A scenario is malformed or physically meaningless; the message names the field."""
 
@@ -158,7 +162,7 @@ def validate(s: Scenario) -> None:
     if not values or not all(math.isfinite(v) and v >= 0 for v in values):
         raise ScenarioError(f"airspeed values must be finite and >= 0, got {values}")
     unit = "U/U_ref" if s.airspeed.relative else "m/s"
-    limit = 5.0 if s.airspeed.relative else 400.0  # a subsonic wing: more is a unit error
+    limit = 5.0 if s.airspeed.relative else MAX_AIRSPEED
     if max(values) > limit:
         raise ScenarioError(f"airspeed {max(values)} {unit} is absurd for this model (> {limit})")
     _positive("density", s.density)

@@ -27,12 +27,13 @@ import time
 
 import numpy as np
 
+from aero_dva.flight.damper import DAMPER_RANGE
 from dva_offline.cli_tools import command_family, emit, finite, not_with, range2, range3
 
 __all__ = ["register"]
 
 DEFAULT_AIRSPEEDS = "0.8:1.2:201"  # ratios of U_cr (the study's fig. 7.4 range, 0.002 U_cr step)
-DEFAULT_C2 = "0:2500:101"  # [N s/m] the simulator's default damper range
+DEFAULT_C2 = "{:g}:{:g}:101".format(*DAMPER_RANGE)  # [N s/m] the simulator's damper range
 DEFAULT_CURVES = "0.5,1.0,1.06,1.12"  # U / U_cr of the study's fig. 7.1-7.3
 FIT_WIDTH = 0.05  # [U_cr] width of the default fit range
 SCHEDULE_DESCRIPTION = (

@@ -7,27 +7,24 @@ airspeed at which the response starts to grow quickly: one flight per case. Here
 U_div / U_cr (U_cr: the wing without DVA at the base density) is summarised over them.
 
 Controllers: ``none`` (the wing without DVA) and those of the controller table that fly through
-the graph (:mod:`aero_dva.control.controllers`; by default ``fixed``, the Maxwell DVA with a
-constant c2, see :func:`best_fixed_damping`, ``schedule``, eq. 7.1 from the airspeed, and
-``rbf``, the network from the scaled spectra).
+the graph (:mod:`aero_dva.control.controllers`; by default ``fixed``, the Maxwell DVA with the
+best constant c2, :func:`aero_dva.control.dva_design.best_fixed_damping`; ``schedule``, eq.
+7.1 from the airspeed; ``rbf``, the network from the scaled spectra).
 """
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import minimize_scalar
 
 __all__ = [
     "DEFAULT_CONTROLLERS",
     "CaseStats",
-    "FixedDampingChoice",
     "FlightCase",
     "KeyResult",
     "aggregate",
-    "best_fixed_damping",
     "case_grid",
     "compare_rbf_with_schedule",
     "evaluation_scenario",
@@ -151,65 +148,6 @@ def evaluation_scenario(base: Mapping, mu: float, seed: int) -> dict:
 
 
 # -- the best fixed c2 --------------------------------------------------------------------------
-
-@dataclass(frozen=True)
-class FixedDampingChoice:
-    """The constant c2 whose wing + Maxwell DVA has the highest flutter airspeed.
-
-    Attributes
-    ----------
-    damping : float
-        [N s/m] the best constant c2 (refined between grid points).
-    critical_airspeed : float
-        [m/s] flutter airspeed with that c2 held fixed, at the base density.
-    grid, grid_critical_airspeed : (n,) the c2 grid [N s/m] and its flutter airspeeds [m/s]
-        (NaN where no flutter was found in the search range).
-    """
-
-    damping: float
-    critical_airspeed: float
-    grid: np.ndarray
-    grid_critical_airspeed: np.ndarray
-
-
-def best_fixed_damping(critical_airspeed: Callable[[float], float],
-                       grid: Sequence[float]) -> FixedDampingChoice:
-    """The c2 of ``grid`` range that maximises ``critical_airspeed(c2)``.
-
-    "Best" fixed c2 is defined by the quantity the evaluation measures, the divergence airspeed:
-    the c2 that keeps the linear model stable up to the highest airspeed (eigenvalues at the base
-    density, no excitation needed). The grid maximum is refined by bounded Brent search between
-    its two neighbours (the flutter airspeed is continuous but has kinks where the critical mode
-    changes, so no derivative is used).
-
-    Parameters
-    ----------
-    critical_airspeed : callable
-        c2 [N s/m] -> flutter airspeed [m/s] of the wing with that c2 fixed (NaN if none).
-    grid : sequence of float
-        Candidate c2 [N s/m], increasing, at least 3.
-    """
-    c2 = np.asarray(grid, dtype=float)
-    if c2.ndim != 1 or c2.size < 3 or np.any(np.diff(c2) <= 0) or c2[0] < 0 \
-            or not np.all(np.isfinite(c2)):
-        raise ValueError("grid must hold at least 3 increasing finite c2 values >= 0")
-    speeds = np.array([critical_airspeed(float(c)) for c in c2])
-    if not np.any(np.isfinite(speeds)):
-        raise ValueError("no c2 of the grid has a flutter airspeed: nothing to maximise")
-    i = int(np.nanargmax(speeds))
-    low, high = c2[max(i - 1, 0)], c2[min(i + 1, c2.size - 1)]
-
-    def negative(c):
-        u = critical_airspeed(float(c))
-        return -u if math.isfinite(u) else math.inf
-
-    res = minimize_scalar(negative, bounds=(low, high), method="bounded",
-                          options={"xatol": 1e-3 * (high - low)})
-    best, u_best = (float(res.x), float(-res.fun)) if -res.fun >= speeds[i] \
-        else (float(c2[i]), float(speeds[i]))
-    return FixedDampingChoice(damping=best, critical_airspeed=u_best, grid=c2,
-                              grid_critical_airspeed=speeds)
-
 
 # -- aggregation --------------------------------------------------------------------------------
 

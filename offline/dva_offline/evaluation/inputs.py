@@ -146,34 +146,29 @@ def check_given_inputs(args, controllers) -> dict:
 
 
 def best_fixed_damping_of(wing) -> dict:
-    """The c2 in 0..2500 N s/m with the highest flutter airspeed of ``wing`` (a file; None:
-    the default wing) with its Maxwell DVA, c2 held fixed, at the file's density."""
-    import numpy as np
+    """The best constant c2 (:func:`aero_dva.control.dva_design.best_fixed_damping`: the c2 in
+    the damper's range with the highest flutter airspeed) of ``wing`` (a file; None: the
+    default wing) with its Maxwell DVA, at the file's density. A c2 with no flutter found up to
+    1e5 m/s has no flutter airspeed or frequency to write (null)."""
 
+    from aero_dva.control.dva_design import best_fixed_damping
     from aero_dva.flight.damper import DAMPER_RANGE
-    from aero_dva.wing.flutter import NoFlutterError, flutter_speed
+    from aero_dva.wing.flutter import bare_critical_airspeed, flutter_speed
     from aero_dva.wing.model import AeroelasticModel
     from aero_dva.wing.wing_io import load_wing
-    from dva_offline.evaluation.graph_cases import best_fixed_damping
 
     cfg = load_wing(wing)
     model = AeroelasticModel(cfg.wing, cfg.absorber, cfg.aero)
     rho = cfg.air_density
-
-    def critical(c2):
-        try:
-            return flutter_speed(model, rho, damping=c2).critical_airspeed
-        except NoFlutterError:
-            return math.nan
-
-    grid = np.linspace(*DAMPER_RANGE, 51)
-    choice = best_fixed_damping(critical, grid)
-    u_cr = flutter_speed(AeroelasticModel(cfg.wing, None, cfg.aero), rho).critical_airspeed
-    return {"damping": choice.damping, "critical_airspeed": choice.critical_airspeed,
-            "critical_ratio": choice.critical_airspeed / u_cr, "density": rho,
-            "flutter_frequency": flutter_speed(model, rho,
-                                               damping=choice.damping).flutter_frequency,
-            "source": "c2 in 0..2500 N s/m maximising the flutter airspeed of the wing with "
-                      "its Maxwell DVA and c2 held fixed (eigenvalues, base density)"}
-
-
+    choice = best_fixed_damping(model, rho)
+    u_cr = bare_critical_airspeed(cfg.wing, rho, cfg.aero)
+    finite = math.isfinite(choice.critical_airspeed)
+    return {"damping": choice.damping,
+            "critical_airspeed": choice.critical_airspeed if finite else None,
+            "critical_ratio": choice.critical_airspeed / u_cr if finite else None,
+            "density": rho,
+            "flutter_frequency": flutter_speed(model, rho, damping=choice.damping)
+            .flutter_frequency if finite else None,
+            "source": "c2 in {:g}..{:g} N s/m maximising the flutter airspeed of the wing with "
+                      "its Maxwell DVA and c2 held fixed (eigenvalues, base density)"
+                      .format(*DAMPER_RANGE)}

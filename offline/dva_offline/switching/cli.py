@@ -44,6 +44,9 @@ def _seeds(n: int, first: int = 0) -> list[int]:
 
 
 def register(subparsers) -> None:
+    from aero_dva.flight.damper import DAMPER_RANGE
+
+    low, high = DAMPER_RANGE
     p = subparsers.add_parser("switching", help="per-sample switching c2 law: design, evaluate",
                               description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="switching_command", metavar="<subcommand>")
@@ -64,10 +67,11 @@ def register(subparsers) -> None:
                    help="design airspeed over U_cr (default 1.15): of the law and its "
                         "observer; with clipped_optimal of the observer only")
     d.add_argument("--c-lo", type=float, default=100.0,
-                   help="low c2 [N s/m], > 0 and inside the damper's range 0..2500 (default "
-                        "100)")
-    d.add_argument("--c-hi", type=float, default=2500.0,
-                   help="high c2 [N s/m], inside the damper's range 0..2500 (default 2500)")
+                   help=f"low c2 [N s/m], > 0 and inside the damper's range {low:g}..{high:g} "
+                        "(default 100)")
+    d.add_argument("--c-hi", type=float, default=high,
+                   help=f"high c2 [N s/m], inside the damper's range {low:g}..{high:g} "
+                        f"(default {high:g}, its top)")
     d.add_argument("--lag", type=float, default=0.01,
                    help="damper time constant [s] the design is flown with (default 0.01)")
     d.add_argument("--efforts", default="100",
@@ -160,14 +164,13 @@ def _wing(path, aero=None):
 
 
 def _reference(cfg, model):
-    from aero_dva.wing.flutter import flutter_speed
-    from aero_dva.wing.model import AeroelasticModel
-    from dva_offline.switching.study import best_fixed_damping
+    """U_cr of the bare wing, the best constant c2 and its flutter airspeed."""
+    from aero_dva.control.dva_design import best_fixed_damping
+    from aero_dva.wing.flutter import bare_critical_airspeed
 
-    u_cr = flutter_speed(AeroelasticModel(cfg.wing, None, cfg.aero),
-                         cfg.air_density).critical_airspeed
-    c2, u_fix = best_fixed_damping(model, cfg.air_density)
-    return u_cr, c2, u_fix
+    choice = best_fixed_damping(model, cfg.air_density)
+    return (bare_critical_airspeed(cfg.wing, cfg.air_density, cfg.aero), choice.damping,
+            choice.critical_airspeed)
 
 
 def _design(args) -> int:

@@ -11,7 +11,8 @@ Flights (all in process, :func:`aero_dva.flight.per_sample.flight.fly_switched`,
 - constant 1.1 U_cr for 20 s: leading-edge RMS (after 2 s), switches per second, damper power.
 
 The reference ``fixed`` is the best constant c2 (the highest eigenvalue flutter airspeed over
-0..2500 N s/m), flown through the same stepping code with a law that never switches. Every
+the damper's range, :func:`aero_dva.control.dva_design.best_fixed_damping`), flown through the
+same stepping code with a law that never switches. Every
 comparison is paired by seed: mean and 95 % t-interval of the differences.
 """
 from __future__ import annotations
@@ -20,7 +21,7 @@ import dataclasses
 import math
 
 import numpy as np
-from scipy import linalg, optimize, stats
+from scipy import linalg, stats
 
 from aero_dva.control.clipped_optimal import schedule_airspeeds, scheduled_law
 from aero_dva.control.switching_design import (
@@ -38,10 +39,9 @@ from aero_dva.flight.peak_limit import peak_limit_airspeed
 from aero_dva.flight.per_sample.flight import fly_switched
 from aero_dva.flight.per_sample.switching_law import SwitchingLaw, maxwell_index
 from aero_dva.wing.aerodynamics import WagnerAero
-from aero_dva.wing.flutter import NoFlutterError, flutter_speed
 from aero_dva.wing.model import AeroelasticModel
 
-__all__ = ["PEAK_FACTOR", "Setting", "best_fixed_damping", "design", "evaluate_setting",
+__all__ = ["PEAK_FACTOR", "Setting", "design", "evaluate_setting",
            "mechanism", "paired"]
 
 PEAK_FACTOR = 20.0
@@ -65,25 +65,6 @@ def paired(values) -> dict:
     half = float(stats.t.ppf(0.975, x.size - 1) * x.std(ddof=1) / math.sqrt(x.size))
     mean = float(x.mean())
     return {"n": int(x.size), "mean": mean, "low": mean - half, "high": mean + half}
-
-
-def best_fixed_damping(model: AeroelasticModel, density: float, c_max: float = 2500.0):
-    """(c2, flutter airspeed [m/s]) of the constant c2 in 0..c_max with the highest flutter
-    airspeed (eigenvalues; grid of 51, then a bounded refinement)."""
-    def critical(c2):
-        try:
-            return flutter_speed(model, density, damping=float(c2)).critical_airspeed
-        except NoFlutterError:
-            return math.inf
-
-    grid = np.linspace(0.0, c_max, 51)
-    speeds = np.array([critical(c) for c in grid])
-    j = int(np.argmax(speeds))
-    lo, hi = grid[max(j - 1, 0)], grid[min(j + 1, grid.size - 1)]
-    res = optimize.minimize_scalar(lambda c: -critical(c), bounds=(lo, hi), method="bounded",
-                                   options={"xatol": 0.1})
-    best = float(res.x) if -res.fun >= speeds[j] else float(grid[j])
-    return best, critical(best)
 
 
 def fixed_law(model: AeroelasticModel, damping: float) -> SwitchingLaw:

@@ -27,7 +27,7 @@ def scenario_sweep(args, out: Path, range3) -> int:
 
     from aero_dva.bag.sweep_recording_io import default_jobs, record_sweep
     from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
-    from aero_dva.wing.flutter import flutter_speed, growth_rate
+    from aero_dva.wing.flutter import bare_critical_airspeed, growth_rate
     from aero_dva.wing.model import AeroelasticModel
     from dva_offline.training.rbf import adapt_sweep
 
@@ -37,8 +37,7 @@ def scenario_sweep(args, out: Path, range3) -> int:
         raise ValueError(f"--scenario {scenario_path}: not a sweep (airspeed kind "
                          f"{config.scenario.airspeed.kind!r}, expected 'steps')")
     density = config.scenario.density
-    u_cr = flutter_speed(AeroelasticModel(config.wing, None, config.aero),
-                         density=density).critical_airspeed
+    u_cr = bare_critical_airspeed(config.wing, density, config.aero)
     adaptation = None
     if not args.as_is:
         damping = None if args.c2 == "scenario" else range3("--c2", args.c2)

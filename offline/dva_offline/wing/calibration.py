@@ -39,7 +39,7 @@ from scipy.optimize import brentq, minimize
 from aero_dva.control import dva_design as dd
 from aero_dva.wing.absorbers import MaxwellAbsorber, PassiveAbsorber
 from aero_dva.wing.aerodynamics import QuasiSteadyAero
-from aero_dva.wing.flutter import flutter_speed
+from aero_dva.wing.flutter import bare_critical_airspeed, flutter_speed
 from aero_dva.wing.model import AeroelasticModel, WingParameters
 
 __all__ = [
@@ -289,7 +289,7 @@ def study_ratios(wing: WingParameters, aero=None, density: float = AIR_DENSITY,
     reference wing (``tests/unit/dva_offline/wing/test_calibration.py``).
     """
     aero = QuasiSteadyAero() if aero is None else aero
-    u_cr = flutter_speed(AeroelasticModel(wing, None, aero), density).critical_airspeed
+    u_cr = bare_critical_airspeed(wing, density, aero)
     m = wing.mass
     out = {}
 

@@ -204,7 +204,7 @@ def _tune_kwargs(args):
 def _flutter(args) -> int:
     from aero_dva.control.dva_design import critical_frequency, tuned_critical_airspeed
     from aero_dva.wing.aerodynamics import TheodorsenAero
-    from aero_dva.wing.flutter import flutter_speed
+    from aero_dva.wing.flutter import bare_critical_airspeed, flutter_speed
     from aero_dva.wing.model import AeroelasticModel
 
     wing, absorber, aero, rho, source = _setup(args)
@@ -214,7 +214,7 @@ def _flutter(args) -> int:
     if args.tune:
         if isinstance(aero, TheodorsenAero):
             raise ValueError("--tune needs --aero quasi-steady or wagner")
-        bare = flutter_speed(AeroelasticModel(wing, None, aero), rho).critical_airspeed
+        bare = bare_critical_airspeed(wing, rho, aero)
         rng = args.range or (0.5 * bare, 3.0 * bare)
         tc = tuned_critical_airspeed(model, rho, rng, **_tune_kwargs(args))
         payload.update(critical_airspeed=tc.airspeed,
@@ -236,7 +236,7 @@ def _flutter(args) -> int:
 
 def _modal(args) -> int:
     from aero_dva.control.dva_design import best_damping_curve
-    from aero_dva.wing.flutter import NoFlutterError, flutter_speed
+    from aero_dva.wing.flutter import NoFlutterError, bare_critical_airspeed
     from aero_dva.wing.modal import modal_analysis
     from aero_dva.wing.model import AeroelasticModel
 
@@ -247,7 +247,7 @@ def _modal(args) -> int:
         raise ValueError("--points must be >= 3")
     model = AeroelasticModel(wing, absorber, aero)
     try:
-        u_cr = flutter_speed(AeroelasticModel(wing, None, aero), rho).critical_airspeed
+        u_cr = bare_critical_airspeed(wing, rho, aero)
     except NoFlutterError:
         u_cr = None
     u_max = args.u_max or (1.3 * u_cr if u_cr else 200.0)
@@ -341,7 +341,7 @@ def _simulate(args) -> int:
     from aero_dva.flight.batch_simulator import simulate_flights
     from aero_dva.flight.divergence import divergence_airspeed, ramp_airspeed
     from aero_dva.wing.absorbers import PassiveAbsorber
-    from aero_dva.wing.flutter import flutter_speed
+    from aero_dva.wing.flutter import bare_critical_airspeed
     from aero_dva.wing.model import AeroelasticModel
 
     wing, absorber, aero, rho, source = _setup(args, allow_section=False)
@@ -353,7 +353,7 @@ def _simulate(args) -> int:
         raise ValueError("--start and --stop must satisfy 0 < start < stop")
     if args.force_std < 0:
         raise ValueError("--force-std must be >= 0")
-    u_cr = flutter_speed(AeroelasticModel(wing, None, aero), rho).critical_airspeed
+    u_cr = bare_critical_airspeed(wing, rho, aero)
     u = ramp_airspeed(u_cr, args.start, args.stop, args.duration, args.sample_rate)
     damping = None
     if args.tune:

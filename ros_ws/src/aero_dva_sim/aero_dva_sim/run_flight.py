@@ -25,6 +25,7 @@ from pathlib import Path
 from aero_dva.bag import channels as ch
 from aero_dva.control import controllers as table
 from aero_dva.control.controllers import BLOCK, NONE, SAMPLE, SPECTRUM, TICK
+from aero_dva.flight.damper import DEFAULT_STALE_TIMEOUT
 
 
 def entry_of(name: str) -> table.Controller | None:
@@ -373,8 +374,9 @@ def build_parser() -> argparse.ArgumentParser:
                              "input (default per controller: "
                              + ", ".join(f"{c.name} {c.command_lag:g}" for c in flown)
                              + "; 0 = free running)")
-    parser.add_argument("--damper-timeout", type=float, default=0.5,
-                        help="[s] sim time without commands before the fallback c2 applies")
+    parser.add_argument("--damper-timeout", type=float, default=DEFAULT_STALE_TIMEOUT,
+                        help="[s] sim time without commands before the fallback c2 applies "
+                             f"(default {DEFAULT_STALE_TIMEOUT:g})")
     parser.add_argument("--max-fallback-share", type=float, default=0.02,
                         help="fail (exit 1) when more than this share of the blocks ran on the "
                              "fallback c2 (default 0.02); a flight whose controller never acted "

@@ -31,7 +31,13 @@ from rclpy.task import Future
 
 from aero_dva.bag import channels as ch
 from aero_dva.control.switching_io import with_switching
-from aero_dva.flight.damper import DamperMode, DamperStatus
+from aero_dva.flight.damper import (
+    DAMPER_RANGE,
+    DEFAULT_STALE_TIMEOUT,
+    MAX_DAMPING,
+    DamperMode,
+    DamperStatus,
+)
 from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
 from dva_msgs.msg import DamperCommand
 from dva_ros_common import conversions
@@ -51,7 +57,6 @@ DATA_CHANNELS = tuple(c for c in ch.SIMULATOR_BLOCK if c != ch.CLOCK)
 DATA_TOPICS = tuple(c.name for c in DATA_CHANNELS)
 _NAN = float("nan")
 _DESIGN = "the wing file's Maxwell design"
-MAX_DAMPING = 1.0e6  # [N s/m] far above any damper of this size class; larger is a unit error
 
 SPEC = NodeSpec(
     name="simulator",
@@ -74,13 +79,16 @@ SPEC = NodeSpec(
               0.0, 1.0e10, nan_means=_DESIGN),
         Param("absorber_position", _NAN, "DVA position from the gravity centre, + toward the "
               "leading edge (on the chord)", "m", nan_means=_DESIGN),
-        Param("damper_min", 0.0, "damper range, lower end", "N s/m", 0.0, MAX_DAMPING),
-        Param("damper_max", 2500.0, "damper range, upper end", "N s/m", 0.0, MAX_DAMPING),
+        Param("damper_min", DAMPER_RANGE[0], "damper range, lower end", "N s/m", 0.0,
+              MAX_DAMPING),
+        Param("damper_max", DAMPER_RANGE[1], "damper range, upper end", "N s/m", 0.0,
+              MAX_DAMPING),
         Param("damper_initial", _NAN, "c2 before the first command", "N s/m", 0.0, MAX_DAMPING,
               nan_means="the fallback c2"),
         Param("damper_fallback", _NAN, "c2 when commands go stale", "N s/m", 0.0, MAX_DAMPING,
               nan_means="the design's c2 clamped to the damper range"),
-        Param("damper_timeout", 0.5, "sim time without commands before the fallback applies",
+        Param("damper_timeout", DEFAULT_STALE_TIMEOUT, "sim time without commands before the "
+              "fallback applies",
               "s", 0.0, 1.0e12),
         Param("damper_time_constant", 0.0, "first-order lag of the damper (0: ideal, the "
               "study's)", "s", 0.0, 3600.0),

@@ -8,13 +8,17 @@ import pytest
 import yaml
 
 from aero_dva import data_files
+from aero_dva.control.dva_design import (
+    best_fixed_damping,
+    flutter_airspeed_of,
+    maximise_on_grid,
+)
 from aero_dva.flight.divergence import divergence_airspeed, divergence_airspeed_sliding
 from aero_dva.flight.scenario_io import scenario_from_dict
 from dva_offline import cli
 from dva_offline.evaluation.graph_cases import (
     FlightCase,
     aggregate,
-    best_fixed_damping,
     case_grid,
     compare_rbf_with_schedule,
     evaluation_scenario,
@@ -66,31 +70,39 @@ def test_best_fixed_damping_finds_the_maximum_between_grid_points():
     def peak(c2):  # a kinked maximum at 437 N s/m (like a change of critical mode)
         return 110.0 - 0.01 * abs(c2 - 437.0) - (0.0 if c2 < 437 else 1e-5 * (c2 - 437) ** 2)
 
-    choice = best_fixed_damping(peak, np.linspace(0, 2500, 26))
+    choice = maximise_on_grid(peak, np.linspace(0, 2500, 26))
     assert choice.damping == pytest.approx(437.0, abs=0.5)
     assert choice.critical_airspeed == pytest.approx(110.0, abs=0.01)
     with pytest.raises(ValueError, match="grid"):
-        best_fixed_damping(peak, [0.0, 100.0])
-    with pytest.raises(ValueError, match="no c2"):
-        best_fixed_damping(lambda c: math.nan, [0.0, 1.0, 2.0])
+        maximise_on_grid(peak, [0.0, 100.0])
+    with pytest.raises(ValueError, match="NaN"):
+        maximise_on_grid(lambda c: math.nan, [0.0, 1.0, 2.0])
+
+
+def test_a_c2_that_never_flutters_is_the_best_not_a_gap():
+    # no flutter found up to the search's end ranks above every flutter airspeed: with the
+    # NaN this used to be, the maximum over the rest would have picked 300 N s/m
+    choice = maximise_on_grid(lambda c: math.inf if c > 900 else 100.0 + c / 10,
+                              [0.0, 300.0, 600.0, 1000.0, 1300.0])
+    assert (choice.damping, choice.critical_airspeed) == (1000.0, math.inf)
 
 
 def test_best_fixed_damping_of_the_default_wing_beats_its_neighbours():
-    from aero_dva.wing.flutter import flutter_speed
     from aero_dva.wing.model import AeroelasticModel
     from aero_dva.wing.wing_io import load_wing
 
     cfg = load_wing(None)
     model = AeroelasticModel(cfg.wing, cfg.absorber, cfg.aero)
-
-    def critical(c2):
-        return flutter_speed(model, 1.2, damping=c2).critical_airspeed
-
-    choice = best_fixed_damping(critical, np.linspace(0, 2500, 11))
+    critical = flutter_airspeed_of(model, 1.2)
+    choice = maximise_on_grid(critical, np.linspace(0, 2500, 11))
     assert 500 < choice.damping < 750  # between the grid's best two (step 250)
     for delta in (-20.0, 20.0):
         assert critical(choice.damping + delta) <= choice.critical_airspeed + 1e-6
-    assert choice.critical_airspeed >= np.nanmax(choice.grid_critical_airspeed)
+    assert choice.critical_airspeed >= np.max(choice.grid_critical_airspeed)
+    # the default: 51 points over the damper's range, the evaluation's and the switching law's
+    best = best_fixed_damping(model, 1.2)
+    assert best.damping == pytest.approx(624.713, abs=0.01)
+    assert best.critical_airspeed / 100.0 == pytest.approx(1.1505, abs=1e-4)
 
 
 def _flight(n=30000, rate=1000.0, grow_at=24000, seed=0):
