@@ -135,6 +135,8 @@ class ModelSpec:
     label: str = ""
     n_priority: int = 0
     batch_predict: Callable[[np.ndarray], np.ndarray] | None = None
+    # the laws of a covariate effect built from its per-condition fits (:mod:`.laws`)
+    law: object = None
 
     def __post_init__(self) -> None:
         if self.effect is not None and self.effect not in EFFECT_VOCABULARY:
@@ -361,6 +363,8 @@ class ModelFit:
     # parameters added over the model before, when not ``n_added`` (a Prony spectrum: the
     # effect's parameters are its shift's, its non-zero moduli count too)
     count_added: int | None = None
+    # the spec's laws (:class:`~.laws.LawModel`), to print the fitted law
+    law: object = None
 
     @property
     def n_params(self) -> int:
@@ -552,7 +556,7 @@ def fit_model(spec: ModelSpec, obs: Observations, split: HoldoutSplit,
         error_l2=float(np.linalg.norm(dy) / np.linalg.norm(obs.values[held])),
         train_error=float(np.sqrt(rss_tr / n_tr)), rss_train=rss_tr, rss_held=rss_h,
         n_train=n_tr, n_held=n_h, success=success, n_starts=n_starts,
-        bound_hits=hits,
+        bound_hits=hits, law=spec.law,
     )
 
 

@@ -29,6 +29,7 @@ from typing import Protocol
 import numpy as np
 from scipy import stats
 
+from dva_offline.discrepancy import plausibility
 from dva_offline.discrepancy.fitting import (
     EFFECT_VOCABULARY,
     ERROR_DEFINITION,
@@ -43,7 +44,11 @@ from dva_offline.discrepancy.fitting import (
     holdout_split,
 )
 from dva_offline.discrepancy.residual import NoiseFloor, ResidualFeatures, characterise
-from dva_offline.discrepancy.saturated import SaturatedReference, saturated_reference
+from dva_offline.discrepancy.saturated import (
+    SaturatedReference,
+    moving_parameters,
+    saturated_reference,
+)
 
 # the model pieces a domain or a caller needs with the loop
 __all__ = [
@@ -171,6 +176,9 @@ class CandidateScore:
     achieved_fraction : float
         For a covariate effect, when the saturated reference counts: the share of the
         held-out residual power above max(noise, reference) that it removes (NaN otherwise).
+    implausible : bool
+        Fitted and significant, but its parameters mean nothing physically (``reason``
+        says why, :mod:`.plausibility`): listed, never added (``applicable`` is False).
     """
 
     effect: str
@@ -184,6 +192,7 @@ class CandidateScore:
     signature: str
     failed: bool = False
     achieved_fraction: float = np.nan
+    implausible: bool = False
 
 
 @dataclass(frozen=True)
@@ -235,6 +244,10 @@ class DiscrepancyResult:
     final: LoopOutcome | None = None
     reference: SaturatedReference | None = None
     reference_used: bool = False
+    # the per-condition trends of the covariate effects' coordinates and their laws
+    # (:mod:`.laws`), and each baseline parameter's moving test over the conditions
+    trends: tuple = ()
+    moving: tuple = ()
 
     @property
     def error_reduction(self) -> float | None:
@@ -346,10 +359,18 @@ def _describe(c: CandidateScore) -> str:
 
 
 def _best_eligible(eligible, rule):
-    """The eligible candidate with the lowest delta BIC; when its added parameters hit a bound,
-    another form of the same effect whose fit stays inside its bounds (Arrhenius for a WLF
-    whose C2 ran to its bound) if it scores within ``rule.ambiguity_margin``."""
+    """The eligible candidate with the lowest delta BIC; a form built from the laws of the
+    per-condition fits (:mod:`.laws`) only when it beats every library form of the same
+    effect by ``rule.ambiguity_margin`` (where the library's law does as well, it is the
+    named one; "free per level" says less than WLF at the same score); when its added
+    parameters hit a bound, another form of the same effect whose fit stays inside its
+    bounds (Arrhenius for a WLF whose C2 ran to its bound) if it scores within the margin."""
     best = min(eligible, key=lambda c: c.delta_bic)
+    if best.fit.law is not None:
+        library = [c for c in eligible if c.effect == best.effect and c.fit.law is None
+                   and c.delta_bic - best.delta_bic < rule.ambiguity_margin]
+        if library:
+            best = min(library, key=lambda c: c.delta_bic)
     if _added_hits(best):
         inside = [c for c in eligible if c.effect == best.effect and not _added_hits(c)
                   and c.delta_bic - best.delta_bic < rule.ambiguity_margin]
@@ -473,21 +494,47 @@ def _fit_or_none(spec, obs, split):
     return fit, None
 
 
-def _library(domain, base, features):
-    """The domain's library; when building it fails (an informed start on data no start rule
-    foresaw), one failed entry instead."""
+def _library(domain, base, features, per_condition=None):
+    """The domain's library, with the covariate effects built from the laws of their
+    per-condition fits when the domain offers them (``law_candidates``); when building it
+    fails (an informed start on data no start rule foresaw), one failed entry instead."""
     try:
-        return list(domain.candidates(base, features))
+        out = list(domain.candidates(base, features))
     except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
         return [_failed("library", "", exc)]
+    laws = getattr(domain, "law_candidates", None)
+    if laws is not None and per_condition is not None:
+        try:
+            out += list(laws(base, per_condition))
+        except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+            out.append(_failed("library", "laws", exc))
+    return out
+
+
+def _plausible(domain, obs, split, scores, specs, rule):
+    """Each candidate that could be added (significant) checked for physical meaning
+    (:mod:`.plausibility`); an implausible one is listed with the reason, not applicable."""
+    out = []
+    for c in scores:
+        spec = specs.get((c.effect, c.label))
+        if (c.applicable and spec is not None and c.p_value < rule.significance
+                and c.delta_bic <= -rule.min_bic_gain):
+            why, fit = plausibility.check(domain, spec, c.fit, obs, split.train,
+                                          rule.significance)
+            if why:
+                c = replace(c, applicable=False, reason=f"implausible: {why}", fit=fit,
+                            implausible=True)
+        out.append(c)
+    return out
 
 
 def _candidates(domain, obs, split, base, features, noise, rule, progress, n_variants,
-                reference=None):
+                reference=None, per_condition=None):
     """Fit and score every library entry (and the variants of the best) against ``base``;
-    a candidate whose fit fails is listed as failed and the others go on."""
+    a candidate whose fit fails is listed as failed and the others go on; a significant one
+    whose parameters mean nothing physically is listed as implausible."""
     scores, specs = [], {}
-    for item in _library(domain, base, features):
+    for item in _library(domain, base, features, per_condition):
         if isinstance(item, CandidateScore):
             scores.append(item)
             continue
@@ -534,6 +581,7 @@ def _candidates(domain, obs, split, base, features, noise, rule, progress, n_var
                     specs[(c.effect, c.label)] = spec
     if rule.strict_consistency:
         scores = _capped_fractions(base, scores, noise.sigma)
+    scores = _plausible(domain, obs, split, scores, specs, rule)
     scores.sort(key=lambda c: (not c.applicable, c.delta_bic if c.applicable else 0.0))
     return scores, specs
 
@@ -615,17 +663,17 @@ def run(domain: Domain, rule: DecisionRule | None = None, split: HoldoutSplit | 
     if getattr(domain, "per_condition_reference", True):
         if progress:
             progress("per-condition reference")
-        reference = saturated_reference(base_spec, obs, split, base)
+        reference = saturated_reference(base_spec, obs, split, base, domain)
     used = (reference is not None
             and reference.rss_held <= (1 - rule.min_reference_gain) * base.rss_held)
     scores, specs = _candidates(domain, obs, split, base, features, noise, rule, progress,
-                                n_variants, reference if used else None)
+                                n_variants, reference if used else None, reference)
     verdict = decide(base, noise, features, scores, rule, reference)
     steps, final = (), None
     if hasattr(domain, "augment"):
         steps, final, last = _iterate(domain, obs, split, base, features, noise, scores, specs,
                                       rule, progress, n_variants, reference if used else None,
-                                      measured is not None)
+                                      measured is not None, reference)
         if last is not noise:  # one floor per report: the lowest estimate, for every ratio
             noise = last
             features = _features(obs, base, noise.sigma)
@@ -645,11 +693,12 @@ def run(domain: Domain, rule: DecisionRule | None = None, split: HoldoutSplit | 
     definition = getattr(domain, "error_definition", ERROR_DEFINITION)
     return DiscrepancyResult(domain.name, split, base, noise, features, tuple(scores), verdict,
                              augmented, aug_features, rule, definition, tuple(steps), final,
-                             reference, used)
+                             reference, used, tuple(getattr(domain, "trends", ())),
+                             tuple(moving_parameters(reference, rule.significance)))
 
 
 def _iterate(domain, obs, split, base, features, noise, scores, specs, rule, progress,
-             n_variants, reference=None, measured=False):
+             n_variants, reference=None, measured=False, per_condition=None):
     """Add effects one at a time (:func:`choose_step`) until the residual is consistent with
     the noise, nothing in the library explains the rest, or ``rule.max_steps`` is reached."""
     steps = []
@@ -662,7 +711,7 @@ def _iterate(domain, obs, split, base, features, noise, scores, specs, rule, pro
             break
         if steps:  # the candidates on the new baseline, only when they can be used
             scores, specs = _candidates(domain, obs, split, base, features, noise, rule,
-                                        progress, n_variants, reference)
+                                        progress, n_variants, reference, per_condition)
         choice, reason = choose_step(scores, rule)
         if choice is None:
             status = "stopped"
