@@ -320,14 +320,31 @@ def _cmd_modal(args) -> int:
     return _report(args, result, domain, grouping, extra, "receptance")
 
 
+def _law_case(args, options: dict):
+    """A case of :mod:`.synthetic_laws` for ``synth``/``synth-structure --effect CASE``;
+    the options it does not take (``options``: flag -> whether it was given) are refused."""
+    from dva_offline.discrepancy import synthetic_laws
+
+    given = [flag for flag, used in options.items() if used]
+    if given:
+        raise ValueError(f"--effect {args.effect} draws its own levels and system; "
+                         f"{', '.join(given)} cannot be used with it")
+    return synthetic_laws.generate(args.effect, np.random.default_rng(args.seed),
+                                   sigma=args.sigma)
+
+
 def _cmd_synth_structure(args) -> int:
     from dva_offline.cli_tools import json_safe
-    from dva_offline.discrepancy import structure_synthetic, table_io
+    from dva_offline.discrepancy import structure_synthetic, synthetic_laws, table_io
 
     effect = None if args.effect == "none" else args.effect
-    case = structure_synthetic.generate_structure(
-        effect, np.random.default_rng(args.seed), quantity=args.quantity, sigma=args.sigma,
-        jitter=args.jitter)
+    if effect in synthetic_laws.CASES:
+        case = _law_case(args, {"--quantity other than accelerance":
+                                args.quantity != "accelerance", "--jitter": args.jitter})
+    else:
+        case = structure_synthetic.generate_structure(
+            effect, np.random.default_rng(args.seed), quantity=args.quantity,
+            sigma=args.sigma, jitter=args.jitter)
     table_io.write_table(args.out, case.frequency_hz, case.values, case.covariates)
     payload = {"out": str(args.out), "seed": args.seed, "quantity": case.quantity,
                "hidden_effect": case.effect, "hidden_parameters": case.parameters,
@@ -343,13 +360,19 @@ def _cmd_synth_structure(args) -> int:
 
 
 def _cmd_synth(args) -> int:
-    from dva_offline.discrepancy import synthetic, table_io
+    from dva_offline.discrepancy import synthetic, synthetic_laws, table_io
 
     effect = None if args.effect == "none" else args.effect
-    case = synthetic.generate_case(
-        effect, np.random.default_rng(args.seed), quantity=args.quantity, sigma=args.sigma,
-        n_points=args.points, system=args.system, clean_covariate=args.clean_covariate,
-    )
+    if effect in synthetic_laws.CASES:
+        case = _law_case(args, {"--quantity other than receptance":
+                                args.quantity != "receptance", "--points": args.points != 300,
+                                "--system": args.system is not None,
+                                "--clean-covariate": args.clean_covariate is not None})
+    else:
+        case = synthetic.generate_case(
+            effect, np.random.default_rng(args.seed), quantity=args.quantity,
+            sigma=args.sigma, n_points=args.points, system=args.system,
+            clean_covariate=args.clean_covariate)
     table_io.write_table(args.out, case.frequency_hz, case.values, case.covariates)
     payload = {
         "out": str(args.out), "seed": args.seed, "quantity": case.quantity,
@@ -375,6 +398,22 @@ def _flight_summary(result, domain) -> list[str]:
                                   f"{result.split.held.sum()} held-out points")
 
 
+def _trend_lines(result) -> list[str]:
+    """Which parameters of the per-condition fits move beyond their errors, and the law
+    each moving coordinate of a covariate effect follows (:mod:`.laws`)."""
+    lines = []
+    moving = [m["name"] for m in getattr(result, "moving", ()) if m["moving"]]
+    if getattr(result, "moving", ()):
+        lines.append(f"per-condition parameters moving beyond their errors: "
+                     f"{', '.join(moving) or 'none'} (of {len(result.moving)})")
+    for t in getattr(result, "trends", ()):
+        if t.moving:
+            lines.append(f"  {t.effect} ({t.covariate}): {t.coordinate} moves (chi2 "
+                         f"{t.chi2:.3g}, {t.dof} dof, p = {t.p_value:.2g}): law {t.law}, "
+                         f"{t.reason}")
+    return lines
+
+
 def _summary_lines(result, baseline_detail: str = "") -> list[str]:
     """The human-readable report of either domain (``--json`` prints the full object)."""
     v = result.verdict
@@ -390,11 +429,13 @@ def _summary_lines(result, baseline_detail: str = "") -> list[str]:
                         f"{ref.n_fitted}/{ref.n_conditions} conditions): held-out error "
                         f"{ref.error:.4f}" + ("" if result.reference_used else
                                               " (no better than the baseline: not used)"))
+        lines[2:2] = _trend_lines(result)
     if result.augmented is not None:
         a = result.augmented
         lines.append(f"augmented {a.name}: held-out error {a.error:.4f} "
                      f"({100 * (1 - a.error / result.baseline.error):.0f} % lower)")
         lines += [f"  {e.name} = {e.value:.6g} +- {e.std:.2g} {e.unit}" for e in a.added]
+        lines += [f"  law: {a.law.describe(a)}"] if a.law is not None else []
     for i, st in enumerate(result.steps):
         label = f" ({st.label})" if st.label else ""
         lines.append(f"step {i + 1}: + {st.effect}{label}: held-out error {st.error_before:.4f} "
@@ -404,6 +445,7 @@ def _summary_lines(result, baseline_detail: str = "") -> list[str]:
                                  "per-condition fits reach" if np.isfinite(st.achieved_fraction)
                                  else "") + ")")
         lines += [f"    {e.name} = {e.value:.6g} +- {e.std:.2g} {e.unit}" for e in st.fit.added]
+        lines += [f"    law: {st.fit.law.describe(st.fit)}"] if st.fit.law is not None else []
         lines += [f"    caveat: {c}" for c in st.caveats]
     if result.final is not None:
         fin = result.final
@@ -416,6 +458,9 @@ def _summary_lines(result, baseline_detail: str = "") -> list[str]:
         label = f" ({c.label})" if c.label else ""
         if c.applicable:
             lines.append(f"  {c.effect}{label}: {c.fit.error:.4f}, {c.delta_bic:.1f}")
+        elif c.implausible:  # fitted and significant, never added
+            lines.append(f"  {c.effect}{label}: {c.fit.error:.4f}, {c.delta_bic:.1f}, "
+                         f"{c.reason}")
         else:  # a failed start or fit says "failed: reason"
             lines.append(f"  {c.effect}{label}: "
                          + (c.reason if c.failed else f"not applicable: {c.reason}"))
@@ -564,7 +609,7 @@ def _add_loop_arguments(p) -> None:
 
 def register(subparsers) -> None:
     """Add the ``discrepancy`` subcommand to the ``dva`` parser."""
-    from dva_offline.discrepancy import synthetic
+    from dva_offline.discrepancy import synthetic, synthetic_laws
 
     parser = subparsers.add_parser(
         "discrepancy",
@@ -613,7 +658,12 @@ def register(subparsers) -> None:
 
     p = sub.add_parser("synth-structure",
                        help="write a synthetic vibration test (several modes) hiding one effect")
-    p.add_argument("--effect", required=True, choices=("none", *structure_synthetic.EFFECTS))
+    p.add_argument("--effect", required=True,
+                   choices=("none", *structure_synthetic.EFFECTS,
+                            *(c for c in synthetic_laws.CASES if c.startswith("structure"))),
+                   help="hidden effect; structure_* cases follow a law outside the library's "
+                        "forms, or none at all (synthetic_laws: four levels 2-20 N, a set "
+                        "column)")
     p.add_argument("--seed", type=int, required=True, help="random seed")
     p.add_argument("--out", required=True, help="output CSV")
     p.add_argument("--quantity", choices=("receptance", "mobility", "accelerance"),
@@ -626,7 +676,11 @@ def register(subparsers) -> None:
 
     p = sub.add_parser("synth", help="write a synthetic FRF CSV that hides one effect")
     p.add_argument("--effect", required=True,
-                   choices=("none", *synthetic.LIBRARY_EFFECTS, *synthetic.OUTSIDE_EFFECTS))
+                   choices=("none", *synthetic.LIBRARY_EFFECTS, *synthetic.OUTSIDE_EFFECTS,
+                            *(c for c in synthetic_laws.CASES if not c.startswith("structure"))),
+                   help="hidden effect; power_level, temperature_kink, phase_offset follow a "
+                        "law outside the library's forms, replicates has none "
+                        "(synthetic_laws)")
     p.add_argument("--seed", type=int, required=True, help="random seed")
     p.add_argument("--out", required=True, help="output CSV")
     p.add_argument("--quantity", choices=("receptance", "accelerance", "stiffness"),

@@ -63,6 +63,7 @@ from dva_offline.discrepancy.fitting import (
     ParamSpec,
     fit_model,
 )
+from dva_offline.discrepancy.frf_laws import FrfLaws
 from dva_offline.discrepancy.frf_library import FrfLibrary
 from dva_offline.discrepancy.frf_spectrum import SpectrumLibrary
 from dva_offline.discrepancy.frf_terms import (
@@ -84,7 +85,7 @@ from dva_offline.isolator.maxwell_model import MaxwellModel, maxwell_element_sti
 from dva_offline.isolator.order_selection import select_model_order
 
 
-class FrfDomain(FrfLibrary, SpectrumLibrary):
+class FrfDomain(FrfLibrary, SpectrumLibrary, FrfLaws):
     """Isolator FRF data for :func:`dva_offline.discrepancy.loop.run`.
 
     Parameters
@@ -412,6 +413,7 @@ class FrfDomain(FrfLibrary, SpectrumLibrary):
         self._train = train
         self._stack, self._stack_params, self._term_of = [], [], {}
         self._spectrum, self._spectrum_fits = None, {}
+        self._law_inputs, self.trends = None, []
         m, k, free_m, free_k = self._mass_and_stiffness()
         wn, zeta = self._modal_estimate(m)
         self._setup = dict(m=m, k=k, free_m=free_m, free_k=free_k, n=0, k_ref=m * wn**2,

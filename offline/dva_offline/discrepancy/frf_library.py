@@ -134,8 +134,8 @@ class FrfLibrary:
                     maxwell_element_stiffness([ke], [ce], [1j * wn])[0, 0])) / wn
                 bases.append(np.concatenate([base[:head], [c_new], base[head + 1: head + 1 + n],
                                              [ke], base[head + 1 + n:], [ce]]))
-        return [item for item in self._library(bases, n + 1, extra=2,
-                                               only=(spec.effect, spec.label))
+        make = self._law_specs if spec.law is not None else self._library
+        return [item for item in make(bases, n + 1, extra=2, only=(spec.effect, spec.label))
                 if isinstance(item, ModelSpec)]
 
     def _library(self, bases, n, extra=0, only=None):

@@ -20,6 +20,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from dva_offline.discrepancy import laws
+
 R_GAS = 8.314462618  # J/(mol K)
 STAGES = ("shift", "element", "level", "mass", "series", "output")
 
@@ -52,7 +54,8 @@ class Term:
     size : int
         Number of parameters.
     kind : str
-        ``wlf`` or ``arrhenius`` (shift), else the stage name.
+        ``wlf``, ``arrhenius`` or ``law`` (shift), ``law`` (level: laws of the storage and
+        loss parts, :mod:`.laws`), else the stage name.
     data : dict
         Fixed arrays the formula needs (covariate offsets, log levels, the delay's sign).
     """
@@ -75,8 +78,21 @@ def absolute_temperature(name: str, col: np.ndarray) -> np.ndarray | None:
     return kelvin if np.all(kelvin > 0) else None
 
 
+def law_factors(term: Term, p) -> dict:
+    """ln of each coordinate's factor of a ``law`` term (:mod:`.laws`) at every point:
+    ``storage``, ``loss`` (level stage) or ``shift`` (a_T, shift stage)."""
+    out, j = {}, 0
+    for which, law, k in term.data["coords"]:
+        out[which] = laws.log_factor(law, [p[j + q] for q in range(k)], term.data["x"],
+                                     term.data["cov"], term.data["level_index"])
+        j += k
+    return out
+
+
 def log_shift(term: Term, p) -> np.ndarray:
     """log10 a_T of a ``shift`` term at every point."""
+    if term.kind == "law":
+        return law_factors(term, p)["shift"] / np.log(10.0)
     if term.kind == "arrhenius":
         return p[0] / (R_GAS * np.log(10.0)) * term.data["inv"]
     b, c2 = p
@@ -144,7 +160,13 @@ def compose(maxwell, terms, values, omega, mass, quantity):
                                    [p[1] for p in elements])
         re, im = re + e_re, im + e_im
     for t, p in pairs:
-        if t.stage == "level":
+        if t.stage == "level" and t.kind == "law":
+            lf = law_factors(t, p)
+            if "storage" in lf:
+                re = re * np.exp(lf["storage"])
+            if "loss" in lf:
+                im = im * np.exp(lf["loss"])
+        elif t.stage == "level":
             sk, sd = p
             lev = t.data["log_level"]
             re, im = re * (1 + sk * lev), im * (1 + sd * lev)

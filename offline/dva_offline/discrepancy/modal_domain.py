@@ -47,6 +47,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.optimize import least_squares
 
+from dva_offline.discrepancy import laws
 from dva_offline.discrepancy.covariate_kinds import is_level
 from dva_offline.discrepancy.fitting import (
     HoldoutSplit,
@@ -185,6 +186,8 @@ class ModalDomain:
         self._term_of: dict = {}
         self._order_errors = {}
         self._order_choice = None
+        self.trends: list = []  # the per-condition trends and their laws (law_candidates)
+        self._law_inputs = None
 
     # --- helpers ---------------------------------------------------------------------------
     def _varying(self) -> dict:
@@ -222,6 +225,7 @@ class ModalDomain:
         rest = vs[:, k0:]
         f_fac = np.ones((vs.shape[0], n, w.size))
         z_fac = np.ones((vs.shape[0], n, w.size))
+        a_fac = None
         delay = np.zeros((vs.shape[0], 1))
         phase = np.zeros((vs.shape[0], 1))
         i = 0
@@ -247,12 +251,26 @@ class ModalDomain:
                 phase = phase + p[:, 0, None]
             elif t.kind == "complex":
                 imag.append(p)
+            elif t.kind == "law":  # each moving coordinate by its law (:mod:`.laws`)
+                j = 0
+                for r, which, law, k in t.data["coords"]:
+                    lf = laws.log_factor(law, [p[:, j + q, None] for q in range(k)],
+                                         t.data["x"], t.data["cov"], t.data["level_index"])
+                    j += k
+                    if which == "stiffness":  # w_r^2
+                        f_fac[:, r] = f_fac[:, r] * np.exp(0.5 * lf)
+                    elif which == "damping":
+                        z_fac[:, r] = z_fac[:, r] * np.exp(lf)
+                    else:
+                        a_fac = np.ones((vs.shape[0], n, w.size)) if a_fac is None else a_fac
+                        a_fac[:, r] = a_fac[:, r] * np.exp(lf)
         for p in imag:  # A_r + j (w / w_r) B_r: the pole-pair form, a real impulse response
             ar = ar + 1j * p[:, :n, None] * (w / (2 * np.pi * fr))
             u = u + 1j * p[:, n, None]
             low = low + 1j * p[:, n + 1, None]
         wr = 2 * np.pi * fr * f_fac
         z = zr * z_fac
+        ar = ar if a_fac is None else ar * a_fac
         h = np.sum(ar / (wr**2 - w**2 + 2j * z * wr * w), axis=1) + u - low / w**2
         out = h * np.exp(-1j * (w * delay - phase))
         return out if np.ndim(v) == 2 else out[0]
@@ -380,6 +398,7 @@ class ModalDomain:
         train = np.asarray(train, dtype=bool)
         self._train, self._stack, self._term_of = train, [], {}
         self._stack_params = []
+        self._law_inputs, self.trends = None, []
         obs = self.observations
         ref = obs.groups == self.reference
         peaks = find_peaks(obs.axis[ref], obs.values[ref], self.max_modes)
@@ -660,6 +679,99 @@ class ModalDomain:
         sol = np.linalg.lstsq(np.vstack([a.real, a.imag]), np.r_[b.real, b.imag],
                               rcond=None)[0] * scales
         return replace(spec, starts=(np.r_[values, sol], *spec.starts))
+
+    def _law_trends(self, reference) -> list:
+        """Per covariate: each mode's stiffness w_r^2, damping ratio and modal constant in
+        every condition, from the baseline fitted to that condition alone, and their laws
+        (:func:`.laws.find_law`); computed once (the per-condition fits do not change)."""
+        if self._law_inputs is not None:
+            return self._law_inputs
+        obs, n = self.observations, self._n
+        g = obs.groups
+        own = reference.per_condition if reference is not None else {}
+        labels = sorted(own)
+        out = []
+        if len(labels) >= 2 and self.reference in own:
+            est = {lab: {e.name: e for e in own[lab]} for lab in labels}
+            for name, col in self._varying().items():
+                effect = ("amplitude_dependence" if is_level(name) and np.all(col > 0)
+                          else "covariate_shift")
+                cov = laws.covariate_info(name, col, g, self.reference,
+                                          laws.kelvin_offset(name))
+                x = np.array([col[g == lab].mean() for lab in labels])
+                trends = []
+                for r in range(n):
+                    f = np.array([est[lab][f"f_{r + 1}"].value for lab in labels])
+                    sf = np.array([est[lab][f"f_{r + 1}"].std for lab in labels])
+                    z = np.array([est[lab][f"zeta_{r + 1}"].value for lab in labels])
+                    sz = np.array([est[lab][f"zeta_{r + 1}"].std for lab in labels])
+                    a = np.array([est[lab][f"A_{r + 1}"].value for lab in labels])
+                    sa = np.array([est[lab][f"A_{r + 1}"].std for lab in labels])
+                    coords = [("stiffness", f**2, 2 * f * sf), ("damping", z, sz)]
+                    if f"B_{r + 1}" in est[labels[0]]:  # complex: its size at resonance
+                        b = np.array([est[lab][f"B_{r + 1}"].value for lab in labels])
+                        sb = np.array([est[lab][f"B_{r + 1}"].std for lab in labels])
+                        size = np.hypot(a, b)
+                        coords.append(("modal constant", size,
+                                       np.hypot(a * sa, b * sb) / np.maximum(size, 1e-300)))
+                    elif np.all(a > 0) or np.all(a < 0):  # a sign change is no factor
+                        coords.append(("modal constant", np.abs(a), sa))
+                    for which, y, s in coords:
+                        t = laws.find_law(effect, cov, f"mode {r + 1} {which}",
+                                          (r, which), x, y, s)
+                        if t is not None:
+                            trends.append(t)
+                out.append((name, effect, cov, trends))
+        self._law_inputs = out
+        self.trends = [t for *_, ts in out for t in ts]
+        return out
+
+    def law_candidates(self, baseline: ModelFit, reference) -> list:
+        """Each covariate's effect with the laws its moving coordinates follow (label
+        ``COVARIATE, law``), started at the reference condition's own fit with the laws
+        fitted to the per-condition values; the joint fit refines all of it."""
+        out = []
+        values = np.array([e.value for e in baseline.estimates])
+        stack_params = list(self._params_of_stack)
+        present = {(t.effect, t.label) for t in self._stack}
+        own = reference.per_condition if reference is not None else {}
+        g = self.observations.groups
+        for name, effect, cov, trends in self._law_trends(reference):
+            label = f"{name}, law"
+            if (effect, label) in present:
+                continue
+            moving = [t for t in trends if t.moving]
+            if not moving:
+                out.append(NotApplicable(effect, f"no mode's stiffness, damping or modal "
+                                                 f"constant moves with {name} beyond its "
+                                                 "errors", label))
+                continue
+            coords, added, parts = [], [], []
+            short = {"stiffness": "k", "damping": "z", "modal constant": "A"}
+            for t in moving:
+                r, which = t.key
+                sc = t.chosen
+                theta = sc.theta if sc is not None else ()
+                specs = laws.param_specs(t.law, cov, theta, f"{short[which]}{r + 1}", name)
+                coords.append((r, which, t.law, len(specs)))
+                added += specs
+                parts.append(laws.LawPart(t.coordinate, t.law, tuple(p.name for p in specs)))
+            col = self.observations.covariates[name]
+            means = np.array([col[g == lab].mean() for lab in range(len(self.conditions))])
+            term = ModalTerm(effect, label, "law", len(added),
+                             data={"coords": coords, "x": col, "cov": cov,
+                                   "level_index": cov.level_index(means[g])})
+            spec = self._spec(values, stack_params, term, tuple(added), [], label)
+            law = laws.LawModel(effect, cov, tuple(parts),
+                                tuple(t.coordinate for t in trends if not t.moving))
+            # the reference condition's own fit (the laws are normalised there) first
+            starts = list(spec.starts)
+            if self.reference in own:
+                head = np.array([e.value for e in own[self.reference]])
+                init = np.array([p.initial for p in added])
+                starts.insert(0, np.concatenate([head, values[head.size:len(values)], init]))
+            out.append(replace(spec, starts=tuple(starts), n_priority=1, law=law))
+        return out
 
     @property
     def _params_of_stack(self):

@@ -61,10 +61,31 @@ def _features(f: ResidualFeatures) -> dict:
     return out
 
 
+def _law(fit) -> dict | None:
+    return None if fit is None or fit.law is None else fit.law.to_dict(fit)
+
+
+def trend_to_dict(t) -> dict:
+    """A coordinate's per-condition values, its moving test and its laws (:mod:`.laws`)."""
+    return {"effect": t.effect, "covariate": t.covariate, "coordinate": t.coordinate,
+            "levels": t.x.tolist(), "values": t.values.tolist(), "std": t.std.tolist(),
+            "chi2": t.chi2, "dof": t.dof, "p_value": t.p_value, "moving": t.moving,
+            "law": t.law, "reason": t.reason,
+            "laws": [{"law": sc.law, "n_parameters": sc.n_params,
+                      "held_out_chi2": sc.loco, "chi2": sc.chi2,
+                      "parameters": list(sc.theta), "std": list(sc.theta_std)}
+                     for sc in t.scores]}
+
+
 def _candidate(c: CandidateScore) -> dict:
     covariate, _, form = (c.label or "").partition(", ")
     item = {"effect": c.effect, "covariate": covariate or None, "form": form or None,
-            "applicable": c.applicable, "failed": c.failed}
+            "applicable": c.applicable, "failed": c.failed, "implausible": c.implausible}
+    if c.implausible:  # fitted and significant, but meaningless physically: never added
+        item.update(reason=c.reason, model=c.fit.name, error=c.fit.error,
+                    delta_bic=c.delta_bic, p_value=c.p_value,
+                    parameters=_params(c.fit.added), law=_law(c.fit))
+        return item
     if not c.applicable:
         item.update(error=None, reason=c.reason)
         return item
@@ -74,6 +95,7 @@ def _candidate(c: CandidateScore) -> dict:
         explained_fraction=c.explained_fraction, achieved_fraction=c.achieved_fraction,
         n_added=c.fit.n_added,
         parameters=_params(c.fit.added), signature=c.signature, bound_hits=_hits(c.fit),
+        law=_law(c.fit),
     )
     return item
 
@@ -87,7 +109,7 @@ def _step(number: int, st) -> dict:
             "p_value": st.p_value, "explained_fraction": st.explained_fraction,
             "achieved_fraction": st.achieved_fraction,
             "parameters": _params(st.fit.added), "bound_hits": _hits(st.fit),
-            "caveats": list(st.caveats)}
+            "law": _law(st.fit), "caveats": list(st.caveats)}
 
 
 def result_to_dict(result: DiscrepancyResult, extra: dict | None = None) -> dict:
@@ -102,7 +124,7 @@ def result_to_dict(result: DiscrepancyResult, extra: dict | None = None) -> dict
                "error": a.error, "error_l2": a.error_l2, "train_error": a.train_error,
                "error_ratio": a.error / result.baseline.error,
                "parameters": _params(a.added), "all_parameters": _params(a.estimates),
-               "residual": _features(result.augmented_residual)}
+               "law": _law(a), "residual": _features(result.augmented_residual)}
     out = dict(extra or {})
     out.update({
         "domain": result.domain,
@@ -114,7 +136,9 @@ def result_to_dict(result: DiscrepancyResult, extra: dict | None = None) -> dict
             "error": result.reference.error, "n_fitted": result.reference.n_fitted,
             "n_conditions": result.reference.n_conditions, "used": result.reference_used,
             "definition": "the baseline fitted separately to each condition, held-out error "
-                          "on the same points"},
+                          "on the same points",
+            "parameters": list(result.moving)},
+        "trends": [trend_to_dict(t) for t in result.trends],
         "baseline": _fit(result.baseline),
         "residual": _features(result.residual),
         "verdict": {"status": v.status, "effect": v.effect,

@@ -143,6 +143,12 @@ def test_jointed_beam_at_constant_response_levels_is_an_amplitude_dependence(cap
     if v["form"] == "per level, all modes":
         dz = damping_factors(out)  # file order: 5..80 m/s^2
         assert dz == sorted(dz) and dz[0] < 0 < dz[-1]
+    elif v["form"] == "law":  # the laws of the per-condition fits: the damping rises
+        assert "mode 1 damping" in [p["coordinate"] for p in out["augmented"]["law"]["laws"]]
+        trend = next(t for t in out["trends"] if t["coordinate"] == "mode 1 damping")
+        order = np.argsort(trend["levels"])
+        damping = np.asarray(trend["values"])[order]
+        assert trend["moving"] and np.all(np.diff(damping) > 0)  # 4x from 5 to 80 m/s^2
     else:
         s_z = next(p["value"] for p in out["augmented"]["parameters"] if p["name"] == "s_z")
         assert s_z > 0
