@@ -133,6 +133,9 @@ class DecisionRule:
         ``no_covariate_effect``: the measurements agree with one model, nothing to add or
         name; the evidence states the misfit the model family leaves, the same in every
         condition (it is above the noise, else the verdict would be ``consistent``).
+    covariate_laws : bool
+        Offer each covariate effect also built from the laws its per-condition fits follow
+        (:mod:`.laws`; a domain's ``law_candidates``). Off: the library's fixed forms only.
     """
 
     consistency_ratio: float = 1.25
@@ -147,6 +150,7 @@ class DecisionRule:
     joint_ratio: float = 1.5
     min_reference_gain: float = 0.2
     agreeing_conditions_verdict: bool = True
+    covariate_laws: bool = True
 
     def __post_init__(self) -> None:
         if not isinstance(self.max_steps, (int, np.integer)) or self.max_steps < 1:
@@ -666,14 +670,15 @@ def run(domain: Domain, rule: DecisionRule | None = None, split: HoldoutSplit | 
         reference = saturated_reference(base_spec, obs, split, base, domain)
     used = (reference is not None
             and reference.rss_held <= (1 - rule.min_reference_gain) * base.rss_held)
+    per_condition = reference if rule.covariate_laws else None
     scores, specs = _candidates(domain, obs, split, base, features, noise, rule, progress,
-                                n_variants, reference if used else None, reference)
+                                n_variants, reference if used else None, per_condition)
     verdict = decide(base, noise, features, scores, rule, reference)
     steps, final = (), None
     if hasattr(domain, "augment"):
         steps, final, last = _iterate(domain, obs, split, base, features, noise, scores, specs,
                                       rule, progress, n_variants, reference if used else None,
-                                      measured is not None, reference)
+                                      measured is not None, per_condition)
         if last is not noise:  # one floor per report: the lowest estimate, for every ratio
             noise = last
             features = _features(obs, base, noise.sigma)

@@ -10,8 +10,9 @@ and dBIC rule):
   constant phase offset in place of the delay (one parameter, like the delay, solved in
   closed form) must leave a training residual power larger than the delay's by the F test's
   margin, chi^2_1 at 1 - significance times the fit's residual variance. Otherwise the delay
-  is implausible, and its standard error is the one it has when a phase offset is fitted
-  beside it (the slope alone determines it): the ambiguity the data leave.
+  is implausible, and its standard error says what the data leave of it: the slope's own
+  standard error with a phase offset fitted beside it, combined with how far the delay
+  moves when the offset is there (a phase wrap: the whole delay).
 * laws of a covariate effect (:class:`~.laws.LawModel`): every factor (stiffness, damping,
   modal constant, shift factor) positive and finite over the measured range.
 * the domain's own ranges (``domain.implausible(spec, fit)``, e.g. the FRF domain's shift
@@ -59,7 +60,7 @@ def delay_check(spec: ModelSpec, fit: ModelFit, obs: Observations, train: np.nda
     pred = w * fit.prediction[train]
     beta = min((tau, -tau), key=lambda bt: float(np.sum(np.abs(a * np.exp(1j * bt * omega)
                                                                  - pred) ** 2)))
-    phi = 0.0
+    sign, phi = (1.0 if beta == tau else -1.0), 0.0
     for _ in range(20):
         e = a * np.exp(1j * (phi + beta * omega))
         r = e - b
@@ -71,7 +72,10 @@ def delay_check(spec: ModelSpec, fit: ModelFit, obs: Observations, train: np.nda
         if np.all(np.abs(step) < [1e-10, 1e-14]):
             break
     cov = np.linalg.pinv(jr.T @ jr) * s2
-    se = float(np.sqrt(max(cov[1, 1], 0.0)))
+    slope_tau = sign * beta  # the delay the phase's slope alone shows
+    # what the data leave of it: the slope's standard error and how far the delay moves
+    # when a phase offset may be beside it (a phase wrap: the whole delay)
+    se = float(np.hypot(np.sqrt(max(cov[1, 1], 0.0)), tau - slope_tau))
     est = fit.estimates[-1]
     fixed = replace(fit, estimates=fit.estimates[:-1] + (replace(est, std=max(se, est.std)),))
     f = obs.axis[train]
@@ -80,7 +84,8 @@ def delay_check(spec: ModelSpec, fit: ModelFit, obs: Observations, train: np.nda
            f"{margin:.2g}): the data show a phase, not a delay's slope over "
            f"{f.min():.4g}-{f.max():.4g} Hz; the delay {tau * 1e3:.4g} ms turns the phase by "
            f"{np.degrees(2 * np.pi * f.max() * abs(tau)):.0f} deg at the band's top (a phase "
-           f"wrap when above 180); with a phase offset beside it +- {se * 1e3:.2g} ms")
+           f"wrap when above 180); the phase's slope alone shows {slope_tau * 1e3:.3g} ms, "
+           f"so +- {se * 1e3:.2g} ms")
     return why, fixed
 
 
