@@ -92,7 +92,7 @@ def test_a_shift_larger_than_the_sweeps_overlap_is_implausible():
     split = holdout_split(dom.observations.groups)
     base = fit_model(dom.baseline(split.train), dom.observations, split)
     lib = dom.candidates(base, loop._features(dom.observations, base))
-    wlf = next(s for s in lib if isinstance(s, ModelSpec) and s.label == "temperature_c")
+    wlf = next(s for s in lib if isinstance(s, ModelSpec) and s.label == "temperature_c, WLF")
     fit = fit_model(wlf, dom.observations, split)
     assert dom.implausible(wlf, fit) == ""
     # a slope of 0.5 /K shifts sweeps 12-15 K apart by ~5 decades: a 2-decade band cannot
