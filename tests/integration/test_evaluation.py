@@ -55,7 +55,7 @@ def test_evaluate_flies_the_subset_and_tabulates_it(tmp_path):
     table = (out / "results.md").read_text()
     record = json.loads((out / "flights" / "fixed_mu0.1_seed1.json").read_text())
     assert record["ok"] and record["controller"] == "fixed" and record["mu"] == 0.1
-    assert f"| best fixed c2 | 0.1 | 1 | 1 | {record['divergence_ratio_sliding']:.3f} |" in table
+    assert f"| best fixed c2 | 0.1 | 1 | 1 | {record['divergence_ratio']:.3f} |" in table
     # plots and one report per case (report/test_contents.py checks the .rrd)
     assert (out / "divergence_vs_mu.png").is_file() and (out / "traces_mu0.1.png").is_file()
     assert len(payload["reports"]) == 4

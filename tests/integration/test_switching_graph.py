@@ -86,8 +86,8 @@ def supervisor(ros_context, **params):
 
 
 def diverged_at(sim, texts) -> float:
-    """U/U_cr of the simulator's divergence report."""
-    text = next(t for t in texts if "wing diverged" in t)
+    """U/U_cr where the simulator stopped the flight (after its divergence)."""
+    text = next(t for t in texts if "flight stopped at U = " in t)
     return float(text.split("U/U_cr = ")[1].split(",")[0])
 
 

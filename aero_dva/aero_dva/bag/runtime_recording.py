@@ -18,6 +18,7 @@ from aero_dva.bag import channels as ch
 from aero_dva.bag.batch_recorder import BatchRecorder
 from aero_dva.bag.writer import BagSummary
 from aero_dva.flight.damper import DamperStatus
+from aero_dva.flight.divergence import stop_message
 
 __all__ = ["RecordedFlight", "flight_status_values", "published_topics", "record_flight_blocks",
            "record_runtime"]
@@ -119,7 +120,7 @@ def record_runtime(bag_dir, runtime, progress: Callable[[int, int], None] | None
     What the simulator node publishes, in its order: per block ``/clock``, the sample blocks,
     the flight condition and the damper state; a ``/diagnostics`` warning when the damper falls
     back to its stale value; at the end a ``/diagnostics`` status "simulator: flight" ("flight
-    completed", level OK, or "wing diverged at U = ...", level ERROR, stopping the flight) with
+    completed", level OK, or "flight stopped at U = ...", level ERROR) with
     the node's key-values (sim_time_s, wall_time_s, real_time_factor, critical_airspeed_no_dva,
     published:<topic>). No controller runs: c2 is the sweep's own or the damper's initial one.
 
@@ -179,9 +180,7 @@ def record_runtime(bag_dir, runtime, progress: Callable[[int, int], None] | None
                 flush()
                 u = float(block.airspeed[-1])
                 recorder.write_diagnostics(runtime.time, [(
-                    "error", f"wing diverged at U = {u:.2f} m/s (U/U_cr = "
-                    f"{u / runtime.critical_airspeed:.3f}, t = {block.t0:.3f} s): flight stopped",
-                    summary())])
+                    "error", stop_message(u, runtime.critical_airspeed, block.t0), summary())])
                 outcome = "diverged"
                 break
             if len(batch) >= batch_blocks:

@@ -40,6 +40,7 @@ from aero_dva.bag.writer import BagSummary, create_bag_directory
 from aero_dva.flight import sweep_simulator
 from aero_dva.flight.damper import DamperModel, DamperStatus
 from aero_dva.flight.discrete_model import ACCELERATION_OUTPUTS, OUTPUT_NAMES
+from aero_dva.flight.divergence import stop_message
 from aero_dva.flight.flight_runtime import SWEEP_SOURCE
 from aero_dva.flight.scenario import airspeed_at, density_at, sample_times, sweep_damping_at
 
@@ -253,7 +254,7 @@ def _fly_span(sweep: _Sweep, recorder: BatchRecorder, span: tuple[int, int],
 
 def _write_status(sweep: _Sweep, recorder: BatchRecorder, done: int,
                   diverged_at: int | None) -> None:
-    """The node's final "simulator: flight" status: completed, or where the wing diverged."""
+    """The node's final "simulator: flight" status: completed, or where it stopped the flight."""
     runtime, rate = sweep.runtime, sweep.rate
     blocks = -(-done // sweep.block)
     published = dict.fromkeys(published_topics(), blocks)
@@ -264,8 +265,7 @@ def _write_status(sweep: _Sweep, recorder: BatchRecorder, done: int,
     t = sample_times(runtime.scenario, diverged_at, done - diverged_at)
     u = float(airspeed_at(runtime.scenario, t)[-1])
     recorder.write_diagnostics(done / rate, [(
-        "error", f"wing diverged at U = {u:.2f} m/s (U/U_cr = "
-        f"{u / runtime.critical_airspeed:.3f}, t = {t[0]:.3f} s): flight stopped", values)])
+        "error", stop_message(u, runtime.critical_airspeed, float(t[0])), values)])
 
 
 # --------------------------------------------------------------------------------------------

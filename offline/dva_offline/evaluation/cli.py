@@ -27,10 +27,12 @@ import sys
 import time
 from pathlib import Path
 
+from aero_dva.flight.range_rms import RMS_RANGE
+
 __all__ = ["register"]
 
 DEFAULT_SEEDS = 30
-DEFAULT_RMS_RANGE = "0.8:1.05"
+DEFAULT_RMS_RANGE = f"{RMS_RANGE[0]:g}:{RMS_RANGE[1]:g}"  # the range run_flight's summary uses
 
 
 def register(subparsers) -> None:

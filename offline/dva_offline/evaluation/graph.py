@@ -16,7 +16,6 @@ controllers in one process.
 from __future__ import annotations
 
 import json
-import math
 import shutil
 import subprocess
 import sys
@@ -25,7 +24,7 @@ from pathlib import Path
 
 __all__ = ["bag_problem", "evaluate_graph"]
 
-RATIO_KEY = "divergence_ratio_sliding"  # what the table reports (1 s windows, 0.05 s hop)
+RATIO_KEY = "divergence_ratio"  # run_flight's, the project's one detector
 
 
 def _flight_argv(case, scenario: Path, bag: Path, made: dict, args) -> list[str]:
@@ -50,23 +49,6 @@ def _flight_argv(case, scenario: Path, bag: Path, made: dict, args) -> list[str]
     return argv
 
 
-def _sliding_divergence(bag: Path, u_cr) -> dict:
-    """U_div / U_cr from the bag with 1 s windows sliding by 0.05 s (evaluation.py says why)."""
-    import numpy as np
-
-    from aero_dva.bag.flight_log_io import load_flight_log
-    from aero_dva.flight.divergence import divergence_airspeed_sliding
-    from aero_dva.wing.model import LEADING_EDGE
-
-    log = load_flight_log(bag)
-    response = log.displacements[LEADING_EDGE]
-    valid = np.isfinite(response) & np.isfinite(log.airspeed)
-    u_div = divergence_airspeed_sliding(log.airspeed[valid], response[valid], log.sample_rate)
-    ratio = u_div / u_cr if u_cr and math.isfinite(u_div) else None
-    return {"divergence_airspeed_sliding": u_div if math.isfinite(u_div) else None,
-            "divergence_ratio_sliding": ratio}
-
-
 def bag_problem(summary: dict) -> str | None:
     """Why a flight's bag cannot be judged (run_flight's summary ``summary``), or None: its
     divergence is read from the bag's last seconds, which a recorder starved of CPU can lose
@@ -88,7 +70,10 @@ def _fly(case, scenario: Path, out: Path, made: dict, args) -> dict:
     bag = flight_bag(out, case)
     for leftover in (bag, bag.with_name(bag.name + "_logs")):  # an interrupted attempt
         shutil.rmtree(leftover, ignore_errors=True)
-    record = {"controller": case.controller, "mu": case.mu, "seed": case.seed,
+    from aero_dva.flight.divergence import DETECTOR
+
+    record = {"divergence_detector": DETECTOR,
+              "controller": case.controller, "mu": case.mu, "seed": case.seed,
               "scenario": str(scenario), "scenario_name": scenario.stem, "bag": str(bag),
               "absorber": "none" if case.controller == "none" else "maxwell"}
     started = time.monotonic()
@@ -101,7 +86,6 @@ def _fly(case, scenario: Path, out: Path, made: dict, args) -> dict:
             if incomplete:
                 record.update(ok=False, error=incomplete)
             else:
-                record.update(_sliding_divergence(bag, record.get("critical_airspeed")))
                 record["ok"] = True
         else:
             lines = (result.stderr or "").strip().splitlines()

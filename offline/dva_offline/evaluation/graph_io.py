@@ -75,15 +75,20 @@ def flight_record_path(out_dir, case: FlightCase) -> Path:
 
 
 def load_records(out_dir, cases: Sequence[FlightCase]) -> dict[FlightCase, dict]:
-    """Records already saved for ``cases`` (unreadable ones are treated as missing)."""
+    """Records already saved for ``cases`` (unreadable ones, and those whose divergence was
+    read by another detector than today's, are treated as missing: flown again)."""
+    from aero_dva.flight.divergence import DETECTOR
+
     found = {}
     for case in cases:
         path = flight_record_path(out_dir, case)
         if path.is_file():
             try:
-                found[case] = json.loads(path.read_text())
+                record = json.loads(path.read_text())
             except json.JSONDecodeError:
                 continue
+            if isinstance(record, dict) and record.get("divergence_detector") == DETECTOR:
+                found[case] = record
     return found
 
 
@@ -98,9 +103,9 @@ def _plt():
 
 def plot_traces(path, mu: float, runs: Mapping[str, object], u_cr: float) -> Path:
     """Fig. 7.13-7.16 for one mu: per controller (rows) w, alpha and c2 versus U/U_cr of one
-    flight (``runs``: controller -> FlightLog; the table's divergence airspeed, sliding 1 s
-    windows, marked if found)."""
-    from aero_dva.flight.divergence import divergence_airspeed_sliding
+    flight (``runs``: controller -> FlightLog; the table's divergence airspeed marked if
+    found)."""
+    from aero_dva.flight.divergence import divergence_airspeed
 
     plt = _plt()
     names = [c for c in graph_controllers() if c in runs]
@@ -111,8 +116,8 @@ def plot_traces(path, mu: float, runs: Mapping[str, object], u_cr: float) -> Pat
         ratio = log.airspeed / u_cr
         edge = log.displacements[LEADING_EDGE]
         valid = np.isfinite(edge) & np.isfinite(log.airspeed)
-        u_div = divergence_airspeed_sliding(log.airspeed[valid], edge[valid],
-                                            log.sample_rate) / u_cr  # as in the table
+        u_div = divergence_airspeed(log.airspeed[valid], edge[valid],
+                                    log.sample_rate) / u_cr  # as in the table
         # without the DVA the recorded c2 acts on nothing: leave its panel empty
         c2 = log.applied_damping if controller != NONE else np.full(ratio.shape, np.nan)
         if controller == NONE:

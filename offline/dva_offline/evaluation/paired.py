@@ -17,10 +17,10 @@ Density cases (eq. 7.2, rho = rho0 (1 + mu sin 2 pi f t)); which can adaptation 
 ``2f``        mu = 0.1 near twice the flutter frequency: parametric pumping
 ============  =======================================================================
 
-Per flight: the divergence airspeed (1 s windows sliding by 0.05 s,
-:func:`aero_dva.flight.divergence.divergence_airspeed_sliding`) over U_cr, and the leading-edge
-RMS between ``rms_range`` (default 0.8 .. 1.05 U_cr, after the first 2 s in which the spectrum
-controller has no window yet), the study's objective where the optimal c2 moves with the
+Per flight: the divergence airspeed (:func:`aero_dva.flight.divergence.divergence_airspeed`,
+the project's one detector) over U_cr, and the leading-edge RMS between ``rms_range`` (default
+0.8 .. 1.05 U_cr, after the first 2 s in which the spectrum controller has no window yet;
+:mod:`aero_dva.flight.range_rms`), the study's objective where the optimal c2 moves with the
 airspeed, both compared with the best fixed c2 flown on the same seed.
 """
 from __future__ import annotations
@@ -32,7 +32,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy import stats
 
-from aero_dva.flight.divergence import divergence_airspeed_sliding
+from aero_dva.flight.divergence import divergence_airspeed
+from aero_dva.flight.range_rms import SKIP, range_mean, range_rms
 from aero_dva.flight.scenario import AirspeedProfile, Scenario
 
 __all__ = ["CASE_NAMES", "REFERENCE_CONTROLLER", "DensityCase", "FlightRecord",
@@ -102,7 +103,7 @@ class FlightRecord:
 
 
 def flight_record(controller: str, case: str, seed: int, outcome, critical_airspeed: float,
-                  rms_range: tuple[float, float], skip: float = 2.0) -> FlightRecord:
+                  rms_range: tuple[float, float], skip: float = SKIP) -> FlightRecord:
     """Summarise a :class:`~dva_offline.evaluation.closed_loop.FlightOutcome`.
 
     ``rms_range`` [m/s]: airspeeds over which the RMS is taken (samples after ``skip``
@@ -110,25 +111,15 @@ def flight_record(controller: str, case: str, seed: int, outcome, critical_airsp
     """
     rate = outcome.sample_rate
     u, le = outcome.airspeed, outcome.leading_edge
-    div = divergence_airspeed_sliding(u, le, rate) if u.size >= 3 * rate else math.nan
-    low, high = rms_range
-    in_range = (u >= low) & (u <= high) & (np.arange(u.size) >= skip * rate)
-    complete = u.size > 0 and u[-1] > high
-    rms = math.sqrt(_exact_mean(le[in_range] ** 2)) if complete and in_range.any() \
-        else math.nan
-    c2 = _exact_mean(outcome.damping[in_range]) if in_range.any() else math.nan
+    div = divergence_airspeed(u, le, rate) if u.size >= 3 * rate else math.nan
+    rms = range_rms(u, le, rate, rms_range, skip)
+    c2 = range_mean(u, outcome.damping, rate, rms_range, skip)
     act = float(np.median(outcome.peak_activation)) if outcome.peak_activation.size \
         else math.nan
     return FlightRecord(controller=controller, case=case, seed=int(seed),
                         diverged=bool(outcome.diverged),
                         divergence_ratio=div / critical_airspeed, rms=rms,
                         mean_damping=c2, median_peak_activation=act)
-
-
-def _exact_mean(x) -> float:
-    # Correctly rounded: numpy's SIMD sums depend on where the array sits in memory, which
-    # differs between processes, and the records must be the same on every route.
-    return math.fsum(x) / len(x)
 
 
 @dataclass(frozen=True)

@@ -16,8 +16,6 @@ import numpy as np
 from aero_dva.bag.flight_log_io import FlightLog
 from aero_dva.bag.flight_summary import FlightSummary, summarize
 from aero_dva.control.controllers import by_source
-from aero_dva.flight.divergence import divergence_airspeed_sliding
-from aero_dva.wing.model import LEADING_EDGE
 
 __all__ = ["RunData", "RunReport", "SpectrumTrack", "build_report", "report_markdown"]
 
@@ -61,7 +59,6 @@ class RunReport:
     controller: str
     scenario: dict
     summary: FlightSummary
-    divergence_airspeed_sliding: float
     damping_range: tuple[float, float]
     message_counts: dict
     outcome: str
@@ -73,7 +70,6 @@ class RunReport:
         return {"bag": self.bag, "controller": self.controller, "outcome": self.outcome,
                 "scenario": {k: clean(v) for k, v in self.scenario.items()},
                 "summary": self.summary.to_dict(),
-                "divergence_airspeed_sliding": clean(self.divergence_airspeed_sliding),
                 "damping_range": [clean(float(v)) for v in self.damping_range],
                 "message_counts": dict(self.message_counts)}
 
@@ -126,18 +122,11 @@ def build_report(data: RunData) -> RunReport:
     applied = applied[np.isfinite(applied)]
     c2_range = (float(applied.min()), float(applied.max())) if applied.size \
         else (math.nan, math.nan)
-    response, airspeed = data.log.displacements[LEADING_EDGE], data.log.airspeed
-    valid = np.isfinite(response) & np.isfinite(airspeed)
-    try:  # the evaluation's finer reading of the same definition
-        sliding = divergence_airspeed_sliding(airspeed[valid], response[valid],
-                                              data.log.sample_rate)
-    except ValueError:  # shorter than three windows
-        sliding = math.nan
     messages = [s["message"] for s in data.log.diagnostics if s["name"] == "simulator: flight"]
     outcome = messages[-1] if messages else "no final simulator status in the log"
     return RunReport(bag=data.bag, controller=_controller(data),
                      scenario=_scenario(data.log, summary, data.metadata), summary=summary,
-                     divergence_airspeed_sliding=sliding, damping_range=c2_range,
+                     damping_range=c2_range,
                      message_counts=dict(data.message_counts), outcome=outcome)
 
 
@@ -150,12 +139,13 @@ def report_markdown(report: RunReport, links: Mapping[str, str]) -> str:
     """Short markdown report; ``links`` maps a caption to a relative path (PNGs, .rrd)."""
     s, sc = report.summary, report.scenario
     diverged = math.isfinite(s.divergence_airspeed)
+    low, high = s.rms_range
     lines = [
         f"# Run report: {sc.get('name') or report.bag}",
         "",
         f"- bag: `{report.bag}`",
         f"- controller: **{report.controller}**",
-        f"- outcome: {report.outcome}",
+        f"- the simulator's last status: {report.outcome}",
         "",
         "## Scenario (read from the recorded signals)",
         "",
@@ -180,19 +170,20 @@ def report_markdown(report: RunReport, links: Mapping[str, str]) -> str:
         "",
         "| quantity | value |",
         "|---|---|",
-        "| divergence airspeed (1 s windows) | " + (
+        "| divergence airspeed | " + (
             f"{s.divergence_airspeed:.2f} m/s = {s.divergence_ratio:.3f} U_cr" if diverged
             else "none within the flight") + " |",
-        "| divergence airspeed (1 s windows sliding by 0.05 s) | " + (
-            f"{report.divergence_airspeed_sliding:.2f} m/s = "
-            f"{report.divergence_airspeed_sliding / s.critical_airspeed:.3f} U_cr"
-            if math.isfinite(report.divergence_airspeed_sliding) else "none within the flight")
-        + " |",
-        f"| leading-edge RMS (before divergence) | {_num(s.leading_edge_rms * 1e3, '.4f')} mm |",
+        f"| leading-edge RMS over {low:.2f}-{high:.2f} U_cr (the range dva evaluate compares "
+        f"over) | {_num(s.leading_edge_rms * 1e3, '.4f')} mm |",
+        f"| mean applied c2 over {low:.2f}-{high:.2f} U_cr | "
+        + ("no DVA (absorber none)" if sc.get("absorber") == "none"
+           else f"{_num(s.mean_damping, '.1f')} N s/m") + " |",
+        "| leading-edge RMS before divergence (not comparable between flights) | "
+        f"{_num(s.leading_edge_rms_before_divergence * 1e3, '.4f')} mm |",
         "| applied c2 (before divergence) | " + (
             "no DVA (absorber none)" if sc.get("absorber") == "none" else
             f"{_num(report.damping_range[0], '.1f')} .. {_num(report.damping_range[1], '.1f')} "
-            f"N s/m, mean {_num(s.mean_damping, '.1f')}") + " |",
+            "N s/m") + " |",
         f"| missing samples | {s.missing_samples} |",
         "",
         "## Messages",

@@ -305,6 +305,8 @@ def _format(summary: dict) -> str:
         return "n/a" if value is None else format(value, fmt)
 
     diverged = summary["divergence_airspeed"] is not None
+    low, high = summary.get("rms_range") or (math.nan, math.nan)
+    span = f"{low:.2f}-{high:.2f} U_cr"
     lines = [
         f"controller           {summary['controller']}",
         f"flown                {number('duration', '.2f')} s of sim time in "
@@ -320,8 +322,12 @@ def _format(summary: dict) -> str:
             f"at {number('divergence_airspeed', '.1f')} m/s = "
             f"{number('divergence_ratio', '.3f')} U_cr" if diverged
             else "none within the flight"),
-        f"leading-edge RMS     {number('leading_edge_rms', '.3e')} m (before divergence)",
-        f"mean applied c2      {number('mean_damping', '.0f')} N s/m",
+        f"leading-edge RMS     {number('leading_edge_rms', '.3e')} m over {span} (the range "
+        "dva evaluate compares controllers over)",
+        f"mean applied c2      {number('mean_damping', '.0f')} N s/m over {span}",
+        f"  before divergence  leading-edge RMS "
+        f"{number('leading_edge_rms_before_divergence', '.3e')} m over what the flight flew "
+        "before it (not comparable between flights)",
         *([f"{entry_of(summary['controller']).label:21s}"
            f"{summary.get('blocks_switching', 0)} blocks, "
            f"{number('switching_rate_mean', '.1f')} switches/s (mean over them)"]

@@ -38,6 +38,7 @@ from aero_dva.flight.damper import (
     DamperMode,
     DamperStatus,
 )
+from aero_dva.flight.divergence import stop_message
 from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
 from dva_msgs.msg import DamperCommand
 from dva_ros_common import conversions
@@ -325,9 +326,8 @@ class Simulator(Node):
             self._publish(block)
             self._check_damper_status()
             if block.diverged:
-                ratio = block.airspeed[-1] / self.runtime.critical_airspeed
-                self._diagnose("error", f"wing diverged at U = {block.airspeed[-1]:.2f} m/s "
-                               f"(U/U_cr = {ratio:.3f}, t = {block.t0:.3f} s): flight stopped",
+                self._diagnose("error", stop_message(float(block.airspeed[-1]),
+                                                     self.runtime.critical_airspeed, block.t0),
                                self._summary())
                 self._finish("diverged")
                 return

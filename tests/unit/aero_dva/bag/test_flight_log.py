@@ -7,9 +7,10 @@ import numpy as np
 import pytest
 
 from aero_dva.bag.flight_log_io import load_flight_log
-from aero_dva.bag.flight_summary import summarize
+from aero_dva.bag.flight_summary import sample_airspeed, summarize
 from aero_dva.bag.reader import BagReadError
 from aero_dva.bag.writer import BagWriter
+from aero_dva.flight.divergence import divergence_airspeed, stop_message
 
 RATE, BLOCK = 1000.0, 50
 
@@ -39,7 +40,7 @@ def _write_flight(bag, leading_edge, airspeed, skip_blocks=(), u_cr=100.0, diver
                                                "air_density": 1.2}, t_ns)
             writer.write("/dva/damper_state", {"header": _stamp(t0), "applied_damping": 700.0,
                                                "status": 0, "source": "fixed"}, t_ns)
-        text = "wing diverged at U = 118 m/s" if diverged else "flight completed"
+        text = stop_message(118.0, u_cr, n / RATE) if diverged else "flight completed"
         writer.write("/diagnostics", {"header": _stamp(n / RATE), "status": [{
             "level": 2 if diverged else 0, "name": "simulator: flight",
             "message": text, "hardware_id": "aero_dva_sim",
@@ -76,15 +77,37 @@ def test_summary_finds_divergence_of_a_growing_response(tmp_path):
     le[grow] *= np.exp(2.0 * (t[grow] - 24.0))
     airspeed = _ramp(n)
     _write_flight(tmp_path / "bag", le, airspeed, diverged=True)
-    summary = summarize(load_flight_log(tmp_path / "bag"))
+    log = load_flight_log(tmp_path / "bag")
+    summary = summarize(log)
     assert summary.critical_airspeed == 100.0
     assert 112.0 < summary.divergence_airspeed < 116.0
     assert summary.divergence_ratio == pytest.approx(summary.divergence_airspeed / 100.0)
     assert summary.stopped_by_simulator
+    # the one detector, on each sample's airspeed: the bag's one per block read off the ramp
+    np.testing.assert_allclose(sample_airspeed(log), airspeed, rtol=1e-12)
+    assert summary.divergence_airspeed == pytest.approx(divergence_airspeed(airspeed, le, RATE),
+                                                        rel=1e-12)
     before = airspeed < summary.divergence_airspeed
-    assert summary.leading_edge_rms == pytest.approx(np.sqrt(np.mean(le[before] ** 2)))
-    assert 1e-3 < summary.leading_edge_rms < 1e-2  # includes the onset of the growth
+    assert summary.leading_edge_rms_before_divergence == pytest.approx(
+        np.sqrt(np.mean(le[before] ** 2)))
+    assert 1e-3 < summary.leading_edge_rms_before_divergence < 1e-2  # the onset of the growth
+    # the RMS that compares flights: over 0.8-1.05 U_cr after the first 2 s, before the growth
+    inside = (airspeed >= 80.0) & (airspeed <= 105.0) & (t >= 2.0)
+    assert summary.rms_range == (0.8, 1.05)
+    assert summary.leading_edge_rms == pytest.approx(np.sqrt(np.mean(le[inside] ** 2)))
     assert summary.mean_damping == 700.0
+
+
+def test_a_flight_that_ends_inside_the_rms_range_has_no_such_rms(tmp_path):
+    """Diverged at 1.0 U_cr, the flight has no RMS over 0.8-1.05 U_cr: over what it survived
+    its RMS would be small, and rank it above a flight that held to 1.2 U_cr."""
+    n = 15000  # 80 -> 100 m/s: the log ends below 105 m/s
+    le = 1e-3 * np.random.default_rng(2).standard_normal(n)
+    _write_flight(tmp_path / "bag", le, 80.0 + 20.0 * np.arange(n) / n, diverged=True)
+    summary = summarize(load_flight_log(tmp_path / "bag"))
+    assert math.isnan(summary.leading_edge_rms)
+    assert summary.to_dict()["leading_edge_rms"] is None
+    assert summary.leading_edge_rms_before_divergence > 0
 
 
 def test_bounded_flight_has_no_divergence(tmp_path):
@@ -103,3 +126,13 @@ def test_missing_topic_is_named(tmp_path):
         writer.write("/flight/condition", {"airspeed": 80.0, "air_density": 1.2}, 0)
     with pytest.raises(BagReadError, match="/wing/displacement"):
         load_flight_log(tmp_path / "bag")
+
+
+def test_airspeeds_that_are_no_ramp_keep_their_blocks_values(tmp_path):
+    """Steps of 1 s (20 blocks each) are no straight line: every sample keeps its block's."""
+    n = 6000
+    steps = 90.0 + 5.0 * (np.arange(n) // 1000)
+    _write_flight(tmp_path / "bag", 1e-3 * np.ones(n), steps)
+    log = load_flight_log(tmp_path / "bag")
+    assert np.array_equal(sample_airspeed(log), log.airspeed)
+    assert np.array_equal(log.airspeed, steps)

@@ -125,7 +125,7 @@ def test_divergence_in_an_early_span_ends_the_bag_there(tmp_path):
     a, b = _raw(tmp_path / "split"), _raw(tmp_path / "one")
     assert [m[:3] for m in a] == [m[:3] for m in b]
     assert _status(tmp_path / "split") == _status(tmp_path / "one")
-    assert _status(tmp_path / "split")[0].startswith("wing diverged at U = ")
+    assert _status(tmp_path / "split")[0].startswith("flight stopped at U = ")
 
 
 def test_a_failed_span_leaves_no_completed_bag(tmp_path, monkeypatch):

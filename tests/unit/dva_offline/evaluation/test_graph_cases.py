@@ -13,7 +13,6 @@ from aero_dva.control.dva_design import (
     flutter_airspeed_of,
     maximise_on_grid,
 )
-from aero_dva.flight.divergence import divergence_airspeed, divergence_airspeed_sliding
 from aero_dva.flight.scenario_io import scenario_from_dict
 from dva_offline import cli
 from dva_offline.evaluation.graph_cases import (
@@ -103,31 +102,6 @@ def test_best_fixed_damping_of_the_default_wing_beats_its_neighbours():
     best = best_fixed_damping(model, 1.2)
     assert best.damping == pytest.approx(624.713, abs=0.01)
     assert best.critical_airspeed / 100.0 == pytest.approx(1.1505, abs=1e-4)
-
-
-def _flight(n=30000, rate=1000.0, grow_at=24000, seed=0):
-    rng = np.random.default_rng(seed)
-    u = np.linspace(80.0, 120.0, n, endpoint=False)
-    x = rng.normal(0, 1e-3, n)
-    t = np.arange(n) / rate
-    x[grow_at:] *= np.exp(3.0 * (t[grow_at:] - t[grow_at]))
-    return u, x
-
-
-def test_sliding_divergence_equals_the_original_with_hop_window_and_refines_it():
-    u, x = _flight()
-    original = divergence_airspeed(u, x, 1000.0)
-    assert divergence_airspeed_sliding(u, x, 1000.0, hop=1.0) == original
-    fine = divergence_airspeed_sliding(u, x, 1000.0, hop=0.05)
-    # RMS x10 needs ln(10)/3 = 0.77 s of growth after 24 s (U = 112): the window ending there
-    assert fine <= original and original - fine < 40.0 / 30.0  # within one 1 s window
-    assert 112.0 < fine < 114.0
-    quiet = np.random.default_rng(1).normal(0, 1e-3, u.size)
-    assert math.isnan(divergence_airspeed_sliding(u, quiet, 1000.0))
-    with pytest.raises(ValueError, match="hop"):
-        divergence_airspeed_sliding(u, x, 1000.0, hop=2.0)
-    with pytest.raises(ValueError, match="finite"):
-        divergence_airspeed_sliding(u, np.full(u.size, np.nan), 1000.0)
 
 
 def _records():
