@@ -28,16 +28,16 @@ import numpy as np
 from scipy import linalg
 
 from aero_dva.flight.discretize import zoh
-from aero_dva.flight.per_sample.switching_law import maxwell_index, measurement_matrices
+from aero_dva.flight.per_sample.switching_law import (
+    DESIGNS,
+    SCHEDULED_DESIGN,
+    maxwell_index,
+    measurement_matrices,
+)
 from aero_dva.wing.model import AeroelasticModel
 
 __all__ = ["DESIGNS", "SCHEDULED_DESIGN", "desired_force_gain", "kalman_filter_gain", "law_gain",
            "middle_damping"]
-
-#: The designs of a gains file: the two of :func:`law_gain` at one airspeed, and the
-#: clipped-optimal law scheduled with the airspeed (:mod:`aero_dva.control.clipped_optimal`).
-SCHEDULED_DESIGN = "clipped_optimal"
-DESIGNS = ("lyapunov", "clipped", SCHEDULED_DESIGN)
 
 
 def middle_damping(c_lo: float, c_hi: float) -> float:

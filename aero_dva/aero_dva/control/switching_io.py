@@ -26,9 +26,13 @@ from pathlib import Path
 import numpy as np
 
 from aero_dva.atomic_io import atomic_output
-from aero_dva.control.switching_design import DESIGNS, SCHEDULED_DESIGN
 from aero_dva.flight.damper import DAMPER_RANGE, damping_problem
-from aero_dva.flight.per_sample.switching_law import MEASURED_OUTPUTS, SwitchingLaw
+from aero_dva.flight.per_sample.switching_law import (
+    DESIGNS,
+    MEASURED_OUTPUTS,
+    SCHEDULED_DESIGN,
+    SwitchingLaw,
+)
 from aero_dva.safe_files import check_file_header, parse_json
 from aero_dva.text_input import read_text_input
 

@@ -39,7 +39,7 @@ from aero_dva.flight.scenario import (
 from aero_dva.flight.scenario_io import load_scenario
 from aero_dva.flight.streaming_simulator import StreamingSimulator
 from aero_dva.wing.absorbers import MaxwellAbsorber
-from aero_dva.wing.flutter import bare_critical_airspeed
+from aero_dva.wing.critical_cache import critical_airspeed as kept_critical_airspeed
 from aero_dva.wing.model import WingParameters
 from aero_dva.wing.wing_io import load_wing
 
@@ -159,7 +159,7 @@ def resolved_scenario(config: RuntimeConfig, critical_airspeed: float | None = N
     """(U_cr, the scenario with absolute airspeeds): relative airspeeds (U/U_cr, as the study
     states them) refer to the wing without DVA; a caller that flies many flights of one wing
     passes the U_cr it already has."""
-    u_cr = (bare_critical_airspeed(config.wing, config.scenario.density, config.aero)
+    u_cr = (kept_critical_airspeed(config.wing, config.scenario.density, config.aero)
             if critical_airspeed is None else float(critical_airspeed))
     return u_cr, resolve_airspeeds(config.scenario, u_cr)
 
@@ -304,6 +304,21 @@ class FlightRuntime:
             return (f"the switching gains are for {self.config.switching.sample_rate:g} Hz, the "
                     f"flight samples at {self.sample_rate:g} Hz")
         return None
+
+    def prepare(self) -> None:
+        """Load ahead of the flight what it may need in mid-flight: with a switching law that
+        can run, its compiled loop (numba's import and its cached code, about a second of CPU
+        that would otherwise fall between two blocks when the law is first armed). A throwaway
+        copy of the law flies one sample; the flight's own starts afresh."""
+        if self._sweep or self.law_problem() is not None:
+            return
+        from aero_dva.flight.per_sample.stream import SwitchedStream
+
+        law = SwitchedStream(self._sim.model, self.config.switching.law, self.sample_rate,
+                             self.config.damper.time_constant, quantum=FLIGHT_QUANTUM)
+        t = sample_times(self.scenario, 0, 1)
+        law.arm(np.zeros(self._sim.n_states), self._damper.snapshot().applied_damping)
+        law.advance(0, np.zeros(1), airspeed_at(self.scenario, t), density_at(self.scenario, t))
 
     def _switched_path(self):
         if self._law is None:

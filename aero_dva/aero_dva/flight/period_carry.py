@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.lib.stride_tricks import as_strided
-from scipy.linalg import lapack
 
 __all__ = ["period_starts"]
 
@@ -25,6 +24,8 @@ def period_starts(p: np.ndarray, g: np.ndarray, y: np.ndarray) -> np.ndarray:
     ``p`` (B, n, n), ``g`` (B, n, F), ``y`` (n, F); returns (B + 1, n, F), the last entry the
     state after the last period.
     """
+    from scipy.linalg import lapack  # here: the simulator node imports this module, not scipy
+
     nb, n, f = g.shape
     # Band storage of column j = n b + c (Fortran (2n, N) as a C buffer (B + 1, n, 2n)): the
     # entry n + r - c rows below the diagonal is -p[b, r, c]; row 0 (the unit diagonal) is

@@ -22,7 +22,15 @@ import numpy as np
 from aero_dva.wing.absorbers import MaxwellAbsorber
 from aero_dva.wing.model import AeroelasticModel
 
-__all__ = ["MEASURED_OUTPUTS", "SwitchingLaw", "maxwell_index", "measurement_matrices"]
+__all__ = ["DESIGNS", "MEASURED_OUTPUTS", "SCHEDULED_DESIGN", "SwitchingLaw", "maxwell_index",
+           "measurement_matrices"]
+
+#: The designs of a gains file: the two of :func:`aero_dva.control.switching_design.law_gain` at
+#: one airspeed, and the clipped-optimal law scheduled with the airspeed
+#: (:mod:`aero_dva.control.clipped_optimal`). Here, not in the design module: reading a gains
+#: file needs the names, not scipy.
+SCHEDULED_DESIGN = "clipped_optimal"
+DESIGNS = ("lyapunov", "clipped", SCHEDULED_DESIGN)
 
 #: Rows of the discrete model's outputs the damper's controller measures: the absorber stroke
 #: [m] and the plunge [m/s^2], pitch [rad/s^2] and leading-edge [m/s^2] accelerations.

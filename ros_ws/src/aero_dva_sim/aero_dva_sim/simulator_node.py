@@ -194,6 +194,9 @@ class Simulator(Node):
                                         autostart=False)
         self._poll = self.create_timer(POLL_PERIOD, self._step, clock=self._wall)
         self._stepping = False
+        # After the publishers: the graph discovers them while this loads what the flight may
+        # need in mid-flight (the switching law's compiled loop).
+        self.runtime.prepare()
         info = self.runtime.describe()
         self.get_logger().info(
             f"scenario '{info['scenario']}': {info['duration_s']:g} s at "
