@@ -191,6 +191,10 @@ class Controller:
         Parameters ``run_flight`` sets on its node (the fixed controller's 20 Hz).
     damper_lag : float or None
         [s] a per-sample law's damper lag as designed (``run_flight``'s default).
+    sensor_noise : float
+        A per-sample law's sensor noise as designed: std of the noise on its observer's
+        measurements as a fraction of each one's RMS at U_cr (the simulator's
+        ``damper_sensor_noise``; ``run_flight``'s and ``dva evaluate``'s default).
     node : str
         Its node's name and executable (default ``NAME_controller``).
     sources : tuple of str
@@ -214,6 +218,7 @@ class Controller:
     options: tuple[Option, ...] = ()
     flight_values: Mapping = field(default_factory=dict)
     damper_lag: float | None = None
+    sensor_noise: float = 0.0
     node: str = ""
     sources: tuple[str, ...] = ()
     study_ratios: Mapping = field(default_factory=dict)
@@ -299,6 +304,21 @@ SPECTRUM_SHAPE = (
              1.0e-3, 3600.0),
 )
 
+#: The parameters a per-sample law's supervisor has besides its gains file.
+SUPERVISOR_PARAMS = (
+    LawParam("wing", "", "wing YAML the gains must be made for",
+             default_text="the package's chapter-6 wing"),
+    LawParam("safe_damping", 624.7, "constant c2 held when the law is not armed (the "
+             "best constant c2 of the chapter-6 wing)", "N s/m", 0.0, MAX_DAMPING),
+    LawParam("peak_limit", 0.013, "leading-edge displacement that counts as a burst "
+             "(20x the fixed damper's RMS at 0.8 U_cr, docs/switching.md)", "m", 1.0e-9,
+             1.0e3),
+    LawParam("rearm_after", 2.0, "sim time after a burst's last sample before the law "
+             "is armed again", "s", 0.0, 1.0e12),
+    LawParam("rate", 20.0, "command rate, in ROS time (sim time with use_sim_time)",
+             "Hz", 0.01, 1000.0),
+)
+
 BUILTIN = (
     Controller(
         name="fixed", label="best fixed c2", source="fixed", runs=BLOCK,
@@ -365,7 +385,7 @@ BUILTIN = (
         law="aero_dva.control.switching_io:supervised_law",
         inputs=(TICK, DISPLACEMENT, DAMPER_STATE),
         # the 20 Hz period of its supervisor's commands
-        command_lag=0.1, damper_lag=0.01, node="switching_controller",
+        command_lag=0.1, damper_lag=0.01, sensor_noise=0.05, node="switching_controller",
         summary="Supervise the per-sample switching c2 law that runs in the damper's own "
                 "controller (the simulator's damper path): arm it, or hold a safe constant c2 "
                 "on an invalid gains file or after a burst (leading edge beyond peak_limit), "
@@ -374,17 +394,7 @@ BUILTIN = (
         params=(
             LawParam("gains_file", "", "switching gains JSON (dva switching design)",
                      default_text="the package's switching_gains.json"),
-            LawParam("wing", "", "wing YAML the gains must be made for",
-                     default_text="the package's chapter-6 wing"),
-            LawParam("safe_damping", 624.7, "constant c2 held when the law is not armed (the "
-                     "best constant c2 of the chapter-6 wing)", "N s/m", 0.0, MAX_DAMPING),
-            LawParam("peak_limit", 0.013, "leading-edge displacement that counts as a burst "
-                     "(20x the fixed damper's RMS at 0.8 U_cr, docs/switching.md)", "m", 1.0e-9,
-                     1.0e3),
-            LawParam("rearm_after", 2.0, "sim time after a burst's last sample before the law "
-                     "is armed again", "s", 0.0, 1.0e12),
-            LawParam("rate", 20.0, "command rate, in ROS time (sim time with use_sim_time)",
-                     "Hz", 0.01, 1000.0),
+            *SUPERVISOR_PARAMS,
         ),
         options=(
             Option("gains", "gains_file", "switching gains JSON (default: the package's "
@@ -392,6 +402,33 @@ BUILTIN = (
                    default_file="switching_gains.json"),
             Option("damping", "safe_damping", "the safe constant c2 [N s/m] of the switching "
                    "law", "number"),
+        ),
+        flight_values={"rate": 20.0}),
+    Controller(
+        name="clipped_optimal", label="clipped-optimal law", source="clipped_optimal",
+        runs=SAMPLE, sources=("clipped_optimal_fallback",),
+        law="aero_dva.control.switching_io:clipped_optimal_law",
+        inputs=(TICK, DISPLACEMENT, DAMPER_STATE),
+        # the 20 Hz period of its supervisor's commands
+        command_lag=0.1, damper_lag=0.01, sensor_noise=0.05,
+        summary="Supervise the clipped-optimal law of Dyke et al. (1996), scheduled with the "
+                "airspeed, that runs per sample in the damper's own controller (the "
+                "simulator's damper path; docs/clipped_optimal.md): arm it, or hold a safe "
+                "constant c2 on an invalid gains file or after a burst (leading edge beyond "
+                "peak_limit), and say why. When this node falls silent the damper's "
+                "stale-command fallback ends the law.",
+        params=(
+            LawParam("gains_file", "", "clipped-optimal gains JSON (dva switching design "
+                     "--design clipped_optimal)",
+                     default_text="the package's clipped_optimal_gains.json"),
+            *SUPERVISOR_PARAMS,
+        ),
+        options=(
+            Option("gains", "gains_file", "clipped-optimal gains JSON (default: the package's "
+                   "clipped_optimal_gains.json)", simulator="clipped_optimal_gains",
+                   default_file="clipped_optimal_gains.json"),
+            Option("damping", "safe_damping", "the safe constant c2 [N s/m] of the "
+                   "clipped-optimal law", "number"),
         ),
         flight_values={"rate": 20.0}),
     Controller(

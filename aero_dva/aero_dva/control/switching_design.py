@@ -32,12 +32,13 @@ from aero_dva.flight.per_sample.switching_law import (
     DESIGNS,
     SCHEDULED_DESIGN,
     maxwell_index,
+    measured_rms,
     measurement_matrices,
 )
 from aero_dva.wing.model import AeroelasticModel
 
 __all__ = ["DESIGNS", "SCHEDULED_DESIGN", "desired_force_gain", "kalman_filter_gain", "law_gain",
-           "middle_damping"]
+           "measured_rms", "middle_damping"]
 
 
 def middle_damping(c_lo: float, c_hi: float) -> float:
@@ -121,19 +122,6 @@ def kalman_filter_gain(model: AeroelasticModel, airspeed: float, density: float,
     rn = force_std**2 * np.outer(d, d) + np.diag(sensor_std**2)
     p = linalg.solve_discrete_are(ad.T, c.T, qn, rn)
     return p @ c.T @ np.linalg.inv(c @ p @ c.T + rn)
-
-
-def measured_rms(model: AeroelasticModel, airspeed: float, density: float, damping: float,
-                 sample_rate: float, force_std: float) -> np.ndarray:
-    """Stationary RMS (4,) of the measured outputs under the white aileron force, c2 held
-    (the scale of the sensors' noise); ValueError if the wing is unstable there."""
-    a, b = model.matrices(airspeed, density, damping)
-    ad, bd = zoh(a, b, 1.0 / sample_rate)
-    if np.max(np.abs(np.linalg.eigvals(ad))) >= 1.0:
-        raise ValueError(f"the wing is unstable at {airspeed:g} m/s with c2 = {damping:g} N s/m")
-    cov = linalg.solve_discrete_lyapunov(ad, force_std**2 * np.outer(bd, bd))
-    c, d = measurement_matrices(model, airspeed, density, damping)
-    return np.sqrt(np.diag(c @ cov @ c.T) + force_std**2 * d**2)
 
 
 def lead_rows(model: AeroelasticModel, airspeed: float, density: float, c_lo: float,

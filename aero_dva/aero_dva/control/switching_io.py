@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from aero_dva.atomic_io import atomic_output
-from aero_dva.flight.damper import DAMPER_RANGE, damping_problem
+from aero_dva.flight.damper import DAMPER_RANGE, SWITCHING_SOURCE, damping_problem
 from aero_dva.flight.per_sample.switching_law import (
     DESIGNS,
     MEASURED_OUTPUTS,
@@ -37,8 +37,8 @@ from aero_dva.safe_files import check_file_header, parse_json
 from aero_dva.text_input import read_text_input
 
 __all__ = ["FILE_FORMAT", "FILE_VERSION", "UNITS", "SwitchingGains", "SwitchingGainsError",
-           "gains_from_dict", "gains_to_dict", "load_gains", "save_gains", "supervised_law",
-           "with_switching"]
+           "clipped_optimal_law", "gains_from_dict", "gains_to_dict", "gains_problem",
+           "load_gains", "save_gains", "supervised_law", "with_per_sample", "with_switching"]
 
 FILE_FORMAT = "dva_switching_gains"
 FILE_VERSION = 1
@@ -187,49 +187,78 @@ def load_gains(path, damping_range=DAMPER_RANGE) -> SwitchingGains:
 def supervised_law(values) -> SwitchingGains:
     """The ``switching`` controller's law (its table entry's loader): the gains of the
     parameter ``gains_file`` (empty: the package's file), read and checked
-    (:class:`SwitchingGainsError`, a ValueError, naming what is wrong)."""
+    (:class:`SwitchingGainsError`, a ValueError, naming what is wrong); a law at one airspeed
+    (design lyapunov or clipped)."""
+    return _law_of(values, "switching_gains.json", DESIGNS[:2], "switching")
+
+
+def clipped_optimal_law(values) -> SwitchingGains:
+    """The ``clipped_optimal`` controller's law (its table entry's loader): as
+    :func:`supervised_law`, a law scheduled with the airspeed (design clipped_optimal; the
+    package's file ``clipped_optimal_gains.json`` by default)."""
+    return _law_of(values, "clipped_optimal_gains.json", (SCHEDULED_DESIGN,), "clipped_optimal")
+
+
+def _law_of(values, default_file: str, designs, controller: str) -> SwitchingGains:
     from aero_dva.data_files import data_file
 
-    return load_gains(values.get("gains_file") or data_file("switching_gains.json"))
+    path = values.get("gains_file") or data_file(default_file)
+    gains = load_gains(path)
+    if gains.design not in designs:
+        raise SwitchingGainsError(
+            f"switching gains {str(path)!r} are of design {gains.design!r}; the {controller} "
+            f"controller flies {' or '.join(designs)}")
+    return gains
 
 
-def with_switching(config, path: str, wing: str | None = None):
+def with_per_sample(config, source: str, path: str, wing: str | None = None, load=None):
     """A flight's ``config`` (:class:`~aero_dva.flight.flight_runtime.RuntimeConfig`) with the
-    switching law's gains from ``path`` for the damper's own controller, or with the reason
-    the law cannot run: no file, an invalid one (:class:`SwitchingGainsError`'s text), one made
-    for another wing (its fingerprint; ``wing`` the flight's wing file, None the package's),
-    or a flight whose absorber is not the wing file's. Not fatal: the damper then holds the
-    commands' constant c2 and says why when the law is asked for."""
+    gains from ``path`` of the per-sample law that commands from ``source`` arm, for the
+    damper's own controller, or with the reason the law cannot run: no file, an invalid one
+    (:class:`SwitchingGainsError`'s text, or ``load``'s: the controller's own loader, which
+    checks the design), one made for another wing (its fingerprint; ``wing`` the flight's wing
+    file, None the package's), or a flight whose absorber is not the wing file's. Not fatal:
+    the damper then holds the commands' constant c2 and says why when the law is asked for."""
     import dataclasses
 
     from aero_dva.wing.wing_io import load_wing, wing_fingerprint
 
-    def problem(text):
-        return dataclasses.replace(config, switching=None, switching_problem=text)
+    def set_to(value):
+        return dataclasses.replace(config, per_sample={**config.per_sample, source: value})
 
     if not path:
-        return problem("no switching gains file (parameter switching_gains)")
-    gains, text = _read_gains(path, config.damper.damping_range)
+        return set_to(f"no gains file for the {source} law")
+    gains, text = _read_gains(path, config.damper.damping_range, load)
     if gains is None:
-        return problem(text)
+        return set_to(text)
     wing_file = load_wing(wing or None)
     design, absorber = wing_file.maxwell_design, config.absorber
     if absorber is None or (absorber.mass, absorber.stiffness, absorber.series_stiffness,
                             absorber.position) != (design.mass, design.stiffness,
                                                    design.series_stiffness, design.position):
-        return problem("the switching gains are for the wing file's own Maxwell absorber")
+        return set_to("the switching gains are for the wing file's own Maxwell absorber")
     text = wing_problem(gains, path, wing_fingerprint(wing_file), _state_names(config))
-    if text is not None:
-        return problem(text)
-    return dataclasses.replace(config, switching=gains, switching_problem=None)
+    return set_to(gains if text is None else text)
 
 
-def gains_problem(path, wing: str | None = None) -> str | None:
+def with_switching(config, path: str, wing: str | None = None):
+    """:func:`with_per_sample` for the switching law (commands of the source
+    ``"switching"``)."""
+    return with_per_sample(config, SWITCHING_SOURCE, path, wing, supervised_law_file)
+
+
+def supervised_law_file(path) -> SwitchingGains:
+    """The switching controller's loader of one file (:func:`supervised_law`)."""
+    return supervised_law({"gains_file": str(path)})
+
+
+def gains_problem(path, wing: str | None = None, load=None) -> str | None:
     """Why the gains file ``path`` cannot serve the wing file ``wing`` (None: the package's),
-    or None: the same texts as :func:`with_switching` (for a node that only supervises)."""
+    or None: the same texts as :func:`with_per_sample` (for a node that only supervises);
+    ``load`` the controller's loader of a file (default :func:`load_gains`)."""
     from aero_dva.wing.wing_io import load_wing, wing_fingerprint
 
-    gains, text = _read_gains(path)
+    gains, text = _read_gains(path, DAMPER_RANGE, load)
     if gains is None:
         return text
     return wing_problem(gains, path, wing_fingerprint(load_wing(wing or None)))
@@ -248,10 +277,13 @@ def wing_problem(gains: SwitchingGains, path, fingerprint: str,
     return None
 
 
-def _read_gains(path, damping_range=DAMPER_RANGE
+def _read_gains(path, damping_range=DAMPER_RANGE, load=None
                 ) -> tuple[SwitchingGains | None, str | None]:
     try:
-        return load_gains(path, damping_range), None
+        gains = load_gains(path, damping_range)
+        if load is not None:  # the controller's own checks (its design)
+            gains = load(path)
+        return gains, None
     except SwitchingGainsError as exc:
         return None, f"invalid switching gains: {exc}"
 

@@ -1,4 +1,4 @@
-"""What the ROS 2 supervisor of the switching c2 law decides, without ROS (pure logic).
+"""What the ROS 2 supervisor of a per-sample c2 law decides, without ROS (pure logic).
 
 The law runs in the damper's own controller, every sample; a node only supervises it. Each
 command period the supervisor either arms the law (a ``"switching"`` command whose c2 is the
@@ -50,10 +50,14 @@ class SwitchingSupervisor:
         [s] sim time after a burst's last sample before the law is armed again (inf: never).
     gains_problem : str or None
         Why the gains cannot be used (None: they can).
+    source, fallback_source : str
+        The commands' sources that arm the law and that hold the safe c2 (the per-sample
+        law's, e.g. ``"clipped_optimal"`` and ``"clipped_optimal_fallback"``).
     """
 
     def __init__(self, safe_damping: float, peak_limit: float, rearm_after: float,
-                 gains_problem: str | None = None):
+                 gains_problem: str | None = None, source: str = SWITCHING_SOURCE,
+                 fallback_source: str = FALLBACK_SOURCE):
         if not (math.isfinite(safe_damping) and safe_damping >= 0.0):
             raise ValueError(f"safe_damping must be finite and >= 0 N s/m, got {safe_damping}")
         if not (math.isfinite(peak_limit) and peak_limit > 0.0):
@@ -64,6 +68,7 @@ class SwitchingSupervisor:
         self.peak_limit = float(peak_limit)
         self.rearm_after = float(rearm_after)
         self.gains_problem = gains_problem
+        self.source, self.fallback_source = source, fallback_source
         self.bursts = 0  # blocks with a sample over the limit
         self._burst_until = -math.inf  # [s] sim time the law stays disarmed until
         self.last_burst = ""  # the last burst's description
@@ -86,10 +91,11 @@ class SwitchingSupervisor:
     def command(self, now: float) -> SupervisorCommand:
         """The command to send at sim time ``now``."""
         if self.gains_problem is not None:
-            return SupervisorCommand(self.safe_damping, FALLBACK_SOURCE, self.gains_problem)
+            return SupervisorCommand(self.safe_damping, self.fallback_source,
+                                     self.gains_problem)
         if now <= self._burst_until:
-            return SupervisorCommand(self.safe_damping, FALLBACK_SOURCE,
+            return SupervisorCommand(self.safe_damping, self.fallback_source,
                                      f"burst detector: |leading edge| over the peak limit of "
                                      f"{self.peak_limit:g} m within the last "
                                      f"{self.rearm_after:g} s")
-        return SupervisorCommand(self.safe_damping, SWITCHING_SOURCE, None)
+        return SupervisorCommand(self.safe_damping, self.source, None)

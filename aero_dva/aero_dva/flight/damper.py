@@ -15,8 +15,9 @@ the simulator passes every command through :class:`DamperModel`:
   training plan, a replay) is checked against the damper's range by
   :func:`damping_problem` / :meth:`DamperConfig.range_problem`, and the model itself never
   holds a c2 outside it (:meth:`DamperModel.record_mode` included);
-- a per-sample law slot: a command from the source ``"switching"`` asks the damper's own
-  controller to run the switching c2 law every sample (its ``damping`` is the constant c2 to
+- a per-sample law slot: a command from the source of a per-sample law (``"switching"``,
+  ``"clipped_optimal"``: the flight's configuration says which sources have one) asks the
+  damper's own controller to run that law every sample (its ``damping`` is the constant c2 to
   hold when the law cannot run). The flight runs the law
   (:mod:`aero_dva.flight.per_sample.stream`) and tells the model what it did
   (:meth:`DamperModel.record_mode`: the mode, the switching rate and the c2 the lag reached);
@@ -100,7 +101,7 @@ class DamperMode(enum.IntEnum):
     """Who sets c2, equal to ``dva_msgs/DamperState.MODE_*``."""
 
     CONSTANT = 0  # c2 held (a command, the start-up or the fallback value)
-    SWITCHING = 1  # the switching law sets c2 every sample
+    SWITCHING = 1  # a per-sample law sets c2 every sample (the source says which)
     SWITCHING_REFUSED = 2  # the law was asked for but cannot run: the command's c2 is held
 
 
@@ -292,10 +293,12 @@ class DamperModel:
         self._switching_rate = 0.0
 
     @property
-    def switching_asked(self) -> bool:
-        """The command in force asks for the switching law (accepted, not stale)."""
-        return (self._accepted_time is not None and not self._is_stale()
-                and self._accepted_source == SWITCHING_SOURCE)
+    def source_in_force(self) -> str | None:
+        """The source of the command in force (accepted, not stale), or None: the flight
+        runs a per-sample law when it has one for this source."""
+        if self._accepted_time is None or self._is_stale():
+            return None
+        return self._accepted_source
 
     def record_mode(self, mode: DamperMode, switching_rate: float = 0.0,
                     applied: float | None = None) -> None:

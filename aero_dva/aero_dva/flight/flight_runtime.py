@@ -10,7 +10,8 @@ the damper state) stays the same in kind, so the log does not reveal the plant o
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -19,6 +20,7 @@ from aero_dva.flight.applied_control import AppliedControl
 from aero_dva.flight.damper import (
     DAMPER_RANGE,
     DEFAULT_STALE_TIMEOUT,
+    SWITCHING_SOURCE,
     CommandResult,
     DamperConfig,
     DamperMode,
@@ -60,12 +62,17 @@ class RuntimeConfig:
     absorber : MaxwellAbsorber or None
         None flies the bare wing.
     damper : DamperConfig
-    switching : SwitchingGains or None
-        The switching law's gains file, for the damper's own controller
-        (:func:`aero_dva.control.switching_io.with_switching` sets it).
-    switching_problem : str or None
-        Why the law cannot run when asked for (no file, an invalid file, a file for another
-        wing); None when it can.
+    per_sample : mapping
+        Command source -> the gains of the per-sample law the damper's own controller runs
+        while the commands in force come from that source (``"switching"``,
+        ``"clipped_optimal"``; :func:`aero_dva.control.switching_io.with_per_sample` sets
+        them), or -> the reason it cannot run (a ``str``: no file, an invalid file, a file for
+        another wing). A source with neither is a constant c2 like any other.
+    sensor_noise : float
+        Noise on the measurements of the per-sample law's observer (the absorber stroke and
+        the three accelerations), std as a fraction of each one's stationary RMS at U_cr with
+        the law's middle c2 (0: exact measurements). Drawn from a generator of its own, seeded
+        from the scenario's seed, so the aileron force stays that of the seed.
     """
 
     scenario: Scenario
@@ -73,8 +80,8 @@ class RuntimeConfig:
     aero: object
     absorber: MaxwellAbsorber | None
     damper: DamperConfig
-    switching: object = None
-    switching_problem: str | None = "no switching gains file (parameter switching_gains)"
+    per_sample: Mapping[str, object] = field(default_factory=dict)
+    sensor_noise: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -145,8 +152,12 @@ def load_runtime_config(params: dict) -> RuntimeConfig:
     problem = sweep_problem(scenario, damper)
     if problem is not None:
         raise ValueError(f"{problem} (parameters damper_min, damper_max)")
+    noise = float(params.get("damper_sensor_noise", 0.0))
+    if not (math.isfinite(noise) and 0.0 <= noise <= 10.0):
+        raise ValueError(f"parameter 'damper_sensor_noise' must be a fraction in [0, 10], got "
+                         f"{noise}")
     return RuntimeConfig(scenario=scenario, wing=wing_file.wing, aero=wing_file.aero,
-                         absorber=absorber, damper=damper)
+                         absorber=absorber, damper=damper, sensor_noise=noise)
 
 
 def sweep_problem(scenario: Scenario, damper: DamperConfig) -> str | None:
@@ -192,7 +203,9 @@ class FlightRuntime:
         self._rng = np.random.default_rng(self.scenario.seed)
         self._index = 0
         self._sweep = self.scenario.airspeed.kind == "steps"
-        self._law = None  # the switching law's damper path, built when first armed
+        self._laws: dict = {}  # source -> its per-sample law's damper path, built when armed
+        self._noise_rng = np.random.default_rng([self.scenario.seed, 1])  # the sensors'
+        self._noise_scale: dict = {}  # source -> sensor noise std (4,)
         self.applied = AppliedControl()  # blocks by the source of the c2 they were flown with
         self._flown: DamperSnapshot | None = None  # the damper over the last block
 
@@ -250,13 +263,18 @@ class FlightRuntime:
         force = self.scenario.force_std * self._rng.standard_normal(n)
         if self.scenario.force_levels:
             force *= force_scale_at(self.scenario, t)
-        asked = not self._sweep and self._damper.switching_asked
+        source = None if self._sweep else self._damper.source_in_force
+        asked = source is not None and source in self.config.per_sample
         mode, rate, law_c2 = DamperMode.CONSTANT, 0.0, None
-        if asked and self.law_problem() is None:
-            law = self._switched_path()
+        for other, path in self._laws.items():  # one law runs at a time
+            if other != source and path.armed:
+                path.disarm()
+        if asked and self.law_problem(source) is None:
+            law = self._per_sample_path(source)
             if not law.armed:
                 law.arm(self._sim.state, float(damping[0]))
-            out = law.advance(self._index, force, airspeed, density)
+            out = law.advance(self._index, force, airspeed, density,
+                              self._sensor_noise(source, n))
             diverged = bool(self._sim.diverged or not np.all(np.isfinite(out.state))
                             or np.max(np.abs(out.displacements[2]))
                             > self._sim.divergence_limit)
@@ -266,8 +284,8 @@ class FlightRuntime:
             mode, rate, law_c2 = DamperMode.SWITCHING, out.switches * self.sample_rate / n, \
                 law.damping
         else:
-            if self._law is not None:
-                self._law.disarm()
+            if source in self._laws:
+                self._laws[source].disarm()
             if asked:
                 mode = DamperMode.SWITCHING_REFUSED
             sim_out = self._sim.advance(force, airspeed, density,
@@ -287,47 +305,73 @@ class FlightRuntime:
         self._flown = replace(start, mode=DamperMode(mode), switching_rate=float(rate))
         return block
 
-    def law_problem(self) -> str | None:
-        """Why the switching law cannot run in this flight, or None."""
-        if self.config.switching_problem is not None:
-            return self.config.switching_problem
+    def law_problem(self, source: str = SWITCHING_SOURCE) -> str | None:
+        """Why the per-sample law of commands from ``source`` cannot run in this flight, or
+        None."""
+        gains = self.config.per_sample.get(source)
+        if gains is None:
+            return f"no per-sample law for commands from {source!r}"
+        if isinstance(gains, str):
+            return gains
         if self.config.absorber is None:
             return "the wing flies without absorber"
         if not isinstance(self._sim, StreamingSimulator):
             return "the law runs on the nominal wing only (the scenario has a hidden plant)"
-        law = self.config.switching.law
+        law = gains.law
         problem = self.config.damper.range_problem((law.c_lo, law.c_hi),
-                                                   "the switching gains' c_lo and c_hi")
+                                                   f"the {source} gains' c_lo and c_hi")
         if problem is not None:
             return problem
-        if abs(self.config.switching.sample_rate - self.sample_rate) > 1e-9:
-            return (f"the switching gains are for {self.config.switching.sample_rate:g} Hz, the "
-                    f"flight samples at {self.sample_rate:g} Hz")
+        if abs(gains.sample_rate - self.sample_rate) > 1e-9:
+            return (f"the {source} gains are for {gains.sample_rate:g} Hz, the flight samples "
+                    f"at {self.sample_rate:g} Hz")
         return None
 
     def prepare(self) -> None:
-        """Load ahead of the flight what it may need in mid-flight: with a switching law that
+        """Load ahead of the flight what it may need in mid-flight: for each per-sample law that
         can run, its compiled loop (numba's import and its cached code, about a second of CPU
-        that would otherwise fall between two blocks when the law is first armed). A throwaway
-        copy of the law flies one sample; the flight's own starts afresh."""
-        if self._sweep or self.law_problem() is not None:
-            return
+        that would otherwise fall between two blocks when a law is first armed) and its sensor
+        noise's scale (scipy's Lyapunov solver). A throwaway copy of the law flies one sample;
+        the flight's own starts afresh."""
         from aero_dva.flight.per_sample.stream import SwitchedStream
 
-        law = SwitchedStream(self._sim.model, self.config.switching.law, self.sample_rate,
-                             self.config.damper.time_constant, quantum=FLIGHT_QUANTUM)
-        t = sample_times(self.scenario, 0, 1)
-        law.arm(np.zeros(self._sim.n_states), self._damper.snapshot().applied_damping)
-        law.advance(0, np.zeros(1), airspeed_at(self.scenario, t), density_at(self.scenario, t))
+        for source in self.config.per_sample:
+            if self._sweep or self.law_problem(source) is not None:
+                continue
+            law = SwitchedStream(self._sim.model, self.config.per_sample[source].law,
+                                 self.sample_rate, self.config.damper.time_constant,
+                                 quantum=FLIGHT_QUANTUM)
+            t = sample_times(self.scenario, 0, 1)
+            law.arm(np.zeros(self._sim.n_states), self._damper.snapshot().applied_damping)
+            law.advance(0, np.zeros(1), airspeed_at(self.scenario, t),
+                        density_at(self.scenario, t))
+            self._noise_std(source)
 
-    def _switched_path(self):
-        if self._law is None:
+    def _per_sample_path(self, source: str):
+        if source not in self._laws:
             from aero_dva.flight.per_sample.stream import SwitchedStream
 
-            self._law = SwitchedStream(self._sim.model, self.config.switching.law,
-                                       self.sample_rate, self.config.damper.time_constant,
-                                       quantum=FLIGHT_QUANTUM)
-        return self._law
+            self._laws[source] = SwitchedStream(
+                self._sim.model, self.config.per_sample[source].law, self.sample_rate,
+                self.config.damper.time_constant, quantum=FLIGHT_QUANTUM)
+        return self._laws[source]
+
+    def _sensor_noise(self, source: str, n: int) -> np.ndarray | None:
+        """The noise on the law's measurements over the next ``n`` samples (None: none)."""
+        if not self.config.sensor_noise:
+            return None
+        return self._noise_rng.standard_normal((n, 4)) * self._noise_std(source)
+
+    def _noise_std(self, source: str) -> np.ndarray:
+        """[SI] (4,) the sensor noise's std of the law of ``source`` (module docstring)."""
+        if source not in self._noise_scale:
+            from aero_dva.flight.per_sample.switching_law import measured_rms
+
+            law = self.config.per_sample[source].law
+            self._noise_scale[source] = self.config.sensor_noise * measured_rms(
+                self._sim.model, self.critical_airspeed, self.scenario.density,
+                math.sqrt(law.c_lo * law.c_hi), self.sample_rate, self.scenario.force_std)
+        return self._noise_scale[source]
 
     def describe(self) -> dict:
         """A short summary for logs."""

@@ -56,9 +56,9 @@ __all__ = ["SweepChunk", "SweepMaps", "SweepPlan", "plan_sweep", "simulate_sweep
 
 SUBBLOCK = 10  # [samples] L: outputs cost p (n + L) multiply-adds per sample and channel
 CHUNK_SAMPLES = 1 << 18  # samples per output chunk (about 15 MB of outputs): cache-friendly
-# (a stepped sweep sets c2 itself: it never arms the switching law)
-_KNOWN_CONFIG = {"scenario", "wing", "aero", "absorber", "damper", "switching",
-                 "switching_problem"}
+# (a stepped sweep sets c2 itself: it never arms a per-sample law)
+_KNOWN_CONFIG = {"scenario", "wing", "aero", "absorber", "damper", "per_sample",
+                 "sensor_noise"}
 
 
 @dataclass(frozen=True)

@@ -4,12 +4,15 @@ from glob import glob
 from setuptools import find_packages, setup
 
 # The controller table (aero_dva, installed before the workspace is built) names the project's
-# block-rate laws; their nodes' executables are aliases of the generic controller node.
-from aero_dva.control.controllers import BLOCK, controllers
+# laws: the block-rate laws' executables are aliases of the generic controller node, the
+# per-sample laws' of their supervisor node.
+from aero_dva.control.controllers import BLOCK, SAMPLE, controllers
 
 PACKAGE = "dva_controller"
 ALIASES = [f"{entry.node} = dva_controller.controller_node:main"
            for entry in controllers((BLOCK,), builtin_only=True)]
+SUPERVISORS = [f"{entry.node} = dva_controller.switching_controller_node:main"
+               for entry in controllers((SAMPLE,), builtin_only=True)]
 
 setup(
     name=PACKAGE,
@@ -32,7 +35,7 @@ setup(
             "controller = dva_controller.controller_node:main",
             *ALIASES,
             "spectrum = dva_controller.spectrum_node:main",
-            "switching_controller = dva_controller.switching_controller_node:main",
+            *SUPERVISORS,
         ],
     },
 )

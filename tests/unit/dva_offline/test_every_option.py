@@ -199,8 +199,8 @@ TABLE: dict[str, dict] = {
         **{o: ("with --graph", [([], "it needs --graph")]) for o in GRAPH_ONLY},
         **{o: ("without --graph", [(["--graph"], "is not an option of --graph")])
            for o in PAIRED_ONLY if o != "--gains"},
-        "--gains": ("with --controllers ...,switching", [
-            ([], "switching controller, which is not flown"),
+        "--gains": ("with --controllers ...,switching or ...,clipped_optimal", [
+            ([], "switching or clipped_optimal controller, which is not flown"),
             (["--graph"], "is not an option of --graph")]),
         "--schedule": ("when the schedule is flown", [
             (["--controllers", "fixed"], "schedule controller, which is not flown"),

@@ -35,15 +35,15 @@ ENTRY_POINTS = entry_points()
 
 def node_spec(executable: str, module: str):
     """The parameter table an executable's node declares: its module's ``SPEC``, or for an
-    alias of the generic controller node its law's (None: a plain command)."""
-    spec = getattr(importlib.import_module(module), "SPEC", None)
-    if spec is None and module == "dva_controller.controller_node":
-        from aero_dva.control.controllers import by_node
-        from dva_controller.controller_node import node_spec as law_spec
+    alias of a law's node (the generic controller node, a per-sample law's supervisor) its
+    law's (None: a plain command)."""
+    from aero_dva.control.controllers import by_node
 
-        entry = by_node(executable)
-        spec = None if entry is None else law_spec(entry)
-    return spec
+    code = importlib.import_module(module)
+    entry = by_node(executable)
+    if entry is not None and hasattr(code, "node_spec"):  # an alias of a law's node
+        return code.node_spec(entry)
+    return getattr(code, "SPEC", None)
 
 
 def _run(package: str, executable: str, *args: str) -> subprocess.CompletedProcess:

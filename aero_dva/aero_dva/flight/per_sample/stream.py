@@ -125,9 +125,11 @@ class SwitchedStream:
             self._maps.append((steps, est[0], g_in[0], g_state[0], c[0, 1:], d[0, 1:]))
         return j
 
-    def advance(self, first_index: int, force, airspeed, density) -> SwitchedBlock:
+    def advance(self, first_index: int, force, airspeed, density,
+                noise=None) -> SwitchedBlock:
         """Fly samples ``first_index ..`` with the law (armed); ``force``, ``airspeed`` and
-        ``density`` (n,) per sample."""
+        ``density`` (n,) per sample; ``noise`` (n, 4) [SI] on the observer's measurements
+        (None: exact)."""
         if not self.armed:
             raise RuntimeError("the switching law is not armed")
         force = np.asarray(force, dtype=float)
@@ -148,6 +150,8 @@ class SwitchedStream:
         index = np.arange(used.size, dtype=np.int64)[:, None]
         inputs = np.zeros((1, n, 1 + len(MEASURED_OUTPUTS)))
         inputs[0, :, 0] = force
+        if noise is not None:
+            inputs[0, :, 1:] = noise
         lag, before = self._lag, bool(self._target[0])
         states, level, target = fly_maps(
             steps, index, np.ones((used.size, 1)), est, g_in, g_state,

@@ -23,7 +23,7 @@ from aero_dva.wing.absorbers import MaxwellAbsorber
 from aero_dva.wing.model import AeroelasticModel
 
 __all__ = ["DESIGNS", "MEASURED_OUTPUTS", "SCHEDULED_DESIGN", "SwitchingLaw", "maxwell_index",
-           "measurement_matrices"]
+           "measured_rms", "measurement_matrices"]
 
 #: The designs of a gains file: the two of :func:`aero_dva.control.switching_design.law_gain` at
 #: one airspeed, and the clipped-optimal law scheduled with the airspeed
@@ -148,3 +148,22 @@ def measurement_matrices(model: AeroelasticModel, airspeed, density, damping):
     return c, d
 
 
+
+
+def measured_rms(model: AeroelasticModel, airspeed: float, density: float, damping: float,
+                 sample_rate: float, force_std: float) -> np.ndarray:
+    """Stationary RMS (4,) of :data:`MEASURED_OUTPUTS` under the white aileron force of
+    ``force_std`` [N] per sample, c2 held (the scale of the sensors' noise); ValueError if the
+    wing is unstable there."""
+    # imported here: reading a gains file (the simulator's start) needs no scipy
+    from scipy import linalg
+
+    from aero_dva.flight.discretize import zoh
+
+    a, b = model.matrices(airspeed, density, damping)
+    ad, bd = zoh(a, b, 1.0 / sample_rate)
+    if np.max(np.abs(np.linalg.eigvals(ad))) >= 1.0:
+        raise ValueError(f"the wing is unstable at {airspeed:g} m/s with c2 = {damping:g} N s/m")
+    cov = linalg.solve_discrete_lyapunov(ad, force_std**2 * np.outer(bd, bd))
+    c, d = measurement_matrices(model, airspeed, density, damping)
+    return np.sqrt(np.diag(c @ cov @ c.T) + force_std**2 * d**2)

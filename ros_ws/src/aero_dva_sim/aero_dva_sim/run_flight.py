@@ -140,13 +140,16 @@ def first_input_time(args) -> float:
 
 def per_sample_params(args) -> dict:
     """The simulator's damper-path parameters for a per-sample law: its files (the package's
-    by default) and the damper's lag (as the law was designed, by default)."""
+    by default), the damper's lag and the sensor noise of its observer (as the law was
+    designed, by default)."""
     lag = getattr(args, "damper_time_constant", None)
+    noise = getattr(args, "sensor_noise", None)
     entry = entry_of(args.controller)
     if entry is None or entry.runs != SAMPLE:
         return {} if lag is None else {"damper_time_constant": lag}
     out = {o.simulator: option_value(args, o) for o in entry.options if o.simulator}
     out["damper_time_constant"] = entry.damper_lag if lag is None else lag
+    out["damper_sensor_noise"] = entry.sensor_noise if noise is None else noise
     return out
 
 
@@ -373,6 +376,11 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--damper-time-constant", type=float, default=None,
                         help=f"[s] the damper's first-order lag (default: {lags}, as designed; "
                              "else the simulator's 0)")
+    noises = ", ".join(f"{c.sensor_noise:g} with --controller {c.name}" for c in flown
+                       if c.runs == SAMPLE)
+    parser.add_argument("--sensor-noise", type=float, default=None, metavar="FRACTION",
+                        help="noise on a per-sample law's measurements, std over each one's "
+                             f"RMS at U_cr (default: {noises}, as designed)")
     parser.add_argument("--real-time-factor", type=float, default=20.0,
                         help="sim seconds per wall second; 0 = as fast as possible (default 20)")
     parser.add_argument("--max-command-lag", type=float, default=None,
@@ -496,10 +504,29 @@ def run_on_domain(prog: str, run, args) -> tuple[dict | None, int]:
             return None, 2
 
 
+def sensor_noise_usable(prog: str, args) -> bool:
+    """--sensor-noise: a fraction in [0, 10], for a per-sample law only; False (and the error
+    said) otherwise."""
+    noise = getattr(args, "sensor_noise", None)
+    if noise is None:
+        return True
+    entry = entry_of(args.controller)
+    if entry is None or entry.runs != SAMPLE:
+        print(f"{prog}: error: --sensor-noise acts on a per-sample law's observer; "
+              f"--controller {args.controller} has none", file=sys.stderr)
+        return False
+    if not (math.isfinite(noise) and 0.0 <= noise <= 10.0):
+        print(f"{prog}: error: --sensor-noise must be a fraction in [0, 10], got {noise}",
+              file=sys.stderr)
+        return False
+    return True
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if not controller_files_given("run_flight", args) or \
             not per_sample_law_readable("run_flight", args) or \
+            not sensor_noise_usable("run_flight", args) or \
             not damping_in_range("run_flight", args):
         return 2
     summary, code = run_on_domain("run_flight", run, args)

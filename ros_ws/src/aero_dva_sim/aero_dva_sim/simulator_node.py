@@ -4,10 +4,12 @@ Each step simulates one block of samples (exact ZOH, :class:`~aero_dva.flight.st
 StreamingSimulator`), publishes it, and advances ``/clock``; the rest of the graph runs on that sim
 time (``use_sim_time:=true``). The damper applies the latest accepted ``dva/damper_command``
 through :class:`~aero_dva.flight.damper.DamperModel` (range, lag, stale fallback, rejection of
-absurd commands). A command from the source ``"switching"`` arms the per-sample switching c2 law
-in the damper path (gains from the ``switching_gains`` file, checked on load): every sample of
-the block then runs the law (:mod:`aero_dva.flight.per_sample.stream`); dva/damper_state reports
-the mode and switching rate, and /diagnostics each change of mode with its reason. A
+absurd commands). A command from the source of a per-sample law of the controller table
+(``"switching"``, ``"clipped_optimal"``) arms that law in the damper path (gains from its file,
+``switching_gains``, ``clipped_optimal_gains``, checked on load): every sample of the block
+then runs the law (:mod:`aero_dva.flight.per_sample.stream`), its observer reading the
+measurements with ``damper_sensor_noise``; dva/damper_state reports the mode and switching
+rate, and /diagnostics each change of mode with its reason. A
 stepped-sweep scenario applies its own c2 values and ignores commands.
 
 Its parameters (units, defaults, ranges) are the table ``SPEC`` below, which the node declares
@@ -30,7 +32,9 @@ from rclpy.node import Node
 from rclpy.task import Future
 
 from aero_dva.bag import channels as ch
-from aero_dva.control.switching_io import with_switching
+from aero_dva.control import controllers as table
+from aero_dva.control.controllers import SAMPLE
+from aero_dva.control.switching_io import with_per_sample
 from aero_dva.flight.damper import (
     DAMPER_RANGE,
     DEFAULT_STALE_TIMEOUT,
@@ -58,6 +62,18 @@ DATA_CHANNELS = tuple(c for c in ch.SIMULATOR_BLOCK if c != ch.CLOCK)
 DATA_TOPICS = tuple(c.name for c in DATA_CHANNELS)
 _NAN = float("nan")
 _DESIGN = "the wing file's Maxwell design"
+
+#: One gains file per per-sample law of the controller table (``switching_gains``,
+#: ``clipped_optimal_gains``): the law runs in the damper path every sample while the commands
+#: come from its source.
+PER_SAMPLE_FILES = tuple((entry, option) for entry in table.controllers((SAMPLE,))
+                         for option in entry.options if option.simulator)
+PER_SAMPLE_PARAMS = tuple(
+    Param(option.simulator, "", f"gains JSON of the {entry.label} ({option.help}), run in the "
+          f"damper path every sample while the commands' source is \"{entry.source}\"; an "
+          "invalid file or one for another wing leaves the damper on the commands' c2, and "
+          "says so", default_text="none: the law cannot run")
+    for entry, option in PER_SAMPLE_FILES)
 
 SPEC = NodeSpec(
     name="simulator",
@@ -93,11 +109,10 @@ SPEC = NodeSpec(
               "s", 0.0, 1.0e12),
         Param("damper_time_constant", 0.0, "first-order lag of the damper (0: ideal, the "
               "study's)", "s", 0.0, 3600.0),
-        Param("switching_gains", "", "gains JSON of the per-sample switching c2 law (dva "
-              "switching design), run in the damper path every sample while the commands' "
-              "source is \"switching\"; an invalid file or one for another wing leaves the "
-              "damper on the commands' c2, and says so", default_text="none: the law cannot "
-              "run"),
+        *PER_SAMPLE_PARAMS,
+        Param("damper_sensor_noise", 0.0, "noise on the measurements of a per-sample law's "
+              "observer, std as a fraction of each one's stationary RMS at U_cr (0: exact; "
+              "run_flight gives the law's design value)", "", 0.0, 10.0),
         Param("real_time_factor", 20.0, "sim seconds per wall second (0: as fast as possible)",
               "", 0.0, 1.0e6),
         Param("wait_for_subscribers", 0, "start the flight when every data topic has this many "
@@ -138,8 +153,11 @@ class Simulator(Node):
     def __init__(self, **kwargs) -> None:
         super().__init__(SPEC.name, **kwargs)
         params = self._declare_parameters()
-        config = with_switching(load_runtime_config(params), params["switching_gains"],
-                                params["wing"])
+        config = load_runtime_config(params)
+        for entry, option in PER_SAMPLE_FILES:
+            config = with_per_sample(
+                config, entry.source, params[option.simulator], params["wing"],
+                lambda path, entry=entry: entry.make_law({"gains_file": str(path)}))
         self.runtime = FlightRuntime(config)
         self.finished = Future()
         self._rtf = float(self.get_parameter("real_time_factor").value)
@@ -184,7 +202,8 @@ class Simulator(Node):
         self._waiting_since = time.monotonic()
         self._last_status = None
         self._last_mode = DamperMode.CONSTANT
-        self.switching_blocks = 0  # blocks flown with the switching law
+        self._law_label = "per-sample law"  # the last law the commands asked for
+        self.switching_blocks = 0  # blocks flown with a per-sample law
         self._switching_rates: list[float] = []
         # The step timer runs only while the flight does. Before the start and while the flight
         # waits for the controller, a slow timer polls instead: spinning at the step rate (10 kHz
@@ -363,21 +382,24 @@ class Simulator(Node):
         snapshot = self.runtime.flown_damper  # what the block just published was flown with
         status = snapshot.status
         if status != self._last_status and status in (DamperStatus.FALLBACK_STALE,):
-            ended = (" (the switching law is disarmed)" if self._last_mode == DamperMode.SWITCHING
-                     else "")
+            ended = (f" (the {self._law_label} is disarmed)"
+                     if self._last_mode == DamperMode.SWITCHING else "")
             self._diagnose("warn", "no damper command within "
                            f"{self.runtime.config.damper.stale_timeout:g} s: fallback c2 = "
                            f"{snapshot.applied_damping:g} N s/m applied{ended}", {})
         self._last_status = status
         if snapshot.mode != self._last_mode:
+            if snapshot.mode != DamperMode.CONSTANT:  # the law the commands ask for
+                entry = table.by_source(snapshot.source)
+                self._law_label = entry.label if entry is not None else snapshot.source
             if snapshot.mode == DamperMode.SWITCHING:
-                self._diagnose("ok", "switching law armed in the damper path", {})
+                self._diagnose("ok", f"{self._law_label} armed in the damper path", {})
             elif snapshot.mode == DamperMode.SWITCHING_REFUSED:
-                self._diagnose("warn", "switching law refused: "
-                               f"{self.runtime.law_problem()}; holding the commanded c2 = "
-                               f"{snapshot.applied_damping:g} N s/m", {})
+                self._diagnose("warn", f"{self._law_label} refused: "
+                               f"{self.runtime.law_problem(snapshot.source)}; holding the "
+                               f"commanded c2 = {snapshot.applied_damping:g} N s/m", {})
             elif status != DamperStatus.FALLBACK_STALE:
-                self._diagnose("ok", "switching law disarmed: c2 = "
+                self._diagnose("ok", f"{self._law_label} disarmed: c2 = "
                                f"{snapshot.applied_damping:g} N s/m from '{snapshot.source}'",
                                {})
         if snapshot.mode == DamperMode.SWITCHING:

@@ -1,26 +1,33 @@
-"""``switching_controller``: supervises the switching c2 law that the damper runs every sample.
+"""A per-sample law's supervisor (``switching_controller``, ``clipped_optimal_controller``).
 
-The law needs its loop at the damper's sample rate (1 kHz), far faster than the graph's 50 ms
-blocks, so it runs inside the simulator's damper path; this node only supervises it. Each
-command period it arms the law (a ``"switching"`` command carrying the safe constant c2 the
-damper holds if the law cannot run) or holds the safe c2 itself (``"switching_fallback"``):
-on an invalid gains file (checked through aero_dva.control.switching_io, and made for the
-wing), or for ``rearm_after`` seconds after a burst (a leading-edge displacement beyond
-``peak_limit``). Each fallback is logged and published on /diagnostics with its reason. If this
-node falls silent, the damper's stale-command timeout applies its fallback c2 and ends the law.
-The simulator needs the same gains file (its parameter ``switching_gains``).
+A per-sample law (the switching c2 law, the clipped-optimal law) needs its loop at the damper's
+sample rate (1 kHz), far faster than the graph's 50 ms blocks, so it runs inside the
+simulator's damper path; this node only supervises it. Each command period it arms the law (a
+command from the law's source, e.g. ``"switching"``, carrying the safe constant c2 the damper
+holds if the law cannot run) or holds the safe c2 itself (its fallback source, e.g.
+``"switching_fallback"``): on an invalid gains file (checked through
+aero_dva.control.switching_io by the law's own loader, and made for the wing), or for
+``rearm_after`` seconds after a burst (a leading-edge displacement beyond ``peak_limit``). Each
+fallback is logged and published on /diagnostics with its reason. If this node falls silent,
+the damper's stale-command timeout applies its fallback c2 and ends the law. The simulator
+needs the same gains file (its parameter named by the law's table entry, e.g.
+``switching_gains``).
 
-Its parameters (units, defaults, ranges) are the table ``SPEC`` below, which the node declares
-them from and ``switching_controller --help`` prints.
+One executable per per-sample law of the controller table (its entry's ``node``); the entry
+gives its parameters (units, defaults, ranges), which the node declares and ``--help``
+prints.
 """
 from __future__ import annotations
 
 import sys
+from functools import partial
+from pathlib import Path
 
 from rclpy.node import Node
 
 from aero_dva.bag import channels as ch
-from aero_dva.control.controllers import controller
+from aero_dva.control import controllers as table
+from aero_dva.control.controllers import SAMPLE, controller
 from aero_dva.control.switching_supervisor import SwitchingSupervisor
 from dva_controller.shared_params import param
 from dva_msgs.msg import DamperCommand, DamperState, DisplacementBlock
@@ -29,39 +36,51 @@ from dva_ros_common.held_publisher import HOLD_PARAM, HeldPublisher
 from dva_ros_common.node_params import NodeSpec, declare_parameters
 from dva_ros_common.node_tools import run_node
 
-#: The switching law's entry of the controller table: its supervisor's parameters, its sources.
-ENTRY = controller("switching")
 
-SPEC = NodeSpec(
-    name=ENTRY.node,
-    package="dva_controller",
-    summary=ENTRY.summary,
-    params=(*(param(row) for row in ENTRY.params), HOLD_PARAM),
-    topics=f"""
-publishes dva/damper_command (dva_msgs/DamperCommand, source "{ENTRY.source}" or
-  "{ENTRY.sources[0]}"), /diagnostics (each fallback and its reason)
+def node_spec(entry) -> NodeSpec:
+    """The supervisor node of the per-sample law ``entry``: its parameters, its topics."""
+    return NodeSpec(
+        name=entry.node,
+        package="dva_controller",
+        summary=entry.summary,
+        params=(*(param(row) for row in entry.params), HOLD_PARAM),
+        topics=f"""
+publishes dva/damper_command (dva_msgs/DamperCommand, source "{entry.source}" or
+  "{entry.sources[0]}"), /diagnostics (each fallback and its reason)
 subscribes wing/displacement (burst detector), dva/damper_state (whether the damper runs the law)
 """,
-)
+    )
 
 
-def gains_problem(path: str, wing: str) -> str | None:
-    """Why the gains file (empty: the package's) cannot be used for ``wing``, or None."""
+#: The switching law's entry of the controller table and its node's parameters.
+ENTRY = controller("switching")
+SPEC = node_spec(ENTRY)
+
+
+def gains_problem(entry, path: str, wing: str) -> str | None:
+    """Why the gains file (empty: the law's package file) cannot be used for ``wing`` by the
+    law of ``entry`` (its loader checks the design), or None."""
     from aero_dva.control.switching_io import gains_problem as problem
     from aero_dva.data_files import data_file
 
-    return problem(path or str(data_file("switching_gains.json")), wing or None)
+    default = next(o.default_file for o in entry.options if o.default_file)
+    return problem(path or str(data_file(default)), wing or None,
+                   lambda p: entry.make_law({"gains_file": str(p)}))
 
 
-class SwitchingController(Node):
-    """Arm the damper's switching law, or hold the safe c2 and say why."""
+class Supervisor(Node):
+    """Arm the damper's per-sample law ``name``, or hold the safe c2 and say why."""
 
-    def __init__(self, **kwargs) -> None:
-        super().__init__(SPEC.name, **kwargs)
-        values = declare_parameters(self, SPEC)
+    def __init__(self, name: str = ENTRY.name, **kwargs) -> None:
+        self.entry = entry = controller(name)
+        self.spec = node_spec(entry)
+        super().__init__(self.spec.name, **kwargs)
+        values = declare_parameters(self, self.spec)
         self.supervisor = SwitchingSupervisor(
             float(values["safe_damping"]), float(values["peak_limit"]),
-            float(values["rearm_after"]), gains_problem(values["gains_file"], values["wing"]))
+            float(values["rearm_after"]),
+            gains_problem(entry, values["gains_file"], values["wing"]),
+            entry.source, entry.sources[0])
         self.reason: str | None = None  # why the law is not armed now (None: armed)
         self.fallbacks: list[str] = []  # every reason said, in order
         self.damper_mode: int | None = None  # the damper's mode in its last state
@@ -74,7 +93,7 @@ class SwitchingController(Node):
         self.create_timer(1.0 / float(values["rate"]), self._publish)
         self._said(self.supervisor.command(0.0).reason, 0.0)
         self.get_logger().info(
-            f"supervising the switching law: safe c2 {self.supervisor.safe_damping:g} N s/m, "
+            f"supervising the {entry.label}: safe c2 {self.supervisor.safe_damping:g} N s/m, "
             f"peak limit {self.supervisor.peak_limit:g} m")
 
     def _on_block(self, msg: DisplacementBlock) -> None:
@@ -85,7 +104,7 @@ class SwitchingController(Node):
     def _on_state(self, msg: DamperState) -> None:
         if msg.mode != self.damper_mode and msg.mode == DamperState.MODE_SWITCHING_REFUSED:
             self._diagnose(conversions.time_to_seconds(msg.header.stamp), "warn",
-                           "the damper refused the switching law (see the simulator's "
+                           f"the damper refused the {self.entry.label} (see the simulator's "
                            f"diagnostics): it holds c2 = {msg.applied_damping:g} N s/m")
         self.damper_mode = msg.mode
 
@@ -102,12 +121,12 @@ class SwitchingController(Node):
         if reason == self.reason:
             return
         if reason is None:
-            self._diagnose(t, "ok", "switching law armed")
+            self._diagnose(t, "ok", f"{self.entry.label} armed")
         else:
             said = (f"{reason} ({self.supervisor.last_burst})" if reason.startswith("burst")
                     else reason)
             self.fallbacks.append(said)
-            self._diagnose(t, "warn", f"switching law not armed: {said}; holding c2 = "
+            self._diagnose(t, "warn", f"{self.entry.label} not armed: {said}; holding c2 = "
                            f"{self.supervisor.safe_damping:g} N s/m")
         self.reason = reason
 
@@ -118,13 +137,28 @@ class SwitchingController(Node):
         else:
             self.get_logger().info(text)
         self._diag.publish(conversions.diagnostics(
-            t, f"{SPEC.name}: law", SPEC.package, [(level, text, {
+            t, f"{self.spec.name}: law", self.spec.package, [(level, text, {
                 "safe_damping": self.supervisor.safe_damping,
                 "bursts": self.supervisor.bursts})]))
 
 
+class SwitchingController(Supervisor):
+    """The switching law's supervisor (``switching_controller``)."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__(ENTRY.name, **kwargs)
+
+
 def main(args=None) -> int:
-    return run_node(SwitchingController, SPEC, args)
+    """The supervisor of the per-sample law whose node this executable is."""
+    argv = list(sys.argv if args is None else args)
+    entry = table.by_node(Path(argv[0]).name)
+    if entry is None or entry.runs != SAMPLE:
+        print(f"{Path(argv[0]).name}: error: no per-sample law of the controller table has "
+              f"this node; they are {', '.join(c.node for c in table.controllers((SAMPLE,)))}",
+              file=sys.stderr)
+        return 2
+    return run_node(partial(Supervisor, entry.name), node_spec(entry), argv)
 
 
 if __name__ == "__main__":

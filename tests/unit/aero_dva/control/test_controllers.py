@@ -26,7 +26,8 @@ from aero_dva.control.spectrum import DEFAULT_FREQUENCIES
 
 def test_every_entry_is_whole():
     entries = table.controllers(builtin_only=True)
-    assert [e.name for e in entries] == ["fixed", "schedule", "rbf", "switching", "oracle"]
+    assert [e.name for e in entries] == ["fixed", "schedule", "rbf", "switching",
+                                         "clipped_optimal", "oracle"]
     assert len({e.source for e in entries}) == len(entries)
     assert len({e.node for e in entries}) == len(entries)
     for entry in entries:

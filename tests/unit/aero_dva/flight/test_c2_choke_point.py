@@ -119,10 +119,10 @@ def test_the_law_with_hostile_levels_never_flies(tmp_path):
     assert in_range(c2) and rt.damper_snapshot().mode == DamperMode.SWITCHING_REFUSED
     # Around the loader (gains built in code): the flight itself refuses the law.
     good = with_switching(config, str(data_file("switching_gains.json")))
-    law = good.switching.law
-    bad = dataclasses.replace(good, switching=dataclasses.replace(
-        good.switching, law=SwitchingLaw(law.gain, law.c_lo, 1e12, law.observer,
-                                         law.force_gain)))
+    gains = good.per_sample[SWITCHING_SOURCE]
+    law = gains.law
+    bad = dataclasses.replace(good, per_sample={SWITCHING_SOURCE: dataclasses.replace(
+        gains, law=SwitchingLaw(law.gain, law.c_lo, 1e12, law.observer, law.force_gain))})
     rt = FlightRuntime(bad)
     assert "outside the damper's range" in rt.law_problem()
     c2 = applied(rt, 6, lambda k: (624.7, SWITCHING_SOURCE))

@@ -65,7 +65,7 @@ def test_invalid_gains_leave_the_commanded_constant_c2_and_say_why(tmp_path):
 
 def test_no_gains_file_refuses_the_law(tmp_path):
     rt = runtime(tmp_path, 1.0, duration=0.2, gains="")
-    assert "no switching gains file" in rt.law_problem()
+    assert "no gains file for the switching law" in rt.law_problem()
     _, states = fly(rt, SWITCHING_SOURCE)
     assert states[-1].mode == DamperMode.SWITCHING_REFUSED
 
