@@ -19,7 +19,7 @@ excitation, flight condition, damper state; 1 kHz, 50-sample blocks) into a bag:
   3. ``numpy``: :class:`~aero_dva.bag.batch_recorder.BatchRecorder` (block runs encoded and
      chunked with numpy);
   4. ``samples``: :meth:`BatchRecorder.write_samples` with the same samples as whole arrays (no
-     FlightBlock objects; what ``record_sweep`` writes), and ``samples-nocrc`` without chunk
+     FlightSamples objects; what ``record_sweep`` writes), and ``samples-nocrc`` without chunk
      CRCs,
 
 with wall and CPU time, throughput as "x real time" (sim seconds recorded per wall second =
@@ -49,7 +49,7 @@ from aero_dva.bag.batch_recorder import BatchRecorder
 from aero_dva.bag.schemas import typestore
 from aero_dva.bag.writer import BagWriter, qos_profile_yaml
 from aero_dva.flight.damper import DAMPER_RANGE, DamperSnapshot, DamperStatus
-from aero_dva.flight.flight_runtime import FlightBlock
+from aero_dva.flight.samples import FlightSamples
 
 RATE = 1000.0
 N = 50
@@ -67,10 +67,10 @@ def make_blocks(count: int, seed: int) -> tuple[list, list]:
     density = np.full(N, 1.2)
     damping = np.full(N, 300.0)
     blocks = [
-        FlightBlock(first_index=N * k, t0=N * k / RATE, t_end=N * (k + 1) / RATE,
-                    force=force[k % pool], airspeed=np.full(N, 80.0 + 1e-4 * k),
-                    density=density, damping=damping, displacements=disp[k % pool],
-                    accelerations=acc[k % pool], diverged=False)
+        FlightSamples(first_index=N * k, sample_rate=RATE,
+                      force=force[k % pool], airspeed=np.full(N, 80.0 + 1e-4 * k),
+                      density=density, damping=damping, displacements=disp[k % pool],
+                      accelerations=acc[k % pool], diverged=False)
         for k in range(count)]
     state = DamperSnapshot(time=0.0, commanded_damping=math.nan, applied_damping=500.0,
                            min_damping=DAMPER_RANGE[0], max_damping=DAMPER_RANGE[1],

@@ -22,7 +22,7 @@ from aero_dva.bag.batch_recorder import BatchRecorder
 from aero_dva.bag.reader import read_messages
 from aero_dva.bag.schemas import typestore
 from aero_dva.flight.damper import DamperSnapshot, DamperStatus
-from aero_dva.flight.flight_runtime import FlightBlock
+from aero_dva.flight.samples import FlightSamples
 from dva_msgs.msg import AccelerationBlock
 from dva_ros_common import conversions
 
@@ -39,13 +39,14 @@ def _flight():
     index = 0
     sources = ["", "initial", "fallback", "rbf_network", "airspeed_schedule"]
     for k, n in enumerate([1, 2, 3, 5, 50, 50, 7, 50]):
-        for t_shift in (0.0, 1234.5678901):
-            t0 = index / RATE + t_shift
-            blocks.append(FlightBlock(
-                first_index=index, t0=t0, t_end=t0 + n / RATE, force=rng.standard_normal(n),
+        for shift in (0, 1234567):  # [samples]: late blocks' stamps, 1234.567 s on
+            block = FlightSamples(
+                first_index=index + shift, sample_rate=RATE, force=rng.standard_normal(n),
                 airspeed=np.full(n, 97.5 + k), density=np.full(n, 1.225),
                 damping=np.full(n, 300.0), displacements=rng.standard_normal((4, n)),
-                accelerations=rng.standard_normal((3, n)), diverged=False))
+                accelerations=rng.standard_normal((3, n)), diverged=False)
+            blocks.append(block)
+            t0 = block.t0
             status = list(DamperStatus)[len(states) % len(DamperStatus)]
             states.append(DamperSnapshot(
                 time=t0 + 0.02, commanded_damping=math.nan if k == 0 else 3100.0,

@@ -291,7 +291,7 @@ class BatchRecorder:
 
         Parameters
         ----------
-        blocks : sequence of FlightBlock
+        blocks : sequence of FlightSamples
             ``first_index``, ``t0``, ``t_end`` [s], ``force`` (n,) [N], ``airspeed`` and
             ``density`` (n,) (the first sample goes into flight/condition),
             ``displacements`` (4, n), ``accelerations`` (3, n). Consecutive blocks of equal
@@ -420,7 +420,7 @@ class BatchRecorder:
 
         The same messages as :meth:`write_blocks` with blocks ``first_index + j block_size``
         (t0 = first sample / rate, t_end = one past the last sample / rate, as FlightRuntime
-        sets them), without FlightBlock objects: one vectorised encoding for all blocks.
+        sets them), without FlightSamples objects: one vectorised encoding for all blocks.
 
         Parameters
         ----------

@@ -48,7 +48,7 @@ def record_flight_blocks(bag_dir, blocks: Iterable, damper_states: Iterable | No
     ----------
     bag_dir : path-like
         Bag directory to create.
-    blocks : iterable of FlightBlock
+    blocks : iterable of FlightSamples
         Consumed lazily, ``batch_blocks`` at a time.
     damper_states : iterable of DamperSnapshot or None
         One per block; None records no ``dva/damper_state`` topic.

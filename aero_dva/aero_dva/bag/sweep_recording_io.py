@@ -508,7 +508,7 @@ def _write_sweep_blocks(recorder: BatchRecorder, runtime, n: int, first: int, fo
     scenario = runtime.scenario
     count = -(-force.size // n)
     index = first + n * np.arange(count, dtype=np.int64)
-    t0 = index / runtime.sample_rate  # == FlightBlock.t0, bit for bit
+    t0 = index / runtime.sample_rate  # == FlightSamples.t0, bit for bit
     c2 = sweep_damping_at(scenario, t0)
     damper = _sweep_damper_states(runtime.config.damper, t0, c2) if recorder.damper_state \
         else None

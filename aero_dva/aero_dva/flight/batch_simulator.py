@@ -19,7 +19,6 @@ compiled loop (a node process does not import numba in mid-flight): fewer than
 from __future__ import annotations
 
 import threading
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -32,40 +31,12 @@ from aero_dva.flight.discrete_model import (
 )
 from aero_dva.flight.kept import KeptByKey
 from aero_dva.flight.period_carry import period_starts
+from aero_dva.flight.samples import FlightSamples
 from aero_dva.wing.checks import real_array
 from aero_dva.wing.model import AeroelasticModel
 
-__all__ = ["BATCH_COLUMNS", "BatchStepper", "FlightTraces", "forget_conditions",
+__all__ = ["BATCH_COLUMNS", "BatchStepper", "forget_conditions",
            "reference_simulate_flights", "simulate_flights"]
-
-@dataclass(frozen=True)
-class FlightTraces:
-    """Outputs of :func:`simulate_flights` for ``F`` flights of ``N`` samples.
-
-    Attributes
-    ----------
-    time : (N,) [s]
-    airspeed, density, damping, force : (F, N) the inputs as applied (held)
-    displacements : (F, 4, N) plunge [m], pitch [rad], leading_edge [m], absorber_stroke [m]
-    accelerations : (F, 3, N) plunge [m/s^2], pitch [rad/s^2], leading_edge [m/s^2]
-    final_state : (F, n_states)
-
-    ``displacements`` and ``accelerations`` are views of one sample-major (F, N, p) buffer
-    (p = :data:`~aero_dva.flight.discrete_model.N_OUTPUTS`)
-    (each hold period's outputs are computed as one contiguous block); use
-    ``np.ascontiguousarray`` where a channel-major copy is needed.
-    """
-
-    time: np.ndarray
-    airspeed: np.ndarray
-    density: np.ndarray
-    damping: np.ndarray
-    force: np.ndarray
-    displacements: np.ndarray
-    accelerations: np.ndarray
-    final_state: np.ndarray
-
-
 
 _KEY = np.dtype((np.void, 3 * 8))
 """A condition [U, rho, damping] as one sortable item (its three floats' bytes)."""
@@ -594,7 +565,7 @@ def forget_conditions() -> None:
 def simulate_flights(wing, absorber=None, *, force, airspeed, density, damping=None,
                      sample_rate: float = 1000.0, aero=None, x0=None,
                      hold: int = DEFAULT_HOLD, quantum: float = 2e-3,
-                     chunk: int | None = None) -> FlightTraces:
+                     chunk: int | None = None) -> FlightSamples:
     """Simulate a batch of whole flights at once.
 
     Parameters
@@ -616,7 +587,11 @@ def simulate_flights(wing, absorber=None, *, force, airspeed, density, damping=N
 
     Returns
     -------
-    FlightTraces
+    FlightSamples
+        The ``F`` flights (a leading axis of flights): airspeed, density and damping as applied
+        (held), the force, the displacements and accelerations (views of one sample-major
+        (F, N, p) buffer, each hold period's outputs computed as one contiguous block: use
+        ``np.ascontiguousarray`` where a channel-major copy is needed), the final ``state``.
 
     The discretised conditions are kept between calls for the same model (a few models),
     so repeated flights of one schedule skip the matrix exponentials.
@@ -628,7 +603,7 @@ def simulate_flights(wing, absorber=None, *, force, airspeed, density, damping=N
 def reference_simulate_flights(wing, absorber=None, *, force, airspeed, density,
                                damping=None, sample_rate: float = 1000.0, aero=None, x0=None,
                                hold: int = DEFAULT_HOLD, quantum: float = 2e-3,
-                               chunk: int | None = None) -> FlightTraces:
+                               chunk: int | None = None) -> FlightSamples:
     """:func:`simulate_flights` by the previous route: a fresh cache per call, the period
     starts by the two-level carry and the outputs by gathered period maps or by stepping.
     Kept as the baseline of ``bench/bench_wing_sim.py`` and of the equality tests."""
@@ -656,7 +631,7 @@ def _simulate(wing, absorber, aero, force, airspeed, density, damping, sample_ra
         lock.release()
 
 
-def _simulate_with(eng, force, airspeed, density, damping, x0, chunk) -> FlightTraces:
+def _simulate_with(eng, force, airspeed, density, damping, x0, chunk) -> FlightSamples:
     dw, model = eng.wing, eng.wing.model
     f = real_array(force, "force")
     if f.ndim == 1:
@@ -691,14 +666,15 @@ def _simulate_with(eng, force, airspeed, density, damping, x0, chunk) -> FlightT
         y, held = eng.run(y, s, f[:, sl], u[:, sl], rho[:, sl], c[:, sl], held, out[:, sl],
                           applied[:, sl], shared, part)
     applied = np.broadcast_to(applied, (nf, total, 3))
-    return FlightTraces(
-        time=np.arange(total) / dw.sample_rate,
+    return FlightSamples(
+        first_index=0,
+        sample_rate=dw.sample_rate,
         airspeed=applied[..., 0],
         density=applied[..., 1],
         damping=applied[..., 2],
         force=f,
         displacements=out.transpose(0, 2, 1)[:, :N_DISPLACEMENTS],
         accelerations=out.transpose(0, 2, 1)[:, N_DISPLACEMENTS:],
-        final_state=y,
+        state=y,
     )
 

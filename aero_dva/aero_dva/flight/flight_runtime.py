@@ -29,6 +29,7 @@ from aero_dva.flight.damper import (
 )
 from aero_dva.flight.discrete_model import FLIGHT_QUANTUM
 from aero_dva.flight.hidden_plant import PlantSimulator
+from aero_dva.flight.samples import FlightSamples
 from aero_dva.flight.scenario import (
     Scenario,
     airspeed_at,
@@ -82,34 +83,6 @@ class RuntimeConfig:
     damper: DamperConfig
     per_sample: Mapping[str, object] = field(default_factory=dict)
     sensor_noise: float = 0.0
-
-
-@dataclass(frozen=True)
-class FlightBlock:
-    """One simulated block (time on the last axis).
-
-    Attributes
-    ----------
-    first_index : int
-        Index of the block's first sample since the start of the flight.
-    t0, t_end : float
-        [s] time of the first sample, and of the sample after the last one.
-    force : (n,) [N]; airspeed, density, damping : (n,) [m/s], [kg/m^3], [N s/m]
-    displacements : (4, n); accelerations : (3, n) (see
-        :mod:`aero_dva.flight.streaming_simulator`)
-    diverged : bool
-    """
-
-    first_index: int
-    t0: float
-    t_end: float
-    force: np.ndarray
-    airspeed: np.ndarray
-    density: np.ndarray
-    damping: np.ndarray
-    displacements: np.ndarray
-    accelerations: np.ndarray
-    diverged: bool
 
 
 def _nan_or(value: float, default: float) -> float:
@@ -241,8 +214,10 @@ class FlightRuntime:
         state at the block's end is the next block's only if no command comes between)."""
         return self._flown
 
-    def step(self) -> FlightBlock:
-        """Simulate the next block (shorter at the end of the flight)."""
+    def step(self) -> FlightSamples:
+        """Simulate the next block (shorter at the end of the flight): its samples, with the c2
+        the damper applied; with a per-sample law armed, also the law's targets and the damper
+        force at each sample (``damper_force``)."""
         n = min(self.block_size, self.scenario.n_samples - self._index)
         if n <= 0:
             raise ValueError("the flight is over")
@@ -265,7 +240,7 @@ class FlightRuntime:
             force *= force_scale_at(self.scenario, t)
         source = None if self._sweep else self._damper.source_in_force
         asked = source is not None and source in self.config.per_sample
-        mode, rate, law_c2 = DamperMode.CONSTANT, 0.0, None
+        mode, rate, law_c2, law_out = DamperMode.CONSTANT, 0.0, None, None
         for other, path in self._laws.items():  # one law runs at a time
             if other != source and path.armed:
                 path.disarm()
@@ -281,8 +256,9 @@ class FlightRuntime:
             self._sim.continue_from(out.state, n, diverged)
             damping, displacements, accelerations = out.damping, out.displacements, \
                 out.accelerations
-            mode, rate, law_c2 = DamperMode.SWITCHING, out.switches * self.sample_rate / n, \
+            mode, rate, law_c2 = DamperMode.SWITCHING, law.switches * self.sample_rate / n, \
                 law.damping
+            law_out = out
         else:
             if source in self._laws:
                 self._laws[source].disarm()
@@ -292,12 +268,12 @@ class FlightRuntime:
                                         damping if self.config.absorber is not None else None)
             displacements, accelerations = sim_out.displacements, sim_out.accelerations
             diverged = sim_out.diverged
-        block = FlightBlock(
-            first_index=self._index, t0=float(t[0]),
-            t_end=(self._index + n) / self.sample_rate,  # exactly the next block's t0
-            force=force, airspeed=airspeed, density=density, damping=damping,
-            displacements=displacements, accelerations=accelerations,
-            diverged=diverged)
+        block = FlightSamples(
+            first_index=self._index, sample_rate=self.sample_rate, airspeed=airspeed,
+            density=density, damping=damping, force=force, displacements=displacements,
+            accelerations=accelerations, diverged=diverged,
+            target=None if law_out is None else law_out.target,
+            damper_force=None if law_out is None else law_out.damper_force)
         self._index += n
         if not self._sweep:
             self._damper.update(block.t_end)

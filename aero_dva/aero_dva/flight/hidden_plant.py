@@ -48,7 +48,7 @@ from aero_dva.flight.discrete_model import (
     DiscreteWing,
     next_held,
 )
-from aero_dva.flight.streaming_simulator import SimulationBlock
+from aero_dva.flight.samples import FlightSamples
 from aero_dva.wing.aerodynamics import QuasiSteadyAero, WagnerAero
 from aero_dva.wing.model import ACCELERATION_NAMES, AeroelasticModel
 
@@ -231,7 +231,7 @@ class PlantSimulator:
                   QUANTUM_LAGGED if self.plant.actuator_lag > 0 else FLIGHT_QUANTUM)
         return next_held(raw, self._held, quanta)
 
-    def advance(self, force, airspeed, density, damping=None) -> SimulationBlock:
+    def advance(self, force, airspeed, density, damping=None) -> FlightSamples:
         """Simulate ``len(force)`` samples (as
         :class:`~aero_dva.flight.streaming_simulator.StreamingSimulator` does).
         """
@@ -295,9 +295,9 @@ class PlantSimulator:
                 not np.all(np.isfinite(y)) or not np.all(np.isfinite(disp))
                 or (n and np.max(np.abs(disp[LEADING_EDGE])) > self.divergence_limit)
                 or (kappa_moment and n and np.max(np.abs(disp[PITCH])) > MAX_CUBIC_PITCH))
-        time = (self._index - n + np.arange(n)) / self.sample_rate
-        return SimulationBlock(time=time, displacements=disp, accelerations=acc,
-                               diverged=self._diverged)
+        return FlightSamples(first_index=self._index - n, sample_rate=self.sample_rate,
+                             airspeed=u, density=rho, damping=c, force=f, displacements=disp,
+                             accelerations=acc, diverged=self._diverged)
 
     def _sensors(self, acc: np.ndarray) -> np.ndarray:
         """Accelerometer readings: delay, gain, noise."""

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -36,6 +35,7 @@ from aero_dva.flight.discrete_model import (
     DiscreteWing,
 )
 from aero_dva.flight.flight_runtime import resolved_scenario
+from aero_dva.flight.samples import FlightSamples
 from aero_dva.flight.scenario import (
     airspeed_at,
     density_at,
@@ -45,7 +45,7 @@ from aero_dva.flight.scenario import (
 )
 from aero_dva.wing.model import LEADING_EDGE, AeroelasticModel
 
-__all__ = ["HeldCommandFlights", "IdealDampers", "SeedBatchBlock", "SeedBatchRuntime",
+__all__ = ["IdealDampers", "SeedBatchRuntime",
            "batch_problem", "damper_schedule", "fly_held_commands"]
 
 
@@ -93,38 +93,6 @@ class IdealDampers:
         self.accepted_time[which[ok]] = t
         self.accepted[which[ok]] = np.minimum(np.maximum(damping[ok], cfg.min_damping),
                                               cfg.max_damping)
-
-
-@dataclass(frozen=True)
-class SeedBatchBlock:
-    """One block of the flights still flying (time on the last axis).
-
-    Attributes
-    ----------
-    flights : (F_a,) int
-        Indices (into the runtime's seeds) of the flights in this block.
-    first_index : int
-    t0, t_end : float
-        [s] time of the first sample and of the sample after the last one.
-    airspeed, density : (n,) [m/s], [kg/m^3], the same for every flight
-    damping : (F_a,) [N s/m] each flight's c2 over the block (held by its damper)
-    force : (F_a, n) [N]
-    displacements : (F_a, 4, n); accelerations : (F_a, 3, n)
-    diverged : (F_a,) bool
-        These flights end with this block.
-    """
-
-    flights: np.ndarray
-    first_index: int
-    t0: float
-    t_end: float
-    airspeed: np.ndarray
-    density: np.ndarray
-    damping: np.ndarray
-    force: np.ndarray
-    displacements: np.ndarray
-    accelerations: np.ndarray
-    diverged: np.ndarray
 
 
 class SeedBatchRuntime:
@@ -197,9 +165,11 @@ class SeedBatchRuntime:
             return self._dampers.values(which, t)
         return np.array([self._dampers[f].update(t) for f in which.tolist()])
 
-    def step(self) -> SeedBatchBlock:
-        """Simulate the next block of every active flight; flights that diverge in it are
-        dropped afterwards (its ``diverged``)."""
+    def step(self) -> FlightSamples:
+        """Simulate the next block of every active flight: their samples with a leading axis
+        of flights (``flights``: their indices into the seeds; airspeed and density the same
+        for all, each its own c2 held over the block); flights that diverge in it are dropped
+        afterwards (its ``diverged``)."""
         scenario = self.scenario
         n = min(self.block_size, scenario.n_samples - self._index)
         if n <= 0 or self.active.size == 0:
@@ -224,11 +194,11 @@ class SeedBatchRuntime:
         disp = out[:, :N_DISPLACEMENTS]
         diverged = ~np.isfinite(y).all(axis=1) | ~np.isfinite(disp).all(axis=(1, 2)) | \
             (np.abs(disp[:, LEADING_EDGE]).max(axis=1) > self.divergence_limit)
-        block = SeedBatchBlock(
-            flights=flights, first_index=self._index, t0=float(t[0]),
-            t_end=(self._index + n) / self.sample_rate, airspeed=airspeed, density=density,
-            damping=c2, force=force, displacements=disp,
-            accelerations=out[:, N_DISPLACEMENTS:], diverged=diverged)
+        block = FlightSamples(
+            first_index=self._index, sample_rate=self.sample_rate, airspeed=airspeed,
+            density=density, damping=np.broadcast_to(c2[:, None], (flights.size, n)),
+            force=force, displacements=disp, accelerations=out[:, N_DISPLACEMENTS:],
+            diverged=diverged, flights=flights)
         self._index += n
         self.active = flights[~diverged]
         # (The runtime also advances its damper to t_end here; a command at t_end does that
@@ -334,38 +304,14 @@ class _StepMaps:
         return np.fromiter((index[k] for k in keys), dtype=np.intp, count=len(keys))
 
 
-@dataclass(frozen=True)
-class HeldCommandFlights:
-    """:func:`fly_held_commands`'s flights: each seed's trace up to the end of the block in
-    which it diverged (or the flight's end).
-
-    Attributes
-    ----------
-    airspeed, density : (N,) [m/s], [kg/m^3] the scenario's, per sample
-    damping : (N,) [N s/m] the damper's c2, per sample (the same for every flight)
-    displacements : (F, 4, N) (past a flight's ``samples``: not flown, undefined)
-    samples : (F,) int
-    diverged : (F,) bool
-    """
-
-    airspeed: np.ndarray
-    density: np.ndarray
-    damping: np.ndarray
-    displacements: np.ndarray
-    samples: np.ndarray
-    diverged: np.ndarray
-
-
 def damper_schedule(config, critical_airspeed: float, command, source: str) -> np.ndarray:
     """c2 [N s/m] of every sample when the commands do not depend on the response.
 
-    ``command(block)`` is asked after each block (a FlightBlock with the block's time and
+    ``command(block)`` is asked after each block (its FlightSamples with the block's time and
     flight condition; its response arrays are NaN) and returns a c2 or None, which the damper
     (the runtime's DamperModel, updated once per block) takes at the block's end, as
     :class:`FlightRuntime` takes a controller's command.
     """
-    from aero_dva.flight.flight_runtime import FlightBlock
-
     scenario = resolve_airspeeds(config.scenario, critical_airspeed)
     total, size = scenario.n_samples, scenario.block_size
     damper = DamperModel(config.damper, start_time=0.0)
@@ -375,12 +321,12 @@ def damper_schedule(config, critical_airspeed: float, command, source: str) -> n
         t = sample_times(scenario, a, n)
         damping[a:a + n] = damper.update(float(t[0]))
         nan = np.full(n, math.nan)
-        block = FlightBlock(first_index=a, t0=float(t[0]), t_end=(a + n) / scenario.sample_rate,
-                            force=nan, airspeed=airspeed_at(scenario, t),
-                            density=density_at(scenario, t), damping=damping[a:a + n],
-                            displacements=np.full((N_DISPLACEMENTS, n), math.nan),
-                            accelerations=np.full((N_OUTPUTS - N_DISPLACEMENTS, n), math.nan),
-                            diverged=False)
+        block = FlightSamples(first_index=a, sample_rate=scenario.sample_rate,
+                              airspeed=airspeed_at(scenario, t),
+                              density=density_at(scenario, t), damping=damping[a:a + n],
+                              force=nan, displacements=np.full((N_DISPLACEMENTS, n), math.nan),
+                              accelerations=np.full((N_OUTPUTS - N_DISPLACEMENTS, n),
+                                                    math.nan))
         c2 = command(block)
         if c2 is not None:
             damper.command(c2, block.t_end, source)
@@ -388,13 +334,15 @@ def damper_schedule(config, critical_airspeed: float, command, source: str) -> n
 
 
 def fly_held_commands(config, seeds: Sequence[int], damping: np.ndarray,
-                      critical_airspeed: float) -> HeldCommandFlights:
+                      critical_airspeed: float) -> FlightSamples:
     """The flights of ``seeds`` with the c2 of every sample given (:func:`damper_schedule`),
     whole, by the batch simulator (:func:`~aero_dva.flight.batch_simulator.simulate_flights`,
     vectorised across hold periods: no Python per block); each then ends with the block in
     which it diverged, as :class:`SeedBatchRuntime` and the runtime end it. The same hold (the
     default hold, the flight quantum) and forces (each seed's per-block draws, which are one
-    draw of the whole flight), so the same flights up to rounding."""
+    draw of the whole flight), so the same flights up to rounding. The samples of the flights
+    (a leading axis of flights; airspeed, density and c2 the same for all), each flown up to
+    its ``samples`` (past them: not flown, undefined)."""
     from aero_dva.flight.batch_simulator import simulate_flights
 
     problem = batch_problem(config)
@@ -419,5 +367,7 @@ def fly_held_commands(config, seeds: Sequence[int], damping: np.ndarray,
     diverged = bad.any(axis=1)
     first_bad = np.where(diverged, bad.argmax(axis=1), total)
     samples = np.minimum((first_bad // size + 1) * size, total)
-    return HeldCommandFlights(airspeed=airspeed, density=density, damping=damping,
-                              displacements=disp, samples=samples, diverged=diverged)
+    return FlightSamples(first_index=0, sample_rate=scenario.sample_rate, airspeed=airspeed,
+                         density=density, damping=damping, force=force, displacements=disp,
+                         accelerations=traces.accelerations, diverged=diverged,
+                         samples=samples)

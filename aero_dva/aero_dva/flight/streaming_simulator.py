@@ -3,7 +3,7 @@
 ::
 
     sim = StreamingSimulator(wing, absorber, sample_rate=1000.0, aero=None, x0=None)
-    out = sim.advance(force, airspeed, density, damping=None)
+    out = sim.advance(force, airspeed, density, damping=None)  # FlightSamples of the block
     out.time            # (n,) [s] sample times, first_sample_index / sample_rate onward
     out.displacements   # (4, n) plunge [m], pitch [rad], leading_edge [m], absorber_stroke [m]
     out.accelerations   # (3, n) plunge [m/s^2], pitch [rad/s^2], leading_edge [m/s^2]
@@ -28,8 +28,6 @@ cached per-condition maps; longer calls take the batch simulator's
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from aero_dva.flight.batch_simulator import BatchStepper
@@ -40,10 +38,11 @@ from aero_dva.flight.discrete_model import (
     OUTPUT_NAMES,
     DiscreteWing,
 )
+from aero_dva.flight.samples import FlightSamples
 from aero_dva.wing.checks import positive, real_array
 from aero_dva.wing.model import AeroelasticModel
 
-__all__ = ["STREAM_MAX_PERIODS", "SimulationBlock", "StreamingSimulator"]
+__all__ = ["STREAM_MAX_PERIODS", "StreamingSimulator"]
 
 LEADING_EDGE = OUTPUT_NAMES.index("leading_edge")
 
@@ -51,16 +50,6 @@ STREAM_MAX_PERIODS = 128
 """:meth:`StreamingSimulator.advance` calls spanning at most this many hold periods step the
 flight period by period; longer calls take the batch machinery, whose vectorised carry across
 periods is cheaper from a few hundred periods on."""
-
-
-@dataclass(frozen=True)
-class SimulationBlock:
-    """Outputs of one :meth:`StreamingSimulator.advance` call (time on the last axis)."""
-
-    time: np.ndarray
-    displacements: np.ndarray
-    accelerations: np.ndarray
-    diverged: bool
 
 
 def _input(value, name: str, allow_inf: bool = False):
@@ -163,7 +152,7 @@ class StreamingSimulator:
         self._index += int(samples)
         self._diverged = self._diverged or bool(diverged)
 
-    def advance(self, force, airspeed, density, damping=None) -> SimulationBlock:
+    def advance(self, force, airspeed, density, damping=None) -> FlightSamples:
         """Simulate ``len(force)`` samples; see the module docstring.
 
         Raises
@@ -201,7 +190,7 @@ class StreamingSimulator:
                                       np.empty((1, n, 3)))
             self._y, self._held, out = y, tuple(held[0].tolist()), out[0].T
         disp, acc = out[:N_DISPLACEMENTS], out[N_DISPLACEMENTS:]
-        time = (self._index + np.arange(n)) / dw.sample_rate
+        first = self._index
         self._index += n
         if not self._diverged:
             self._diverged = bool(
@@ -209,8 +198,12 @@ class StreamingSimulator:
                 or not np.all(np.isfinite(disp))
                 or (n and np.max(np.abs(disp[LEADING_EDGE])) > self.divergence_limit)
             )
-        return SimulationBlock(time=time, displacements=disp, accelerations=acc,
-                               diverged=self._diverged)
+        shape = (n,)
+        return FlightSamples(first_index=first, sample_rate=dw.sample_rate,
+                             airspeed=np.broadcast_to(u, shape),
+                             density=np.broadcast_to(rho, shape),
+                             damping=np.broadcast_to(c, shape), force=f, displacements=disp,
+                             accelerations=acc, diverged=self._diverged)
 
     def _stream(self, y, force, airspeed, density, damping):
         """Step samples ``index .. index + len(force) - 1`` hold period by hold period.

@@ -92,12 +92,12 @@ class BatchSpectrumRBF:
         self.peak_activation: list[list[float]] = [[] for _ in range(flights)]
 
     def command(self, block) -> np.ndarray | None:
-        """c2 per flight of ``block`` (a SeedBatchBlock without its diverged flights), or
-        None when no window completed."""
+        """c2 per flight of ``block`` (a seed batch's samples without its diverged flights),
+        or None when no window completed."""
         a, n = block.first_index, block.force.shape[1]
         flights = block.flights
         self.acc[flights, :, a:a + n] = block.accelerations[:, :2]
-        self.damping[flights, a:a + n] = block.damping[:, None]
+        self.damping[flights, a:a + n] = block.damping
         stop, start = a + n, None
         complete = stop // self.hop
         if complete > self.hops_done:  # transform the hops this block completed
@@ -159,7 +159,7 @@ def fly_batch(config, make_controller: Callable[[], object], seeds: Sequence[int
         block = runtime.step()
         a, n = block.first_index, block.force.shape[1]
         trace_u[a:a + n], trace_rho[a:a + n] = block.airspeed, block.density
-        damping[block.flights, a:a + n] = block.damping[:, None]
+        damping[block.flights, a:a + n] = block.damping
         leading_edge[block.flights, a:a + n] = block.displacements[:, LEADING_EDGE]
         samples[block.flights] = a + n
         diverged[block.flights[block.diverged]] = True

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aero_dva.flight.discrete_model import DEFAULT_HOLD
+from aero_dva.flight.discrete_model import DEFAULT_HOLD, N_DISPLACEMENTS
 from aero_dva.flight.discretize import zoh
 from aero_dva.flight.kept import KeptByKey
 from aero_dva.flight.per_sample.smooth_tables import interpolated_maps
@@ -39,10 +39,11 @@ from aero_dva.flight.per_sample.switching_law import (
     SwitchingLaw,
     maxwell_index,
 )
+from aero_dva.flight.samples import FlightSamples
 from aero_dva.wing.checks import positive
 from aero_dva.wing.model import AeroelasticModel
 
-__all__ = ["SwitchedFlight", "c2_levels", "fly_switched"]
+__all__ = ["c2_levels", "fly_switched"]
 
 DEFAULT_LEVELS = 65
 #: Relative airspeed and density change below which a held value is kept, the batch
@@ -59,40 +60,6 @@ def c2_levels(c_lo: float, c_hi: float, time_constant: float,
     if int(levels) < 2:
         raise ValueError(f"levels must be >= 2, got {levels}")
     return np.geomspace(c_lo, c_hi, int(levels))
-
-
-@dataclass(frozen=True)
-class SwitchedFlight:
-    """What a switched flight did, per sample.
-
-    Attributes
-    ----------
-    leading_edge : (N,) [m]
-    stroke : (N,) [m] absorber stroke
-    damping : (N,) [N s/m] c2 flown over each sample (a table level)
-    target : (N,) bool, True where the target was c_hi
-    damper_power : (N,) [W] power the damper dissipates, F^2 / c2
-    states : (N, n) or None
-        The plant's state at each sample's start (``keep_states``), else None.
-    """
-
-    leading_edge: np.ndarray
-    stroke: np.ndarray
-    damping: np.ndarray
-    target: np.ndarray
-    damper_power: np.ndarray
-    sample_rate: float
-    states: np.ndarray | None = None
-
-    @property
-    def switches_per_second(self) -> float:
-        """Target changes per second of flight."""
-        changes = np.count_nonzero(self.target[1:] != self.target[:-1])
-        return changes * self.sample_rate / max(1, self.target.size - 1)
-
-    def dissipated(self, stop: int | None = None) -> float:
-        """[J] energy the damper dissipated over the first ``stop`` samples (all: None)."""
-        return float(np.sum(self.damper_power[:stop]) / self.sample_rate)
 
 
 def _measurement(model: AeroelasticModel, conditions: np.ndarray):
@@ -177,7 +144,7 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
                  hold: int = DEFAULT_HOLD, quantum: float = BATCH_QUANTUM,
                  initial_damping: float | None = None,
                  force_limit: float = math.inf, update_every: int = 1,
-                 yield_force: float = 0.0, keep_states: bool = False) -> SwitchedFlight:
+                 yield_force: float = 0.0, keep_states: bool = False) -> FlightSamples:
     """Fly ``plant`` with the switching law armed (module docstring).
 
     Parameters
@@ -213,11 +180,11 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
         the lock and the sign are held over each sample). The law and its observer still
         assume the linear damper.
     keep_states : bool
-        Return the plant's states too (:attr:`SwitchedFlight.states`).
+        Return the plant's state at each sample's start too (``states``).
 
     Returns
     -------
-    SwitchedFlight
+    FlightSamples
         Arrays (N,) for one flight, (F, N) for a batch.
     """
     observer_model = plant if observer_model is None else observer_model
@@ -299,24 +266,22 @@ def fly_switched(plant: AeroelasticModel, law: SwitchingLaw, airspeed, density, 
     else:
         states, level, targets = fly_maps(steps, index, weight, est, g_in, g_state,
                                           sample_map, inputs, n, *loop)
-    le = states @ plant.c_displacement[2]
-    stroke = states @ plant.c_displacement[3]
+    # each displacement row as its own product (the leading edge and the stroke as before)
+    disp = np.stack([states @ plant.c_displacement[k] for k in range(N_DISPLACEMENTS)],
+                    axis=-2)
     damping = table[level]
-    spring_force = states[..., maxwell_index(plant)] * plant.absorber.series_stiffness
-    np.abs(spring_force, out=spring_force)
+    damper_force = states[..., maxwell_index(plant)] * plant.absorber.series_stiffness
+    spring_force = np.abs(damper_force)
     # F v_damper: F^2 / c2 for the linear damper; F (|F| - yield) / c2 while a Bingham
     # damper flows, 0 while it is locked
     flowing = np.maximum(spring_force - yield_force, 0.0) if yield_force > 0 else spring_force
     power = spring_force * flowing
     power /= damping
-    out = SwitchedFlight(leading_edge=le, stroke=stroke, damping=damping, target=targets,
-                         damper_power=power, sample_rate=1.0 / dt,
-                         states=states if keep_states else None)
-    if single:
-        return SwitchedFlight(*(getattr(out, f)[0] for f in (
-            "leading_edge", "stroke", "damping", "target", "damper_power")), 1.0 / dt,
-            states=states[0] if keep_states else None)
-    return out
+    k = 0 if single else slice(None)
+    return FlightSamples(first_index=0, sample_rate=1.0 / dt, airspeed=speeds, density=rhos,
+                         damping=damping[k], force=force[k], displacements=disp[k],
+                         states=states[k] if keep_states else None, target=targets[k],
+                         damper_force=damper_force[k], damper_power=power[k])
 
 
 _KEPT_MAPS = 2

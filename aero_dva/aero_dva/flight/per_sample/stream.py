@@ -16,7 +16,6 @@ wing's state) and from the c2 the damper has; the first decision acts from the n
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -34,27 +33,10 @@ from aero_dva.flight.per_sample.switching_law import (
     SwitchingLaw,
     maxwell_index,
 )
+from aero_dva.flight.samples import FlightSamples
 from aero_dva.wing.model import AeroelasticModel
 
-__all__ = ["SwitchedBlock", "SwitchedStream"]
-
-
-@dataclass(frozen=True)
-class SwitchedBlock:
-    """One block flown with the law armed (time on the last axis).
-
-    displacements (4, n), accelerations (3, n): as the streaming simulator's outputs;
-    damping (n,) [N s/m] the c2 level flown over each sample; target (n,) True where the law
-    asked for c_hi; state (n_states,) the plant state after the block; switches: target
-    changes within the block and at its start.
-    """
-
-    displacements: np.ndarray
-    accelerations: np.ndarray
-    damping: np.ndarray
-    target: np.ndarray
-    state: np.ndarray
-    switches: int
+__all__ = ["SwitchedStream"]
 
 
 class SwitchedStream:
@@ -79,7 +61,8 @@ class SwitchedStream:
             raise ValueError(f"the law's gain has {law.states} entries, the wing "
                              f"{model.n_states} states")
         self.model, self.law = model, law
-        self.dt = 1.0 / float(sample_rate)
+        self.sample_rate = float(sample_rate)
+        self.dt = 1.0 / self.sample_rate
         self.table = c2_levels(law.c_lo, law.c_hi, float(time_constant))
         self.hold, self.quantum = int(hold), float(quantum)
         self._lag = _Damper(float(time_constant), self.dt, law.c_lo, law.c_hi,
@@ -94,6 +77,7 @@ class SwitchedStream:
         self._target = np.ones(1, dtype=bool)
         self._prev = np.zeros(1)
         self.armed = False
+        self.switches = 0  # target changes in the last block flown (and at its start)
 
     @property
     def damping(self) -> float:
@@ -126,10 +110,13 @@ class SwitchedStream:
         return j
 
     def advance(self, first_index: int, force, airspeed, density,
-                noise=None) -> SwitchedBlock:
+                noise=None) -> FlightSamples:
         """Fly samples ``first_index ..`` with the law (armed); ``force``, ``airspeed`` and
         ``density`` (n,) per sample; ``noise`` (n, 4) [SI] on the observer's measurements
-        (None: exact)."""
+        (None: exact). The samples' ``damping`` is the c2 level flown over each, ``target``
+        True where the law asked for c_hi, ``damper_force`` the damper force k2 delta at each
+        sample, ``state`` the plant state after the block; :attr:`switches` counts the
+        target's changes within the block and at its start."""
         if not self.armed:
             raise RuntimeError("the switching law is not armed")
         force = np.asarray(force, dtype=float)
@@ -164,7 +151,10 @@ class SwitchedStream:
         d_out = np.stack([mp[5] for mp in maps])[sample_map.ravel()]
         acc = (np.einsum("sij,sj->is", c_out, x) + d_out.T * force)
         disp = self.model.c_displacement @ x.T
-        flips = np.count_nonzero(np.diff(np.concatenate([[before], target[0]])))
-        return SwitchedBlock(displacements=disp, accelerations=acc,
-                             damping=self.table[level[0]], target=target[0].copy(),
-                             state=self._z[0, :self.model.n_states].copy(), switches=flips)
+        self.switches = int(np.count_nonzero(np.diff(np.concatenate([[before], target[0]]))))
+        return FlightSamples(first_index=int(first_index), sample_rate=self.sample_rate,
+                             airspeed=speeds, density=rhos, damping=self.table[level[0]],
+                             force=force, displacements=disp, accelerations=acc,
+                             state=self._z[0, :self.model.n_states].copy(),
+                             target=target[0].copy(),
+                             damper_force=x[:, lag.deflection] * lag.k2)

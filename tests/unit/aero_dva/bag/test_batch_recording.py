@@ -21,7 +21,7 @@ from aero_dva.bag.runtime_recording import record_flight_blocks, record_runtime
 from aero_dva.bag.schemas import message_definition
 from aero_dva.bag.writer import qos_profile_yaml
 from aero_dva.flight.damper import DamperSnapshot, DamperStatus
-from aero_dva.flight.flight_runtime import FlightBlock
+from aero_dva.flight.samples import FlightSamples
 from tests.unit.aero_dva.bag.reference_bag import ReferenceBag
 
 RATE = 1000.0
@@ -43,9 +43,8 @@ def make_flight(count=120, n=50, last=17, seed=0, switch_source_at=70):
     index = 0
     for k in range(count):
         m = last if k == count - 1 else n
-        t0 = index / RATE
-        blocks.append(FlightBlock(
-            first_index=index, t0=t0, t_end=(index + m) / RATE,
+        blocks.append(FlightSamples(
+            first_index=index, sample_rate=RATE,
             force=1e3 * rng.standard_normal(m),
             airspeed=80.0 + 0.1 * k + np.arange(m) * 1e-4,
             density=1.2 * (1 + 0.05 * np.sin(2 * np.pi * (index + np.arange(m)) / RATE)),
@@ -282,9 +281,9 @@ def test_bad_input_is_refused(tmp_path, flight):
         with pytest.raises(ValueError, match="first_index"):
             recorder.write_blocks([replace(blocks[0], first_index=0.5)], states[:1])
         with pytest.raises(ValueError, match="finite"):
-            recorder.write_blocks([replace(blocks[0], t_end=math.nan)], states[:1])
+            recorder.write_blocks([replace(blocks[0], sample_rate=math.nan)], states[:1])
         with pytest.raises(ValueError, match=">= 0"):
-            recorder.write_blocks([replace(blocks[0], t0=-0.05)], states[:1])
+            recorder.write_blocks([replace(blocks[0], first_index=-50)], states[:1])
         with pytest.raises(ValueError, match="level"):
             recorder.write_diagnostics(0.0, [("fatal", "x", {})])
         assert recorder.message_counts == dict.fromkeys(TOPICS, 0)
@@ -644,9 +643,7 @@ def test_write_samples_equals_write_blocks(tmp_path, flight):
     columns = dict(zip(DAMPER_COLUMNS, np.array(
         [(s.time, s.commanded_damping, s.applied_damping, s.min_damping, s.max_damping,
           s.command_age, int(s.status)) for s in states]).T))
-    # Blocks of 50 with t0 = index / rate: make the reference blocks follow that convention.
-    ref_blocks = [replace(b, t0=b.first_index / RATE, t_end=(b.first_index + 50) / RATE)
-                  for b in blocks]
+    ref_blocks = blocks  # blocks of 50, t0 = index / rate as write_samples stamps them
     with BatchRecorder(tmp_path / "samples", RATE) as recorder:
         recorder.write_samples(0, acc[:, :2000], disp[:, :2000], force[:2000], block_size=50,
                                airspeed=[b.airspeed[0] for b in blocks[:40]],

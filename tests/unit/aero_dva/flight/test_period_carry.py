@@ -60,7 +60,7 @@ def test_one_flight_equals_the_previous_route(scheduled):
         got = simulate_flights(WING, DVA, force=force, airspeed=u, density=RHO, damping=c)
         for name in ("displacements", "accelerations"):
             assert _peak_relative(getattr(got, name), getattr(ref, name)) < 1e-9, name
-        assert _peak_relative(got.final_state, ref.final_state) < 1e-9
+        assert _peak_relative(got.state, ref.state) < 1e-9
         np.testing.assert_array_equal(got.damping, ref.damping)
         np.testing.assert_array_equal(got.airspeed, ref.airspeed)
     assert np.abs(ref.displacements[:, 2, -500:]).max() > 10 * np.abs(
@@ -93,7 +93,7 @@ def test_compiled_route_with_a_start_state_partial_periods_and_chunks(flights):
         kw = dict(force=force, airspeed=u, density=RHO, damping=c, x0=x0, chunk=chunk)
         ref = reference_simulate_flights(WING, DVA, **kw)
         got = simulate_flights(WING, DVA, **kw)
-        for name in ("displacements", "accelerations", "final_state"):
+        for name in ("displacements", "accelerations", "state"):
             assert _peak_relative(getattr(got, name), getattr(ref, name)) < 1e-9, name
         np.testing.assert_array_equal(got.damping, ref.damping)
 
@@ -111,9 +111,9 @@ def test_every_model_size_takes_a_compiled_route_equal_to_the_previous(absorber,
               x0=1e-3 * rng.standard_normal(states))
     ref = reference_simulate_flights(WING, absorber, **kw)
     got = simulate_flights(WING, absorber, **kw)
-    for name in ("displacements", "accelerations", "final_state"):
+    for name in ("displacements", "accelerations", "state"):
         assert _peak_relative(getattr(got, name), getattr(ref, name)) < 1e-9, name
-    assert got.final_state.shape == (2, states)
+    assert got.state.shape == (2, states)
     _, cache, _ = _shared_wing(WING, absorber, aero, 1000.0, 10, 2e-3)
     assert ("stack" in cache.arr) is stacked
     assert "period" not in cache.arr  # the compiled loop needs one-sample maps only

@@ -128,8 +128,8 @@ def test_many_flights_on_one_schedule_equal_single_flights():
         for got, ref in ((batch.displacements[i], one.displacements[0]),
                          (batch.accelerations[i], one.accelerations[0])):
             np.testing.assert_allclose(got, ref, rtol=0, atol=1e-12 * np.abs(ref).max())
-        np.testing.assert_allclose(batch.final_state[i], one.final_state[0], rtol=0,
-                                   atol=1e-12 * np.abs(one.final_state).max())
+        np.testing.assert_allclose(batch.state[i], one.state[0], rtol=0,
+                                   atol=1e-12 * np.abs(one.state).max())
     np.testing.assert_array_equal(batch.damping[3], one.damping[0])  # same held schedule
 
 
@@ -191,5 +191,5 @@ def test_streaming_blocks_equal_the_batch_path_on_a_ramp_with_varying_c2(block):
     ref = np.vstack([batch.displacements[0], batch.accelerations[0]])
     scale = np.abs(ref).max(axis=1, keepdims=True)
     np.testing.assert_allclose(got / scale, ref / scale, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(sim.state, batch.final_state[0], rtol=0,
-                               atol=1e-12 * np.abs(batch.final_state).max())
+    np.testing.assert_allclose(sim.state, batch.state[0], rtol=0,
+                               atol=1e-12 * np.abs(batch.state).max())

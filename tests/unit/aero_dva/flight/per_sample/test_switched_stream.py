@@ -39,14 +39,19 @@ def test_blocks_fly_as_the_whole_switched_flight(wing, scheduled):
                          quantum=FLIGHT_QUANTUM)
     stream = SwitchedStream(model, law, 1000.0, 0.01)
     stream.arm(np.zeros(model.n_states), C_HI)
-    blocks = [stream.advance(i, force[i:i + 50], speed[i:i + 50], 1.2)
-              for i in range(0, 2000, 50)]
+    blocks, switches = [], 0
+    for i in range(0, 2000, 50):
+        blocks.append(stream.advance(i, force[i:i + 50], speed[i:i + 50], 1.2))
+        switches += stream.switches
     le = np.concatenate([b.displacements[2] for b in blocks])
     np.testing.assert_allclose(le, whole.leading_edge, rtol=1e-9,
                                atol=1e-11 * np.abs(le).max())
     assert np.array_equal(np.concatenate([b.target for b in blocks]), whole.target)
     assert np.array_equal(np.concatenate([b.damping for b in blocks]), whole.damping)
-    switches = sum(b.switches for b in blocks)
+    # the damper force k2 delta, as the whole flight has it
+    np.testing.assert_allclose(np.concatenate([b.damper_force for b in blocks]),
+                               whole.damper_force, rtol=1e-9,
+                               atol=1e-11 * np.abs(whole.damper_force).max())
     assert switches == np.count_nonzero(np.diff(whole.target)) > 20
 
 
