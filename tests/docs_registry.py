@@ -110,6 +110,7 @@ NOT_RUN = {
     ("README.md", "source scripts/env.sh                      # a shell"): COMMANDS,
     ("README.md", ".venv/bin/dva isolator modal --mass 1 --k 12000"): COMMANDS,
     ("docs/bags.md", ".venv/bin/dva bag info runs/main_<time>"): COMMANDS,
+    ("docs/clipped_optimal.md", ".venv/bin/dva switching evaluate --gains"): COMMANDS,
     ("docs/control.md", "default (chapter-6) wing, U_cr"): BENCH,
     ("docs/discrepancy.md", "dva discrepancy frf tests/data/discrepancy/dma_tension_raw.csv"):
         "the command of the next block",
