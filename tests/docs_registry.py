@@ -67,6 +67,10 @@ EXAMPLES = [
             "dva discrepancy synth-structure --effect amplitude_dependence --seed 7 --jitter "
             "--out s7.csv > /dev/null && dva discrepancy modal s7.csv --group-by set",
             subset=True),
+    Example("docs/discrepancy.md", "  amplitude_dependence (excitation_n): storage moves",
+            "dva discrepancy synth --effect power_level --seed 5 --out mount.csv > /dev/null && "
+            "dva discrepancy frf mount.csv --quantity receptance --covariates excitation_n",
+            subset=True),
     Example("docs/discrepancy.md", "read 210 points", subset=True,
             commands_from="dva discrepancy frf tests/data/discrepancy/dma_tension_raw.csv"),
     Example("docs/discrepancy.md", "read 170 points", subset=True,
