@@ -9,10 +9,22 @@ from __future__ import annotations
 
 from pathlib import Path
 
-__all__ = ["MAX_TEXT_BYTES", "InputFileError", "read_text_input"]
+__all__ = ["MAX_LOGGED_CHARS", "MAX_TEXT_BYTES", "InputFileError", "loggable",
+           "read_text_input"]
 
 #: [bytes] largest configuration file read; the largest shipped one is about 2 kB.
 MAX_TEXT_BYTES = 4 * 2**20
+#: Most characters of one piece of outside text (a command's source, a name) put in a log line.
+MAX_LOGGED_CHARS = 120
+
+
+def loggable(text, limit: int = MAX_LOGGED_CHARS) -> str:
+    """Text from outside (a command's source, a scenario, topic or file name) fit for one log
+    line: control characters (newlines, escape codes) written as escapes, cut to ``limit``
+    characters with the length of the rest said."""
+    text = str(text)
+    shown = "".join(c if c.isprintable() else repr(c)[1:-1] for c in text[:limit])
+    return shown if len(text) <= limit else f"{shown}... ({len(text) - limit:,} more characters)"
 
 
 class InputFileError(ValueError):

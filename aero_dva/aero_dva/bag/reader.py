@@ -149,6 +149,7 @@ def bag_files(path, allow_truncated: bool = False) -> list[Path]:
                 f"bag {str(path)!r} uses storage {info['storage_identifier']!r}, not mcap")
         if info.get("compression_mode"):
             raise BagReadError(f"bag {str(path)!r} uses file compression, which is not supported")
+        _check_metadata_numbers(info, meta)
         files = [path / Path(p).name for p in info["relative_file_paths"]]
         counts = Counter(f.name for f in files)
         name, times = max(counts.items(), key=lambda kv: kv[1], default=("", 0))
@@ -164,6 +165,28 @@ def bag_files(path, allow_truncated: bool = False) -> list[Path]:
         raise BagReadError(f"bag {str(path)!r}: files listed in metadata.yaml are missing: "
                            f"{missing}")
     return files
+
+
+#: The numbers of rosbag2's metadata (counts, times in ns, the version): whole and >= 0.
+_METADATA_NUMBERS = ("version", "message_count", "nanoseconds", "nanoseconds_since_epoch")
+
+
+def _check_metadata_numbers(node, meta: Path, trail: str = "") -> None:
+    """Every count, time and version of rosbag2's metadata a whole number in [0, 2**63):
+    BagReadError naming the field otherwise (a player would take a negative start time, a
+    reader a negative message count for its promise)."""
+    if isinstance(node, dict):
+        for key, value in node.items():
+            where = f"{trail}.{key}" if trail else str(key)
+            if key in _METADATA_NUMBERS and not (
+                    isinstance(value, int) and not isinstance(value, bool)
+                    and 0 <= value < 2**63):
+                raise BagReadError(f"{str(meta)!r}: {where} must be a whole number in "
+                                   f"[0, 2**63), got {value!r}"[:300])
+            _check_metadata_numbers(value, meta, where)
+    elif isinstance(node, list):
+        for index, value in enumerate(node):
+            _check_metadata_numbers(value, meta, f"{trail}[{index}]")
 
 
 def file_summary(path: Path):

@@ -294,7 +294,7 @@ SPECTRUM_SHAPE = (
              choices=ACCELERATION_NAMES),
     LawParam("frequencies", DEFAULT_FREQUENCIES.tolist(),
              "frequencies of the spectra: distinct, below the blocks' Nyquist frequency", "Hz",
-             low=1.0e-9, default_text=f"{DEFAULT_FREQUENCIES[0]:g}, "
+             low=1.0e-2, high=1.0e4, default_text=f"{DEFAULT_FREQUENCIES[0]:g}, "
              f"{DEFAULT_FREQUENCIES[1]:g}, ..., {DEFAULT_FREQUENCIES[-1]:g} "
              f"({DEFAULT_FREQUENCIES[1] - DEFAULT_FREQUENCIES[0]:g} Hz steps)"),
     LawParam("window", "rectangular", "window function (rectangular: the study's)",

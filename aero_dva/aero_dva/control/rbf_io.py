@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from aero_dva import input_ranges as ranges
 from aero_dva.atomic_io import atomic_output
 from aero_dva.control.rbf_network import InputScaling, RBFNetwork
 from aero_dva.safe_files import check_file_header, check_npz, parse_json
@@ -214,12 +215,17 @@ def load_rbf_network(path, expected_input_dim: int | None = None) -> RBFNetwork:
                           f"input units), got {spread}")
     offset = _vector(path, scaling, "offset", dim)
     scale = _vector(path, scaling, "scale", dim)
-    if np.any(scale <= 0):
-        raise _fail(path, "input_scaling.scale must be > 0 for every input")
+    bias = _header_field(path, header, "output_bias", float)
+    try:
+        ranges.check_number(bias, "output_bias", ranges.NETWORK["output_bias"])
+        ranges.check_numbers(offset.tolist(), "input_scaling.offset", ranges.NETWORK["offset"])
+        ranges.check_numbers(scale.tolist(), "input_scaling.scale", ranges.NETWORK["scale"])
+    except ValueError as exc:
+        raise _fail(path, str(exc)) from None
     return RBFNetwork(
         centres=centres,
         output_weights=weights,
-        output_bias=float(_header_field(path, header, "output_bias", float)),
+        output_bias=float(bias),
         spread=float(spread),
         scaling=InputScaling(offset, scale),
         input_names=_string_list(path, header, "input_names", dim),

@@ -25,6 +25,7 @@ import json
 import math
 from pathlib import Path
 
+from aero_dva import input_ranges as ranges
 from aero_dva.atomic_io import atomic_output
 from aero_dva.control.airspeed_schedule import AirspeedSchedule
 from aero_dva.flight.damper import damping_problem
@@ -93,6 +94,10 @@ def schedule_from_dict(data: dict, source: str = "<dict>") -> AirspeedSchedule:
         if not math.isfinite(value):
             raise fail(f"field {key!r} must be finite, got {value}")
         values[key] = float(value)
+    try:
+        ranges.check_fields(values, ranges.SCHEDULE)
+    except ValueError as exc:
+        raise fail(str(exc)) from None
     problem = damping_problem((values["damping_min"], values["damping_max"]),
                               "fields 'damping_min' and 'damping_max'")
     if problem is not None:

@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from aero_dva import input_ranges as ranges
 from aero_dva.atomic_io import atomic_output
 from aero_dva.flight.damper import DAMPER_RANGE, SWITCHING_SOURCE, damping_problem
 from aero_dva.flight.per_sample.switching_law import (
@@ -109,12 +110,13 @@ def gains_from_dict(data, source: str = "<dict>",
         if not math.isfinite(value):
             raise fail(f"field {key!r} must be finite, got {value}")
         values[key] = float(value)
-    for key in ("design_airspeed", "density", "sample_rate", "effort"):
-        if not values[key] > 0:
-            raise fail(f"field {key!r} must be > 0, got {values[key]}")
-    for key in ("time_constant", "lead"):
-        if values[key] < 0:
-            raise fail(f"field {key!r} must be >= 0, got {values[key]}")
+    try:
+        ranges.check_fields(values, ranges.GAINS)
+        for key, rng in ranges.GAIN_ROWS.items():
+            if data.get(key) is not None:
+                ranges.check_numbers(data[key], key, rng)
+    except ValueError as exc:
+        raise fail(str(exc)) from None
     names = data.get("state_names")
     if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
         raise fail("field 'state_names' must be a list of strings")

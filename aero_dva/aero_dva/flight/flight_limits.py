@@ -17,3 +17,5 @@ MAX_BLOCK_SIZE = 20_000
 MAX_FORCE_STD = 1.0e6
 #: [samples] longest window (dwell) of a training plan: 10 minutes at 1 kHz (the study's: 2 s).
 MAX_WINDOW_SAMPLES = 600_000
+#: [kg/m^3] air densities a flight may have (40 km altitude to a cold sea-level day).
+DENSITY_RANGE = (1e-3, 2.0)

@@ -41,6 +41,7 @@ from aero_dva.flight.scenario import (
 )
 from aero_dva.flight.scenario_io import load_scenario
 from aero_dva.flight.streaming_simulator import StreamingSimulator
+from aero_dva.text_input import loggable
 from aero_dva.wing.absorbers import MaxwellAbsorber
 from aero_dva.wing.critical_cache import critical_airspeed as kept_critical_airspeed
 from aero_dva.wing.model import WingParameters
@@ -172,6 +173,7 @@ class FlightRuntime:
             self._sim = StreamingSimulator(config.wing, config.absorber,
                                            sample_rate=self.sample_rate, aero=config.aero,
                                            quantum=FLIGHT_QUANTUM)
+        self._check_sampling()
         self._damper = DamperModel(config.damper, start_time=0.0)
         self._rng = np.random.default_rng(self.scenario.seed)
         self._index = 0
@@ -181,6 +183,28 @@ class FlightRuntime:
         self._noise_scale: dict = {}  # source -> sensor noise std (4,)
         self.applied = AppliedControl()  # blocks by the source of the c2 they were flown with
         self._flown: DamperSnapshot | None = None  # the damper over the last block
+
+    def _check_sampling(self) -> None:
+        """Refuse, before the first block, a flight whose wing has a mode at or above the
+        Nyquist frequency somewhere in its flight (an absorber of a gram, a spring of 1e12
+        N/m): checked at the ends of its airspeed and density ranges and of the damper's."""
+        from aero_dva.flight.discretize import check_sampling
+        from aero_dva.wing.model import AeroelasticModel
+
+        s, absorber = self.scenario, self.config.absorber
+        model = AeroelasticModel(self.config.wing, absorber, self.config.aero)
+        speeds = np.asarray(s.airspeed.values, dtype=float)
+        densities = s.density * (1.0 + s.density_variation * np.array([-1.0, 1.0]))
+        dampers = (None,) if absorber is None else self.config.damper.damping_range
+        for u in (speeds.min(), speeds.max()):
+            for rho in densities:
+                for c2 in dampers:
+                    a, _ = model.matrices(u, rho, c2)
+                    try:
+                        check_sampling(a, 1.0 / s.sample_rate)
+                    except ValueError as exc:
+                        raise ValueError(f"scenario {loggable(s.name)!r}: {exc} (at "
+                                         f"{u:g} m/s)") from None
 
     @property
     def sweeps_damping(self) -> bool:

@@ -26,6 +26,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from aero_dva.flight.flight_limits import (
+    DENSITY_RANGE,
     MAX_BLOCK_SIZE,
     MAX_FLIGHT_SAMPLES,
     MAX_FORCE_STD,
@@ -166,16 +167,25 @@ def validate(s: Scenario) -> None:
     if max(values) > limit:
         raise ScenarioError(f"airspeed {max(values)} {unit} is absurd for this model (> {limit})")
     _positive("density", s.density)
-    if s.density > 2.0:
-        raise ScenarioError(f"density {s.density} kg/m^3 is absurd for air (> 2)")
+    low, high = DENSITY_RANGE
+    if not low <= s.density <= high:
+        raise ScenarioError(f"density must be in [{low:g}, {high:g}] kg/m^3 (air), got "
+                            f"{s.density:g}")
     if not 0.0 <= s.density_variation < 1.0:
         raise ScenarioError(f"density_variation (mu) must be in [0, 1), got {s.density_variation}")
     _positive("density_frequency", s.density_frequency)
-    if not (isinstance(s.force_std, (int, float)) and 0 < s.force_std <= MAX_FORCE_STD):
-        raise ScenarioError(f"force_std must be in (0, {MAX_FORCE_STD:g}] N (a flight needs "
-                            f"its excitation), got {s.force_std!r}")
+    if not 1e-6 <= s.density_frequency <= s.sample_rate / 2:
+        raise ScenarioError(f"density_frequency must be in [1e-06, {s.sample_rate / 2:g}] Hz "
+                            f"(half the sample rate), got {s.density_frequency:g}")
+    if not (isinstance(s.force_std, (int, float)) and 1e-6 <= s.force_std <= MAX_FORCE_STD):
+        raise ScenarioError(f"force_std must be in [1e-06, {MAX_FORCE_STD:g}] N (a flight "
+                            f"needs its excitation), got {s.force_std!r}")
+    if isinstance(s.seed, bool) or not isinstance(s.seed, int) or not 0 <= s.seed < 2**63:
+        raise ScenarioError(f"seed must be an integer in [0, 2**63), got {s.seed!r}")
     if s.airspeed.kind == "steps":
         _positive("dwell", s.dwell)
+        if s.dwell * s.sample_rate < 1:
+            raise ScenarioError(f"dwell {s.dwell:g} s is shorter than one sample")
         if not s.sweep_damping:
             raise ScenarioError("a 'steps' sweep needs sweep_damping (the c2 values to apply)")
         if not all(math.isfinite(c) and c >= 0 for c in s.sweep_damping):
@@ -190,6 +200,8 @@ def validate(s: Scenario) -> None:
         raise ScenarioError("sweep_damping is only meaningful with airspeed kind 'steps'")
     if s.force_levels:
         _positive("level_dwell", s.level_dwell)
+        if s.level_dwell * s.sample_rate < 1:
+            raise ScenarioError(f"level_dwell {s.level_dwell:g} s is shorter than one sample")
         if not all(isinstance(v, (int, float)) and math.isfinite(v) and 0 < v <= 100
                    for v in s.force_levels):
             raise ScenarioError(f"force levels must be in (0, 100], got {s.force_levels}")

@@ -335,7 +335,8 @@ class AeroelasticModel:
         phi[..., 4] = k1
         if self.has_maxwell:
             k2 = self.absorber.series_stiffness
-            with np.errstate(divide="ignore", invalid="ignore"):
+            # a subnormal c2 overflows the rate: the plain-damper limit below replaces it
+            with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
                 rate = np.where(np.isinf(c), 0.0, k2 / np.where(c > 0, c, 1.0))
             plain = (c * MAXWELL_RATE_LIMIT < k2) & (k2 > 0)  # includes c = 0
             phi[..., 5] = np.where(plain, c, 0.0)

@@ -28,11 +28,11 @@ from pathlib import Path
 
 import yaml
 
+from aero_dva import input_ranges as ranges
 from aero_dva.data_files import data_file
 from aero_dva.safe_files import read_yaml
 from aero_dva.wing.absorbers import MaxwellAbsorber, PassiveAbsorber
 from aero_dva.wing.aerodynamics import QuasiSteadyAero, aero_from_name
-from aero_dva.wing.checks import positive
 from aero_dva.wing.model import WingParameters
 from aero_dva.wing.typical_section import TypicalSection
 
@@ -118,7 +118,12 @@ def absorber_from_dict(data: dict | None):
         raise ValueError(f"absorber type must be one of {sorted(_ABSORBERS)}, got {kind!r}")
     rest = {k: v for k, v in data.items() if k != "type"}
     if kind == "maxwell" and isinstance(rest.get("damping"), str):
-        rest["damping"] = float(rest["damping"])  # allow "inf"
+        try:
+            rest["damping"] = float(rest["damping"])  # allow "inf"
+        except ValueError:
+            raise ValueError(f"absorber ({kind}): damping must be a number or inf, got "
+                             f"{rest['damping']!r}") from None
+    ranges.check_fields(rest, ranges.ABSORBER, f"absorber ({kind})")
     return _build(_ABSORBERS[kind], rest, f"absorber ({kind})")
 
 
@@ -138,8 +143,10 @@ def config_from_dict(data: dict, where: str = "wing file") -> WingConfig:
     unknown = sorted(set(data) - allowed)
     if unknown:
         raise ValueError(f"{where}: unknown key(s) {unknown}; expected some of {sorted(allowed)}")
+    if isinstance(data["wing"], dict):
+        ranges.check_fields(data["wing"], ranges.WING, f"{where}: wing")
     wing = _build(WingParameters, data["wing"], f"{where}: wing")
-    rho = positive(data.get("air_density", 1.2), "air_density")
+    rho = ranges.check_number(data.get("air_density", 1.2), "air_density", ranges.AIR_DENSITY)
     aero = aero_from_name(data.get("aero", "quasi-steady"))
     if "pitch_damping" in data:
         if not isinstance(aero, QuasiSteadyAero):
@@ -193,4 +200,7 @@ def wing_fingerprint(config: WingConfig) -> str:
 
 def load_section(path) -> TypicalSection:
     """Read a typical-section file (keys of :class:`TypicalSection`)."""
-    return _build(TypicalSection, _read_yaml(Path(path), "section file"), str(path))
+    data = _read_yaml(Path(path), "section file")
+    if isinstance(data, dict):
+        ranges.check_fields(data, ranges.SECTION, str(path))
+    return _build(TypicalSection, data, str(path))

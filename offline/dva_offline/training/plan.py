@@ -36,6 +36,7 @@ from aero_dva.flight.flight_limits import (
     MAX_WINDOW_SAMPLES,
     SAMPLE_RATE_RANGE,
 )
+from aero_dva.input_ranges import Range, check_number
 
 __all__ = [
     "DEFAULT_FACTORS",
@@ -52,6 +53,11 @@ DEFAULT_RATIOS = (0.8, 1.14, 0.002)
 #: Densities [rho / rho0]: a constant 10 % offset either way around the base density.
 DEFAULT_FACTORS = (0.9, 1.0, 1.1)
 _C2_GRID = np.linspace(*DAMPER_RANGE, 126)  # [N s/m] the damper's range, 20 N s/m apart
+#: The stated ranges of a plan's settings (besides the ratios, factors and window).
+_RANGES = {"min_decay": Range(1e-6, 1e3, "1/s"),
+           "max_offset": Range(1.0, DAMPER_RANGE[1], "N s/m"),
+           "force_std": Range(1e-6, MAX_FORCE_STD, "N"),
+           "seed": Range(0, 2**63 - 1)}
 
 
 @dataclass(frozen=True)
@@ -95,8 +101,9 @@ class PlanSettings:
     def __post_init__(self):
         ratios = tuple(float(r) for r in self.ratios)
         factors = tuple(float(f) for f in self.factors)
-        if not ratios or any(not (math.isfinite(r) and 0 < r <= 3) for r in ratios):
-            raise ValueError(f"ratios must be airspeeds U/U_cr in (0, 3], got {self.ratios}")
+        if not ratios or any(not (math.isfinite(r) and 0.05 <= r <= 3) for r in ratios):
+            raise ValueError(f"ratios must be airspeeds U/U_cr in [0.05, 3], got "
+                             f"{self.ratios}")
         if not factors or any(not (math.isfinite(f) and 0.3 <= f <= 2) for f in factors) \
                 or len(set(factors)) != len(factors):
             raise ValueError(f"factors must be distinct density ratios in [0.3, 2], got "
@@ -108,9 +115,8 @@ class PlanSettings:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
-        if not (math.isfinite(self.force_std) and 0 < self.force_std <= MAX_FORCE_STD):
-            raise ValueError(f"force_std must be in (0, {MAX_FORCE_STD:g}] N, got "
-                             f"{self.force_std}")
+        for name, rng in _RANGES.items():
+            check_number(getattr(self, name), name, rng)
         low, high = SAMPLE_RATE_RANGE
         if not low <= self.sample_rate <= high:
             raise ValueError(f"sample_rate must be in [{low:g}, {high:g}] Hz, got "
@@ -130,7 +136,7 @@ class PlanSettings:
         if abs(n - round(n)) > 1e-6 * n or round(n) < 2:
             raise ValueError(f"window * sample_rate must be a whole number >= 2 of samples, "
                              f"got {self.window} s * {self.sample_rate} Hz")
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int):
             raise ValueError(f"seed must be an integer >= 0, got {self.seed!r}")
         object.__setattr__(self, "ratios", ratios)
         object.__setattr__(self, "factors", factors)

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from aero_dva import input_ranges as ranges
 from aero_dva.atomic_io import atomic_output
 from aero_dva.flight.damper import damping_problem
 from aero_dva.flight.flight_limits import MAX_FLIGHT_SAMPLES
@@ -74,6 +75,9 @@ def plan_from_dict(data, where: str = "training plan") -> TrainingPlan:
                                    for v in data["conditions"][k]]).reshape(shape)
                       for k in ("optimal_damping", "stable_low", "stable_high")}
         dwells = data["dwells"]
+        if not all(isinstance(c, int) and not isinstance(c, bool)
+                   for c in dwells["condition"]):
+            raise ValueError("dwells.condition must be whole numbers (condition indexes)")
         plan = TrainingPlan(
             settings=settings, critical_airspeed=float(data["critical_airspeed"]),
             base_density=float(data["base_density"]), **conditions,
@@ -87,6 +91,14 @@ def plan_from_dict(data, where: str = "training plan") -> TrainingPlan:
     arrays = (plan.airspeed, plan.density, plan.damping, plan.condition)
     if n == 0 or any(a.shape != (n,) for a in arrays):
         raise ValueError(f"{where}: the dwell arrays must be non-empty and of one length")
+    try:
+        ranges.check_fields(data, ranges.PLAN)
+        ranges.check_numbers(plan.airspeed.tolist(), "dwells.airspeed", ranges.AIRSPEED)
+        ranges.check_numbers(plan.density.tolist(), "dwells.density", ranges.AIR_DENSITY)
+        ranges.check_numbers(plan.condition.tolist(), "dwells.condition",
+                             ranges.Range(0, int(np.prod(shape)) - 1))
+    except ValueError as exc:
+        raise ValueError(f"{where}: {exc}") from None
     if not (np.all(np.isfinite(plan.airspeed)) and np.all(plan.airspeed > 0)
             and np.all(np.isfinite(plan.density)) and np.all(plan.density > 0)
             and np.all(np.isfinite(plan.damping)) and np.all(plan.damping >= 0)):

@@ -24,9 +24,10 @@ from rclpy.qos import QoSDurabilityPolicy, QoSProfile, QoSReliabilityPolicy
 
 from aero_dva.bag.schemas import MessageDefinitionNotFound
 from aero_dva.bag.writer import BagWriter, qos_profile_yaml
+from aero_dva.text_input import loggable
 from dva_ros_common.conversions import message_class
 from dva_ros_common.node_params import NodeSpec, Param, declare_parameters
-from dva_ros_common.node_tools import run_node
+from dva_ros_common.node_tools import RCLError, run_node
 
 SPEC = NodeSpec(
     name="mcap_recorder",
@@ -77,8 +78,8 @@ class McapRecorder(Node):
         super().__init__(SPEC.name, **kwargs)
         values = declare_parameters(self, SPEC)
         stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
-        self._only = {self.resolve_topic_name(t) for t in self._strings("topics")}
-        self._exclude = {self.resolve_topic_name(t) for t in self._strings("exclude")}
+        self._only = {self._resolve(t, "topics") for t in self._strings("topics")}
+        self._exclude = {self._resolve(t, "exclude") for t in self._strings("exclude")}
         self.output = Path(values["output"] or f"bags/run_{stamp}")
         self._writer = BagWriter(self.output)
         self._recorded: dict[str, object] = {}
@@ -97,6 +98,16 @@ class McapRecorder(Node):
             self._writer.close()
             raise
         self.get_logger().info(f"recording to {self.output}")
+
+    def _resolve(self, topic: str, parameter: str) -> str:
+        """``topic`` resolved in the node's namespace; ValueError (one line) if it is not a
+        valid topic name."""
+        try:
+            return self.resolve_topic_name(topic)
+        except RCLError as exc:
+            reason = str(exc).split(": ", 1)[-1].split(", at ")[0]
+            raise ValueError(f"parameter '{parameter}': '{loggable(topic)}' is not a valid "
+                             f"topic name ({reason})") from None
 
     def _strings(self, name: str) -> list[str]:
         return [s for s in self.get_parameter(name).value if s]

@@ -268,8 +268,9 @@ def check_value(p: Param, value):
                     continue
                 raise ValueError(f"parameter '{p.name}' is NaN")
             if (p.low is not None and item < p.low) or (p.high is not None and item > p.high):
-                raise ValueError(f"parameter '{p.name}' must be in {p.range_text()}{unit}, "
-                                 f"got {item:g}{unit}")
+                nan = f" (NaN: {p.nan_means})" if p.nan_means else ""
+                raise ValueError(f"parameter '{p.name}' must be in {p.constraints()[0]}{unit}"
+                                 f"{nan}, got {item:g}{unit}")
         elif isinstance(item, int) and not isinstance(item, bool):
             if (p.low is not None and item < p.low) or (p.high is not None and item > p.high):
                 raise ValueError(f"parameter '{p.name}' must be in {p.range_text()}, got {item}")

@@ -34,6 +34,7 @@ from rclpy.node import Node
 from rclpy.task import Future
 
 from aero_dva.bag.channels import DIAGNOSTICS
+from aero_dva.text_input import loggable
 from dva_ros_common.conversions import ERROR, WARN, diagnostic_array, diagnostic_status
 from dva_ros_common.node_params import (
     NodeSpec,
@@ -42,6 +43,9 @@ from dva_ros_common.node_params import (
     declare_parameters,
 )
 from dva_ros_common.shared_memory import clear_dead_ports
+
+#: Most characters of a node's one-line start-up error.
+ERROR_CHARS = 600
 
 #: Keep-last depth of the writers of data a recorder must get whole (blocks, commands, spectra).
 #: A reader whose process is starved can overflow its transport buffers; a reliable writer then
@@ -260,7 +264,8 @@ def run_node(node_class: Callable[[], Node], spec: NodeSpec, args=None, *,
             executor = make_executor()  # first: a bad choice must not leave files behind
             node = node_class()
         except (ValueError, OSError, ParameterException) as exc:  # file errors included
-            print(f"{node_name}: error: {exc}", file=sys.stderr)
+            # one line, whatever the text it quotes holds (escape codes, newlines, megabytes)
+            print(f"{node_name}: error: {loggable(exc, ERROR_CHARS)}", file=sys.stderr)
             return 2
         executor.add_node(node)
         spin(executor, getattr(node, "done", None), stop_when=signalled)

@@ -34,7 +34,7 @@ def scenario(tmp_path, duration="30.0", rate="1000.0", block="50", force="1000.0
     ({"rate": "1.0e+9"}, "sample_rate must be in [100, 20000] Hz"),
     ({"rate": "1.0"}, "sample_rate must be in [100, 20000] Hz"),
     ({"duration": "1.0e-4"}, "shorter than one block"),
-    ({"force": "0.0"}, "force_std must be in (0, 1e+06] N"),
+    ({"force": "0.0"}, "force_std must be in [1e-06, 1e+06] N"),
     ({"block": "0"}, "block_size must be an integer in [1, 20000]"),
 ])
 def test_scenarios_past_the_limits_are_refused_in_one_line(tmp_path, change, message):

@@ -66,7 +66,7 @@ def test_sweep_holds_each_pair_for_a_dwell():
 @pytest.mark.parametrize(("kwargs", "message"), [
     ({"duration": -1.0}, "duration"),
     ({"duration": float("nan")}, "duration"),
-    ({"density": 1200.0}, "absurd for air"),
+    ({"density": 1200.0}, "kg/m.3 .air., got 1200"),
     ({"density_variation": 1.5}, "density_variation"),
     ({"airspeed": AirspeedProfile("ramp", (80.0,))}, "takes 2 value"),
     ({"airspeed": AirspeedProfile("constant", (3000.0,))}, "absurd"),

@@ -94,7 +94,7 @@ def test_plan_file_round_trip_and_errors(mini, tmp_path):
         plan_from_dict({"format": "other"})
     bad = json.loads(json.dumps(data))
     bad["dwells"]["density"][0] = -1.0
-    with pytest.raises(ValueError, match="density > 0"):
+    with pytest.raises(ValueError, match=r"dwells.density\[0\] must be in \[0.001, 2\]"):
         plan_from_dict(bad)
     (tmp_path / "p.json").write_text("{not json")
     with pytest.raises(ValueError, match="not valid JSON"):
