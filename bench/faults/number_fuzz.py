@@ -322,22 +322,24 @@ def file_trials(work: Path, kinds: list[str] | None = None) -> Iterator[Trial]:
 
 
 def _node_specs() -> dict:
+    """node name -> parameter table of every node: the simulator, recorder, player, spectrum
+    node and every controller of the controller table (block-rate laws in the generic
+    controller node, per-sample laws' supervisors)."""
     import importlib
 
-    names = {"simulator": "aero_dva_sim.simulator_node",
-             "mcap_recorder": "aero_dva_sim.mcap_recorder_node",
-             "bag_player": "aero_dva_sim.bag_player_node",
-             "spectrum": "dva_controller.spectrum_node",
-             "airspeed_controller": "dva_controller.airspeed_controller_node",
-             "rbf_controller": "dva_controller.rbf_controller_node",
-             "fixed_controller": "dva_controller.fixed_controller_node",
-             "switching_controller": "dva_controller.switching_controller_node"}
     specs = {}
-    for node, module in names.items():
-        try:
-            specs[node] = importlib.import_module(module).SPEC
-        except ImportError:
-            continue  # a node of another version of the tree
+    for node, module in {"simulator": "aero_dva_sim.simulator_node",
+                         "mcap_recorder": "aero_dva_sim.mcap_recorder_node",
+                         "bag_player": "aero_dva_sim.bag_player_node",
+                         "spectrum": "dva_controller.spectrum_node"}.items():
+        specs[node] = importlib.import_module(module).SPEC
+    from aero_dva.control import controllers as table
+    from dva_controller import controller_node, switching_controller_node
+
+    for entry in table.controllers((table.BLOCK,)):
+        specs[entry.node] = controller_node.node_spec(entry)
+    for entry in table.controllers((table.SAMPLE,)):
+        specs[entry.node] = switching_controller_node.node_spec(entry)
     return specs
 
 
