@@ -109,6 +109,8 @@ def test_sigint_mid_stream_keeps_a_valid_bag(executor, spin, ros_context, start_
         commands.publish(DamperCommand(damping=float(count), source="stream"))
         count += 1
         executor.spin_once(timeout_sec=0.002)
+        if count == 10:  # the recorder's reader has the first ones: it records mid-stream
+            assert commands.wait_for_all_acked(Duration(seconds=120)), recorder.output()
         if count == 100:
             recorder.proc.send_signal(2)  # SIGINT
     assert recorder.stop() == 0, recorder.output()
@@ -160,3 +162,38 @@ def test_messages_a_writer_dropped_before_the_recorder_had_them_are_reported(
     recorded = bag_topics(bag)["/dva/damper_command"].message_count
     assert 1 < recorded < 3002
     assert recorded + lost == 3002, closing  # every message is either in the bag or counted
+
+
+@pytest.mark.parametrize("claimed_extra", [0, 3])
+def test_a_stopped_recorder_takes_what_the_simulator_counted(
+        executor, spin, ros_context, start_process, tmp_path, claimed_extra):
+    """On SIGINT the recorder holds on until it has every message the simulator's flight report
+    counts, and says so on closing; a count it cannot reach is said as missing."""
+    from diagnostic_msgs.msg import DiagnosticArray
+
+    from aero_dva.bag import channels as ch
+    from dva_msgs.msg import FlightCondition
+    from dva_ros_common.conversions import diagnostics
+
+    bag = tmp_path / "bag"
+    node = Node("source", context=ros_context)
+    executor.add_node(node)
+    conditions = node.create_publisher(FlightCondition, "flight/condition", 1000)
+    reports = node.create_publisher(DiagnosticArray, "/diagnostics", 10)
+    recorder = _start_recorder(start_process, bag)
+    assert _wait_subscribed(executor, spin, conditions), recorder.output()
+    assert _wait_subscribed(executor, spin, reports), recorder.output()
+    sent = 40
+    for i in range(sent):
+        conditions.publish(FlightCondition(airspeed=80.0 + i, air_density=1.2))
+    reports.publish(diagnostics(1.0, ch.FLIGHT_DIAGNOSTIC_NAME, ch.SIMULATOR_HARDWARE_ID, [
+        ("ok", "flight completed", {"published:flight/condition": sent + claimed_extra})]))
+    assert reports.wait_for_all_acked(Duration(seconds=120))
+    assert recorder.stop() == 0, recorder.output()
+    closing = next(line for line in recorder.output().splitlines() if "closed" in line)
+    if claimed_extra:
+        assert f"; {claimed_extra} of the {sent + claimed_extra} the simulator published " \
+               "missing" in closing, closing
+    else:
+        assert f"; all {sent} the simulator published" in closing, closing
+    assert bag_topics(bag)["/flight/condition"].message_count == sent

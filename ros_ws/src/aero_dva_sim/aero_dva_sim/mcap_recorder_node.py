@@ -4,6 +4,9 @@ Topics are discovered while the node runs and recorded as serialized CDR, untouc
 ``ros2msg`` schemas (and dependencies) from the installed .msg files. On SIGINT/SIGTERM the
 recorder first takes what is still queued (it can lag its publishers under load), then closes
 the bag cleanly: everything received is in the MCAP file, and ``metadata.yaml`` is written.
+Once it has recorded the simulator's end-of-flight report, which counts what the simulator
+published on each topic, it takes queued messages until it holds every one of them (at most
+``DRAIN_LIMIT`` s), and says on closing whether it does.
 
 Its parameters (units, defaults, ranges) are the table ``SPEC`` below, which the node declares
 them from and ``mcap_recorder --help`` prints. Log times are the node's clock: sim time with
@@ -22,12 +25,15 @@ from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile, QoSReliabilityPolicy
 
+from aero_dva.bag import channels as ch
 from aero_dva.bag.schemas import MessageDefinitionNotFound
 from aero_dva.bag.writer import BagWriter, qos_profile_yaml
 from aero_dva.text_input import loggable
 from dva_ros_common.conversions import message_class
 from dva_ros_common.node_params import NodeSpec, Param, declare_parameters
 from dva_ros_common.node_tools import RCLError, run_node
+
+PUBLISHED = "published:"  # the simulator's count of a topic in its flight reports
 
 SPEC = NodeSpec(
     name="mcap_recorder",
@@ -87,6 +93,10 @@ class McapRecorder(Node):
         self.received = 0
         self.received_by_topic: Counter[str] = Counter()
         self.lost_by_topic: Counter[str] = Counter()  # samples DDS reports lost to us
+        # topic -> messages the simulator published, from its last flight report (None: none)
+        self.simulator_published: dict[str, int] | None = None
+        self._diagnostics = self.resolve_topic_name(ch.DIAGNOSTICS.name)
+        self._diagnostic_type = message_class(ch.DIAGNOSTICS.type_name)
         try:
             wall = Clock(clock_type=ClockType.STEADY_TIME)
             self.create_timer(float(values["discovery_period"]),
@@ -159,6 +169,29 @@ class McapRecorder(Node):
         self._writer.write(topic, data, self.get_clock().now().nanoseconds)
         self.received += 1
         self.received_by_topic[topic] += 1
+        if topic == self._diagnostics:
+            self._read_flight_report(data)
+
+    def _read_flight_report(self, data: bytes) -> None:
+        """Keep the simulator's counts of what it published, from its flight reports."""
+        from rclpy.serialization import deserialize_message
+
+        for status in deserialize_message(data, self._diagnostic_type).status:
+            if status.name != ch.FLIGHT_DIAGNOSTIC_NAME:
+                continue
+            counts = {self.resolve_topic_name(kv.key[len(PUBLISHED):]): int(kv.value)
+                      for kv in status.values if kv.key.startswith(PUBLISHED)}
+            if counts:
+                self.simulator_published = counts
+
+    def complete(self) -> bool | None:
+        """Whether every message the simulator says it published is in the bag or known lost
+        (its reader's lost-sample events; it cannot come any more), None before a report of
+        its counts has come."""
+        if self.simulator_published is None:
+            return None
+        return all(self.received_by_topic[t] + self.lost_by_topic[t] >= n
+                   for t, n in self.simulator_published.items())
 
     def _lost(self, topic: str, info) -> None:
         # A sample this reader's transport dropped (its process starved) after the writer had
@@ -185,13 +218,24 @@ class McapRecorder(Node):
             # After a signal the context is shut down and /rosout is gone: say it on stderr.
             lost = sum(self.lost_by_topic.values())
             said = f" ({lost} lost before reaching it: {dict(self.lost_by_topic)})" if lost else ""
-            print(f"[mcap_recorder] closed {self.output} with {self.received} messages{said}",
-                  file=sys.stderr)
+            print(f"[mcap_recorder] closed {self.output} with {self.received} messages{said}"
+                  f"{self._completeness()}", file=sys.stderr)
+
+    def _completeness(self) -> str:
+        if self.simulator_published is None:
+            return ""
+        wanted = sum(self.simulator_published.values())
+        missing = sum(max(0, n - self.received_by_topic[t])
+                      for t, n in self.simulator_published.items())
+        return (f"; all {wanted} the simulator published" if not missing else
+                f"; {missing} of the {wanted} the simulator published missing")
 
 
 def main(args=None) -> int:
-    # On SIGINT/SIGTERM, record what is still queued before closing the bag.
-    return run_node(McapRecorder, SPEC, args, drain=lambda node: node.received)
+    # On SIGINT/SIGTERM, record what is still queued before closing the bag: every message the
+    # simulator counted, once its report is in.
+    return run_node(McapRecorder, SPEC, args, drain=lambda node: node.received,
+                    complete=lambda node: node.complete())
 
 
 if __name__ == "__main__":

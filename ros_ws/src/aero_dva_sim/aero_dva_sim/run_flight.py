@@ -3,8 +3,10 @@
 Starts the nodes as separate processes, exactly as ``ros2 run`` would (recorder, the chosen
 controller's nodes as its entry of the controller table says, :mod:`aero_dva.control.controllers`:
 its node, and the spectrum node for a law of spectra; the simulator last), waits for the
-simulator to end the flight, stops the others with SIGINT so the recorder closes its bag, then
-reads the bag back and prints a summary. Every node uses sim time from the simulator's /clock.
+simulator to end the flight, stops the others with SIGINT (the controller's nodes first, each
+answering what it still has queued, then the recorder, which takes queued messages until it
+holds all the simulator counted and closes its bag), then reads the bag back and prints a
+summary. Every node uses sim time from the simulator's /clock.
 
 Unless ``--domain-id`` is given, the graph runs on a ROS_DOMAIN_ID reserved for this run, so
 several runs (or tests) on one machine do not hear each other.
@@ -16,6 +18,7 @@ import contextlib
 import json
 import math
 import os
+import select
 import signal
 import subprocess
 import sys
@@ -26,6 +29,8 @@ from aero_dva.bag import channels as ch
 from aero_dva.control import controllers as table
 from aero_dva.control.controllers import BLOCK, NONE, SAMPLE, SPECTRUM, TICK
 from aero_dva.flight.damper import DEFAULT_STALE_TIMEOUT
+
+RECORDER = "mcap_recorder"
 
 
 def entry_of(name: str) -> table.Controller | None:
@@ -67,7 +72,7 @@ def build_commands(args, bag: Path) -> dict[str, list[str]]:
     """The processes of the graph, in start order (the simulator last)."""
     sim_time = {"use_sim_time": True}
     commands = {
-        "mcap_recorder": [executable("aero_dva_sim", "mcap_recorder"), "--ros-args",
+        RECORDER: [executable("aero_dva_sim", "mcap_recorder"), "--ros-args",
                           *ros_params(output=bag, **sim_time)],
     }
     # Commands are held until the simulator and the recorder have both matched them.
@@ -176,14 +181,53 @@ def die_with_parent() -> None:
 
 def stop_process(process: subprocess.Popen, timeout: float) -> int:
     """SIGINT, then SIGKILL after ``timeout`` [s]; the exit code."""
-    if process.poll() is None:
-        process.send_signal(signal.SIGINT)
+    return stop_processes([process], timeout)[0]
+
+
+def stop_processes(group: list[subprocess.Popen], timeout: float) -> list[int]:
+    """SIGINT to every process of ``group`` at once, SIGKILL to those still running after
+    ``timeout`` [s]; their exit codes."""
+    for process in group:
+        if process.poll() is None:
+            process.send_signal(signal.SIGINT)
+    deadline = time.monotonic() + timeout
+    for process in group:
         try:
-            process.wait(timeout=timeout)
+            process.wait(timeout=max(0.0, deadline - time.monotonic()))
         except subprocess.TimeoutExpired:
             process.kill()
             process.wait()
-    return process.returncode
+    return [process.returncode for process in group]
+
+
+def stop_graph(processes: dict[str, subprocess.Popen], timeout: float = 15.0) -> dict[str, int]:
+    """Stop the nodes, the exit code of each: the simulator (if it still runs), then the
+    controller's nodes together, each answering the inputs it still has queued, then the
+    recorder, which takes what is queued until it holds every message the simulator counted
+    (it says so on closing). No fixed margin: each stop waits for the one before it."""
+    order = [["simulator"], [n for n in processes if n not in ("simulator", RECORDER)],
+             [RECORDER]]
+    codes = {}
+    for names in order:
+        names = [n for n in names if n in processes]
+        codes.update(zip(names, stop_processes([processes[n] for n in names], timeout)))
+    return {name: codes[name] for name in processes}
+
+
+def wait_for_exit(processes: list[subprocess.Popen], timeout: float) -> None:
+    """Return when one of ``processes`` has exited, or after ``timeout`` [s]."""
+    if any(p.poll() is not None for p in processes):
+        return
+    try:
+        fds = [os.pidfd_open(p.pid) for p in processes]
+    except (AttributeError, OSError):  # no pidfd (not Linux 5.3+): look again shortly
+        time.sleep(min(timeout, 0.01))
+        return
+    try:
+        select.select(fds, [], [], timeout)
+    finally:
+        for fd in fds:
+            os.close(fd)
 
 
 def _wait_for_flight(processes: dict[str, subprocess.Popen], timeout: float,
@@ -203,7 +247,7 @@ def _wait_for_flight(processes: dict[str, subprocess.Popen], timeout: float,
         if time.monotonic() > deadline:
             raise SystemExit(f"run_flight: error: the flight took longer than {timeout} s; "
                              f"node logs in {logs}")
-        time.sleep(0.05)
+        wait_for_exit(list(processes.values()), min(1.0, max(0.0, deadline - time.monotonic())))
 
 
 def run(args) -> dict:
@@ -229,13 +273,8 @@ def run(args) -> dict:
                                                    stderr=subprocess.STDOUT,
                                                    preexec_fn=die_with_parent)
         _wait_for_flight(processes, args.timeout, logs)
-        # A margin for messages still on their way to the recorder, which is stopped last and
-        # then takes what is queued. Waiting for the readers' acks instead would be a condition,
-        # but Fast DDS acks the last message only at the writer's next heartbeat: 3 s per flight
-        # (docs/reliability.md).
-        time.sleep(0.5)
     finally:
-        codes = {name: stop_process(p, timeout=15.0) for name, p in reversed(processes.items())}
+        codes = stop_graph(processes)
     wall = time.monotonic() - started
     if codes.get("simulator") not in (0, None):
         raise SystemExit(f"run_flight: error: simulator failed ({codes['simulator']}): "

@@ -128,6 +128,11 @@ class ControllerNode(Node):
         if describe is not None:
             self.get_logger().info(describe())
 
+    def taken(self) -> int:
+        """Inputs read from topics so far."""
+        return sum(self.counts[TOPIC_INPUTS[k].counted] for k in self.entry.inputs
+                   if k in TOPIC_INPUTS)
+
     def _on_message(self, kind: str, msg) -> None:
         source = TOPIC_INPUTS[kind]
         self.counts[source.counted] += 1
@@ -224,7 +229,9 @@ def main(args=None) -> int:
                   f"node (it runs {entry.runs}-wise)", file=sys.stderr)
             return 2
         del argv[1]
-    return run_node(partial(ControllerNode, entry.name), node_spec(entry), argv)
+    # On SIGINT/SIGTERM, answer the inputs still queued (the last block's) before stopping.
+    return run_node(partial(ControllerNode, entry.name), node_spec(entry), argv,
+                    drain=lambda node: node.taken(), own_process=args is None)
 
 
 if __name__ == "__main__":

@@ -149,7 +149,9 @@ class SpectrumNode(Node):
 
 
 def main(args=None) -> int:
-    return run_node(SpectrumNode, SPEC, args)
+    # On SIGINT/SIGTERM, analyse the blocks still queued before stopping.
+    return run_node(SpectrumNode, SPEC, args,
+                    drain=lambda node: node.counts["blocks"] + node.counts["damper_states"])
 
 
 if __name__ == "__main__":

@@ -139,7 +139,7 @@ class InputHealth:
 RCLError = _rclpy.RCLError
 ENV_VAR = "DVA_EXECUTOR"
 EXECUTORS = ("events", "single_threaded")
-SLICE = 0.1  # [s] wall time between checks for shutdown
+SLICE = 0.02  # [s] wall time between checks for shutdown (a signal waits for the slice's end)
 
 
 def make_executor() -> Executor:
@@ -166,22 +166,29 @@ def spin(executor: Executor, until: Future | None = None,
 
 
 DRAIN_IDLE = 0.05  # [s] wall time without a message that ends a drain
-DRAIN_LIMIT = 2.0  # [s] wall time a drain takes at most
+DRAIN_SETTLE = 0.01  # [s] the same once the node holds what it waits for (stragglers only)
+DRAIN_LIMIT = 5.0  # [s] wall time a drain takes at most
 
 
-def _drain(executor: Executor, taken: Callable[[], int]) -> tuple[int, float]:
+def _drain(executor: Executor, taken: Callable[[], int],
+           complete: Callable[[], bool | None] | None = None) -> tuple[int, float]:
     """Take the messages that arrived before a stop request and wait in the executor's queue:
-    spin until ``taken()`` has not grown for DRAIN_IDLE s, at most DRAIN_LIMIT s. Returns
-    the messages taken and the wall time it took [s]."""
+    spin until ``taken()`` has not grown for DRAIN_IDLE s, at most DRAIN_LIMIT s. With
+    ``complete`` (whether the node holds every message it knows were sent; None: it does not
+    know), spin while it is False, and once it is True only until DRAIN_SETTLE s pass without
+    a message. Returns the messages taken and the wall time it took [s]."""
     start = time.monotonic()
     first = last = taken()
     quiet_since = start
     while time.monotonic() < start + DRAIN_LIMIT:
-        executor.spin_once(timeout_sec=0.01)
+        executor.spin_once(timeout_sec=0.002)
         now = taken()
         if now != last:
             last, quiet_since = now, time.monotonic()
-        elif time.monotonic() - quiet_since >= DRAIN_IDLE:
+            continue
+        done = None if complete is None else complete()
+        quiet = time.monotonic() - quiet_since
+        if (done is None and quiet >= DRAIN_IDLE) or (done and quiet >= DRAIN_SETTLE):
             break
     return last - first, time.monotonic() - start
 
@@ -230,7 +237,9 @@ def close_executor(executor: Executor, *nodes: Node) -> None:
 
 
 def run_node(node_class: Callable[[], Node], spec: NodeSpec, args=None, *,
-             drain: Callable[[Node], int] | None = None) -> int:
+             drain: Callable[[Node], int] | None = None,
+             complete: Callable[[Node], bool | None] | None = None,
+             own_process: bool | None = None) -> int:
     """Body of a node's ``main``: the exit code.
 
     ``-h``/``--help`` prints the node's parameter table (``spec``) and returns 0 without
@@ -242,12 +251,15 @@ def run_node(node_class: Callable[[], Node], spec: NodeSpec, args=None, *,
     short (the recorder closes its bag there). A node's ``exit_code`` attribute, if it has one,
     is the exit code after a normal end (the simulator's 1 for a failed flight). Errors while
     spinning are left to raise, so they keep their traceback. ``args`` is the whole command
-    line (default ``sys.argv``).
+    line (default ``sys.argv``). ``own_process`` (default: ``args`` is None, the process's
+    own command line): the process ends here once its node has run (:func:`end_process`).
 
     ``drain(node)``, a count of messages the node has taken: after a signal the node takes
     what is still queued (until the count stops growing, :func:`_drain`) before ``close()``.
     A busy recorder can be a second behind its publishers; without this, a signal would drop
-    that second (bench/bench_faults.py).
+    that second (bench/bench_faults.py). ``complete(node)``: whether it holds every message it
+    knows were sent (None: it does not know); the drain waits for that instead of a quiet
+    spell.
     """
     from rclpy.signals import SignalHandlerOptions
 
@@ -270,7 +282,8 @@ def run_node(node_class: Callable[[], Node], spec: NodeSpec, args=None, *,
         executor.add_node(node)
         spin(executor, getattr(node, "done", None), stop_when=signalled)
         if drain is not None and signalled():
-            taken, took = _drain(executor, lambda: drain(node))
+            taken, took = _drain(executor, lambda: drain(node),
+                                 None if complete is None else lambda: complete(node))
             # (in the log: a stop that lost messages can be told from one that had none queued)
             print(f"[{node_name}] stop requested (signal {signalled.received}): took {taken} "
                   f"queued messages in {took:.3f} s", file=sys.stderr)
@@ -288,6 +301,23 @@ def run_node(node_class: Callable[[], Node], spec: NodeSpec, args=None, *,
             signal.signal(signal.SIGTERM, signal.SIG_IGN)
             if hasattr(node, "close"):
                 node.close()
-            node.destroy_node()
+            close_executor(executor, node)
         rclpy.try_shutdown()
-    return int(getattr(node, "exit_code", 0) or 0)  # a node may end in a failure it reports
+    code = int(getattr(node, "exit_code", 0) or 0)  # a node may end in a failure it reports
+    if (args is None if own_process is None else own_process) and node is not None:
+        end_process(code)
+    return code
+
+
+def end_process(code: int) -> None:
+    """End the process of a node that has stopped and closed (its files written): flush what
+    it printed, release its DDS participant, and exit without the interpreter's and the DDS
+    library's teardown, which add nothing to a stopped node: Fast DDS's participant factory
+    sleeps 100 ms in its destructor, and with Python's own teardown each node took 0.1-0.3 s
+    to exit, which ``run_flight`` waits for at every stop (docs/performance.md)."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    from rclpy.utilities import get_default_context
+
+    get_default_context().destroy()  # deletes the participant: peers see it leave at once
+    os._exit(code)
