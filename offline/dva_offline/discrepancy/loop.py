@@ -19,6 +19,10 @@ Scores and decision (all thresholds in :class:`DecisionRule`):
 * ``explained`` when the best candidate (lowest dBIC) has p_c < significance,
   dBIC_c <= -min_bic_gain and R_c >= min_explained, and no other candidate with
   R >= min_explained comes within ambiguity_margin of its dBIC. Otherwise ``unexplained``.
+* Covariate effects are also offered in the form built from the laws their per-condition
+  fits follow (a domain's ``law_candidates``, :mod:`.laws`); a significant candidate whose
+  parameters mean nothing physically is listed as implausible and never added
+  (:mod:`.plausibility`).
 """
 from __future__ import annotations
 
@@ -523,7 +527,7 @@ def _plausible(domain, obs, split, scores, specs, rule):
         spec = specs.get((c.effect, c.label))
         if (c.applicable and spec is not None and c.p_value < rule.significance
                 and c.delta_bic <= -rule.min_bic_gain):
-            why, fit = plausibility.check(domain, spec, c.fit, obs, split.train,
+            why, fit = plausibility.check(domain, spec, c.fit, obs, split,
                                           rule.significance)
             if why:
                 c = replace(c, applicable=False, reason=f"implausible: {why}", fit=fit,

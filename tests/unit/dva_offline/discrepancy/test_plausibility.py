@@ -80,7 +80,7 @@ def test_a_delay_across_a_wide_band_is_plausible():
     assert res.augmented.value("tau") == pytest.approx(0.002, abs=1e-4)
     # the check itself, on the named fit: a constant phase does not do as well
     spec = dom.candidates(res.baseline, res.residual)[0]
-    why, fit = plausibility.delay_check(spec, res.augmented, dom.observations, res.split.train)
+    why, fit = plausibility.delay_check(spec, res.augmented, dom.observations, res.split)
     assert why == "" and fit is res.augmented
 
 
