@@ -150,9 +150,15 @@ def resolved_scenario(config: RuntimeConfig, critical_airspeed: float | None = N
 
 
 class FlightRuntime:
-    """Step a flight block by block (see module docstring)."""
+    """Step a flight block by block (see module docstring).
 
-    def __init__(self, config: RuntimeConfig, critical_airspeed: float | None = None):
+    ``compiled``: the nominal wing's blocks are stepped by the compiled loop
+    (:class:`~aero_dva.flight.streaming_simulator.StreamingSimulator`, ``compiled``; the
+    simulator node's default), loaded by :meth:`prepare`; else in NumPy.
+    """
+
+    def __init__(self, config: RuntimeConfig, critical_airspeed: float | None = None,
+                 compiled: bool = False):
         problem = sweep_problem(config.scenario, config.damper)
         if problem is not None:
             raise ValueError(problem)
@@ -172,7 +178,7 @@ class FlightRuntime:
         else:
             self._sim = StreamingSimulator(config.wing, config.absorber,
                                            sample_rate=self.sample_rate, aero=config.aero,
-                                           quantum=FLIGHT_QUANTUM)
+                                           quantum=FLIGHT_QUANTUM, compiled=compiled)
         self._check_sampling()
         self._damper = DamperModel(config.damper, start_time=0.0)
         self._rng = np.random.default_rng(self.scenario.seed)
@@ -335,6 +341,12 @@ class FlightRuntime:
         the flight's own starts afresh."""
         from aero_dva.flight.per_sample.stream import SwitchedStream
 
+        if isinstance(self._sim, StreamingSimulator) and self._sim.compiled:
+            t = sample_times(self.scenario, 0, 1)
+            self._sim.prepare(float(airspeed_at(self.scenario, t)[0]),
+                              float(density_at(self.scenario, t)[0]),
+                              self._damper.snapshot().applied_damping
+                              if self.config.absorber is not None else None)
         for source in self.config.per_sample:
             if self._sweep or self.law_problem(source) is not None:
                 continue

@@ -22,8 +22,11 @@ airspeed, density and damping are sampled on a global grid of ``hold`` samples s
 reset and held (with hysteresis ``quantum``), so the result does not depend on how a run is cut
 into ``advance`` calls. Short calls (up to :data:`STREAM_MAX_PERIODS` hold periods, such as the
 simulator node's blocks) step the flight one hold period at a time with the discrete wing's
-cached per-condition maps; longer calls take the batch simulator's
-:class:`~aero_dva.flight.batch_simulator.BatchStepper`. Both give the same run up to rounding.
+cached per-condition maps, or, with ``compiled=True``, sample by sample in the compiled loop of
+:mod:`~aero_dva.flight.held_kernel` with its compiled exponential (about ten times faster per
+block; :meth:`StreamingSimulator.prepare` loads it ahead); longer calls take the batch
+simulator's :class:`~aero_dva.flight.batch_simulator.BatchStepper`. All give the same run up to
+rounding.
 """
 
 from __future__ import annotations
@@ -38,6 +41,7 @@ from aero_dva.flight.discrete_model import (
     OUTPUT_NAMES,
     DiscreteWing,
 )
+from aero_dva.flight.discretize import zoh
 from aero_dva.flight.samples import FlightSamples
 from aero_dva.wing.checks import positive, real_array
 from aero_dva.wing.model import AeroelasticModel
@@ -45,6 +49,10 @@ from aero_dva.wing.model import AeroelasticModel
 __all__ = ["STREAM_MAX_PERIODS", "StreamingSimulator"]
 
 LEADING_EDGE = OUTPUT_NAMES.index("leading_edge")
+#: The most states the compiled route's stacked maps take
+#: (:data:`aero_dva.flight.held_kernel.STACK_STATES`; not imported from there, which imports
+#: numba).
+STACK_STATES = 7
 
 STREAM_MAX_PERIODS = 128
 """:meth:`StreamingSimulator.advance` calls spanning at most this many hold periods step the
@@ -90,10 +98,16 @@ class StreamingSimulator:
     """
 
     def __init__(self, wing, absorber=None, sample_rate: float = 1000.0, aero=None, x0=None,
-                 hold: int = DEFAULT_HOLD, quantum: float = 0.0, divergence_limit=None):
+                 hold: int = DEFAULT_HOLD, quantum: float = 0.0, divergence_limit=None,
+                 compiled: bool = False):
         self.model = AeroelasticModel(wing, absorber, aero)
         self.discrete = DiscreteWing(self.model, sample_rate, hold=hold, quantum=quantum)
         self._batch = BatchStepper(self.discrete)
+        # the compiled route takes the models its stacked maps fit (every wing without the
+        # finite-state Wagner lag, force input only); the others step in NumPy
+        self.compiled = bool(compiled) and self.model.n_states <= STACK_STATES \
+            and self.discrete.n_inputs == 1
+        self._maps = _StackedMaps(self.discrete) if self.compiled else None
         if divergence_limit is None:
             divergence_limit = 0.5 * wing.chord
         self.divergence_limit = positive(divergence_limit, "divergence_limit")
@@ -179,7 +193,8 @@ class StreamingSimulator:
                                 for v in (u, rho, c)))
             self._checked = True
         if -(-n // dw.hold) <= STREAM_MAX_PERIODS:
-            out, y, self._held = self._stream(self._y[0], f, u, rho, c)
+            stream = self._stream_compiled if self.compiled else self._stream
+            out, y, self._held = stream(self._y[0], f, u, rho, c)
             self._y = y[None, :]
         else:
             out = np.empty((1, n, N_OUTPUTS))
@@ -205,6 +220,23 @@ class StreamingSimulator:
                              damping=np.broadcast_to(c, shape), force=f, displacements=disp,
                              accelerations=acc, diverged=self._diverged)
 
+    def _segments(self, total: int, airspeed, density, damping):
+        """The runs of samples ``index .. index + total - 1`` under one held condition:
+        ([(first, end, (U, rho, damping)), ...], the condition in force at the end)."""
+        dw = self.discrete
+        h = dw.hold
+        first = min((h - self._index % h) % h, total)  # samples left in the current period
+        count = len(range(first, total, h))
+        values = [v[first::h].tolist() if isinstance(v, np.ndarray) else [v] * count
+                  for v in (airspeed, density, damping)]
+        held = self._held
+        segments = [(0, first, held)] if first else []
+        for p, key in enumerate(dw.held_sequence(zip(*values), held)):
+            a = first + p * h
+            segments.append((a, min(a + h, total), key))
+            held = key
+        return segments, held
+
     def _stream(self, y, force, airspeed, density, damping):
         """Step samples ``index .. index + len(force) - 1`` hold period by hold period.
 
@@ -216,16 +248,7 @@ class StreamingSimulator:
         """
         dw = self.discrete
         total, h, ns = force.size, dw.hold, dw.n_states
-        first = min((h - self._index % h) % h, total)  # samples left in the current period
-        count = len(range(first, total, h))
-        values = [v[first::h].tolist() if isinstance(v, np.ndarray) else [v] * count
-                  for v in (airspeed, density, damping)]
-        held = self._held
-        segments = [(0, first, held)] if first else []
-        for p, key in enumerate(dw.held_sequence(zip(*values), held)):
-            a = first + p * h
-            segments.append((a, min(a + h, total), key))
-            held = key
+        segments, held = self._segments(total, airspeed, density, damping)
         maps = dw.conditions([key for _, _, key in segments])
         out = np.empty((N_OUTPUTS, total))
         for (a, b, _), cond in zip(segments, maps):
@@ -243,3 +266,74 @@ class StreamingSimulator:
                 y = r[:ns]
                 out[:, j] = r[ns:]
         return out, np.array(y), held
+
+    def _stream_compiled(self, y, force, airspeed, density, damping):
+        """:meth:`_stream` by the compiled sample loop of the held flights
+        (:func:`~aero_dva.flight.held_kernel.step_stacked`, one flight, each sample under its
+        period's condition; the new conditions discretised by its compiled exponential)."""
+        from aero_dva.flight.held_kernel import step_stacked  # numba: loaded by prepare()
+
+        total = force.size
+        segments, held = self._segments(total, airspeed, density, damping)
+        keys = np.repeat(self._maps.rows([key for _, _, key in segments]),
+                         [b - a for a, b, _ in segments])
+        start = np.zeros((1, self._maps.stack.shape[1] - 1))
+        start[0, :y.size] = y
+        out = np.empty((1, total, N_OUTPUTS))
+        end = step_stacked(self._maps.stack, keys, 1, start, force[None, :], out)
+        return out[0].T, end[0, :y.size], held
+
+    def prepare(self, airspeed: float, density: float, damping: float | None = None) -> None:
+        """With ``compiled``: load the compiled loop and exponential now (numba's import and
+        its cached code, about a second of CPU) rather than at the first block. The
+        condition (``airspeed``, ``density``, ``damping``: the flight's first) is discretised
+        into the cache and one sample is stepped from rest; the flight's state is untouched."""
+        if not self.compiled:
+            return
+        from aero_dva.flight.held_kernel import step_stacked
+
+        if damping is None:
+            damping = self.discrete.default_damping()
+        rows = self._maps.rows([(float(airspeed), float(density), float(damping))])
+        step_stacked(self._maps.stack, np.array(rows), 1, np.zeros((1, STACK_STATES)),
+                     np.zeros((1, 1)), np.empty((1, 1, N_OUTPUTS)))
+
+
+class _StackedMaps:
+    """The compiled loop's stacked one-sample maps of a streamed flight's held conditions,
+    kept by exact key (:func:`~aero_dva.flight.held_kernel.stack_maps`), each discretised by
+    the compiled exponential when first flown."""
+
+    def __init__(self, discrete: DiscreteWing, max_conditions: int = 2048):
+        from aero_dva.flight.held_kernel import STACK_ROWS
+
+        self.discrete = discrete
+        self.max_conditions = max_conditions
+        self._rows: dict[tuple, int] = {}
+        self.stack = np.zeros((64, STACK_STATES + 1, STACK_ROWS))
+
+    def rows(self, keys: list[tuple]) -> list[int]:
+        """The stack's row of each held condition (U, rho, damping) of ``keys``."""
+        rows = self._rows
+        missing = [k for k in dict.fromkeys(keys) if k not in rows]
+        if missing:
+            if len(rows) + len(missing) > self.max_conditions:
+                rows.clear()  # start afresh, as the discrete wing's own cache does
+                missing = list(dict.fromkeys(keys))
+            self._add(missing)
+        return [rows[k] for k in keys]
+
+    def _add(self, keys: list[tuple]) -> None:
+        from aero_dva.flight.held_kernel import compiled_expm, stack_maps
+
+        dw, first = self.discrete, len(self._rows)
+        a, b = dw.continuous(np.array(keys, dtype=float))
+        ad, bd = zoh(a, b, dw.dt, compiled_expm)
+        cacc, dacc = dw.model.acceleration_output(a, b)
+        if first + len(keys) > len(self.stack):
+            grown = np.zeros((2 * (first + len(keys)),) + self.stack.shape[1:])
+            grown[:first] = self.stack[:first]
+            self.stack = grown
+        self.stack[first:first + len(keys)] = stack_maps(ad, bd, cacc, dacc,
+                                                         dw.model.c_displacement)
+        self._rows.update((key, first + i) for i, key in enumerate(keys))

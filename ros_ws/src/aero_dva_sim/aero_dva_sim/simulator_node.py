@@ -1,16 +1,19 @@
 """``simulator``: flies a scenario with the wing and the tunable Maxwell DVA, and is the clock.
 
 Each step simulates one block of samples (exact ZOH, :class:`~aero_dva.flight.streaming_simulator.
-StreamingSimulator`), publishes it, and advances ``/clock``; the rest of the graph runs on that sim
-time (``use_sim_time:=true``). The damper applies the latest accepted ``dva/damper_command``
-through :class:`~aero_dva.flight.damper.DamperModel` (range, lag, stale fallback, rejection of
-absurd commands). A command from the source of a per-sample law of the controller table
-(``"switching"``, ``"clipped_optimal"``) arms that law in the damper path (gains from its file,
-``switching_gains``, ``clipped_optimal_gains``, checked on load): every sample of the block
-then runs the law (:mod:`aero_dva.flight.per_sample.stream`), its observer reading the
-measurements with ``damper_sensor_noise``; dva/damper_state reports the mode and switching
-rate, and /diagnostics each change of mode with its reason. A
-stepped-sweep scenario applies its own c2 values and ignores commands.
+StreamingSimulator`; with ``stepping:=compiled`` by its compiled loop, loaded before the flight
+starts), publishes it, and advances ``/clock``; the rest of the graph runs on that sim time
+(``use_sim_time:=true``). Its end-of-flight report says where the flight's wall time went:
+``stepping_wall_s`` (the arithmetic), ``publishing_wall_s`` (building and sending the blocks) and
+``held_wall_s`` (held for the controller's command). The damper applies the latest accepted
+``dva/damper_command`` through :class:`~aero_dva.flight.damper.DamperModel` (range, lag, stale
+fallback, rejection of absurd commands). A command from the source of a per-sample law of the
+controller table (``"switching"``, ``"clipped_optimal"``) arms that law in the damper path (gains
+from its file, ``switching_gains``, ``clipped_optimal_gains``, checked on load): every sample of
+the block then runs the law (:mod:`aero_dva.flight.per_sample.stream`), its observer reading the
+measurements with ``damper_sensor_noise``; dva/damper_state reports the mode and switching rate,
+and /diagnostics each change of mode with its reason. A stepped-sweep scenario applies its own c2
+values and ignores commands.
 
 Its parameters (units, defaults, ranges) are the table ``SPEC`` below, which the node declares
 them from and ``simulator --help`` prints.
@@ -57,7 +60,7 @@ CATCH_UP_SLICE = 0.02
 # [s] wall time between two reports of rejected commands of one kind: a controller gone wrong
 # can send thousands a second, and one report (with the count) per second says as much.
 REJECTION_REPORT_PERIOD = 1.0
-#: The per-block topics in publish order (after /clock), as the bag records them.
+#: The per-block topics besides /clock (published in the order of :meth:`Simulator._publish`).
 DATA_CHANNELS = tuple(c for c in ch.SIMULATOR_BLOCK if c != ch.CLOCK)
 DATA_TOPICS = tuple(c.name for c in DATA_CHANNELS)
 _NAN = float("nan")
@@ -113,6 +116,10 @@ SPEC = NodeSpec(
         Param("damper_sensor_noise", 0.0, "noise on the measurements of a per-sample law's "
               "observer, std as a fraction of each one's stationary RMS at U_cr (0: exact; "
               "run_flight gives the law's design value)", "", 0.0, 10.0),
+        Param("stepping", "numpy", "how the blocks are stepped: numpy, or compiled (numba's "
+              "loop and exponential: about 0.1 ms less per block, the same flight to rounding, "
+              "but about 0.7 s of CPU to load before the flight starts; a wing with the Wagner "
+              "lag steps in NumPy)", choices=("numpy", "compiled")),
         Param("real_time_factor", 20.0, "sim seconds per wall second (0: as fast as possible)",
               "", 0.0, 1.0e6),
         Param("wait_for_subscribers", 0, "start the flight when every data topic has this many "
@@ -158,7 +165,7 @@ class Simulator(Node):
             config = with_per_sample(
                 config, entry.source, params[option.simulator], params["wing"],
                 lambda path, entry=entry: entry.make_law({"gains_file": str(path)}))
-        self.runtime = FlightRuntime(config)
+        self.runtime = FlightRuntime(config, compiled=params["stepping"] == "compiled")
         self.finished = Future()
         self._rtf = float(self.get_parameter("real_time_factor").value)
         self._wait_for = int(self.get_parameter("wait_for_subscribers").value)
@@ -203,6 +210,10 @@ class Simulator(Node):
         self._last_status = None
         self._last_mode = DamperMode.CONSTANT
         self._law_label = "per-sample law"  # the last law the commands asked for
+        # [s] wall time of the flight in the simulator's arithmetic, in building and sending
+        # its messages, and held for the controller (in lockstep: the command's round trip)
+        self.timing = {"stepping": 0.0, "publishing": 0.0, "held": 0.0}
+        self._held_since: float | None = None
         self.switching_blocks = 0  # blocks flown with a per-sample law
         self._switching_rates: list[float] = []
         # The step timer runs only while the flight does. Before the start and while the flight
@@ -339,13 +350,22 @@ class Simulator(Node):
             if self._waiting_for_controller():
                 if self.finished.done():
                     return
+                if self._held_since is None:
+                    self._held_since = time.perf_counter()
                 self._set_stepping(False)
                 return
             if self._sim_time_due() < self.runtime.time - 0.5 * self.runtime.block_duration:
                 self._set_stepping(True)  # a paced flight ahead of schedule waits for a tick
                 return
+            stepped = time.perf_counter()
+            if self._held_since is not None:
+                self.timing["held"] += stepped - self._held_since
+                self._held_since = None
             block = self.runtime.step()
+            published = time.perf_counter()
             self._publish(block)
+            self.timing["stepping"] += published - stepped
+            self.timing["publishing"] += time.perf_counter() - published
             self._check_damper_status()
             if block.diverged:
                 self._diagnose("error", stop_message(float(block.airspeed[-1]),
@@ -415,21 +435,23 @@ class Simulator(Node):
             (self._timer if stepping else self._poll).reset()
 
     def _publish(self, block) -> None:
+        # What the controllers read goes first (the flight condition, the damper state, then
+        # the accelerations of the spectra), each message built just before it is sent: in
+        # lockstep the flight waits for the controller's answer, which it now computes while
+        # the rest of the block is built and sent.
         fs, i0, t0 = self.runtime.sample_rate, block.first_index, block.t0
         self._clock_pub.publish(conversions.clock(block.t_end))
-        outgoing = {
-            ch.ACCELERATION.name: conversions.acceleration_block(t0, fs, i0,
-                                                                 block.accelerations),
-            ch.DISPLACEMENT.name: conversions.displacement_block(t0, fs, i0,
-                                                                 block.displacements),
-            ch.EXCITATION.name: conversions.force_block(t0, fs, i0, block.force),
-            ch.FLIGHT_CONDITION.name: conversions.flight_condition(
-                t0, block.airspeed[0], block.density[0]),
-            ch.DAMPER_STATE.name: conversions.damper_state(self.runtime.flown_damper),
-        }
-        for topic, msg in outgoing.items():
-            self._pub[topic].publish(msg)
-            self.published[topic] += 1
+        for channel, make in (
+                (ch.FLIGHT_CONDITION, lambda: conversions.flight_condition(
+                    t0, block.airspeed[0], block.density[0])),
+                (ch.DAMPER_STATE, lambda: conversions.damper_state(self.runtime.flown_damper)),
+                (ch.ACCELERATION, lambda: conversions.acceleration_block(
+                    t0, fs, i0, block.accelerations)),
+                (ch.DISPLACEMENT, lambda: conversions.displacement_block(
+                    t0, fs, i0, block.displacements)),
+                (ch.EXCITATION, lambda: conversions.force_block(t0, fs, i0, block.force))):
+            self._pub[channel.name].publish(make())
+            self.published[channel.name] += 1
 
     def _summary(self) -> dict:
         wall = time.monotonic() - (self._started_wall or time.monotonic())
@@ -437,6 +459,7 @@ class Simulator(Node):
         values = {"sim_time_s": sim, "wall_time_s": wall, "controller_wait_timeouts":
                   self.lag_timeouts,
                   "real_time_factor": sim / wall if wall > 0 else math.inf,
+                  **{f"{phase}_wall_s": t for phase, t in self.timing.items()},
                   "critical_airspeed_no_dva": self.runtime.critical_airspeed,
                   "block_duration_s": self.runtime.block_duration,
                   "commands_received": self.commands_received,

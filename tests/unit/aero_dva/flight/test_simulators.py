@@ -193,3 +193,40 @@ def test_streaming_blocks_equal_the_batch_path_on_a_ramp_with_varying_c2(block):
     np.testing.assert_allclose(got / scale, ref / scale, rtol=0, atol=1e-12)
     np.testing.assert_allclose(sim.state, batch.state[0], rtol=0,
                                atol=1e-12 * np.abs(batch.state).max())
+
+
+@pytest.mark.parametrize("block", [50, 37])
+def test_the_compiled_route_flies_the_numpy_route_to_rounding_however_it_is_cut(block):
+    """The simulator node's compiled route: the same flight as the NumPy route within
+    rounding, and bit for bit the same whether flown in blocks of 50, 37 or one call of short
+    calls (each sample takes its period's condition, whatever the cut)."""
+    rng = np.random.default_rng(8)
+    n = 3000
+    force = 1000.0 * rng.standard_normal(n)
+    u = np.linspace(60.0, 95.0, n)
+    rho = 1.2 * (1 + 0.05 * np.sin(np.linspace(0.0, 8.0, n)))
+    c = np.repeat(np.linspace(100.0, 2000.0, n // 50), 50)
+
+    def fly(compiled, step):
+        sim = StreamingSimulator(WING, DVA, quantum=1e-3, compiled=compiled)
+        sim.prepare(u[0], rho[0], c[0])
+        parts = [sim.advance(force[i:i + step], u[i:i + step], rho[i:i + step], c[i:i + step])
+                 for i in range(0, n, step)]
+        return np.hstack([np.vstack([p.displacements, p.accelerations]) for p in parts]), sim
+
+    ref, numpy_sim = fly(False, block)
+    got, sim = fly(True, block)
+    assert sim.compiled and not numpy_sim.compiled
+    scale = np.abs(ref).max(axis=1, keepdims=True)
+    np.testing.assert_allclose(got / scale, ref / scale, rtol=0, atol=1e-11)
+    np.testing.assert_array_equal(fly(True, 50)[0], got)
+    np.testing.assert_allclose(sim.state, numpy_sim.state, rtol=0,
+                               atol=1e-11 * np.abs(numpy_sim.state).max())
+
+
+def test_models_the_compiled_loop_does_not_take_step_in_numpy():
+    sim = StreamingSimulator(WING, DVA, aero=WagnerAero(), compiled=True)
+    assert not sim.compiled  # the Wagner lag's states do not fit the stacked maps
+    sim.prepare(70.0, 1.2)  # nothing to load
+    out = sim.advance(np.ones(20), 70.0, 1.2)
+    assert out.displacements.shape == (4, 20)
