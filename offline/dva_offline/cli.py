@@ -15,7 +15,7 @@ import warnings
 from dva_offline import __version__, info
 from dva_offline.bag import cli as bag_cli
 from dva_offline.cli_failures import INTERNAL_ERROR_EXIT, internal_error_line, is_input_error
-from dva_offline.cli_tools import CliError
+from dva_offline.cli_tools import CliError, interrupt_on_sigterm
 from dva_offline.control import cli as control_cli
 from dva_offline.discrepancy import cli as discrepancy_cli
 from dva_offline.evaluation import cli as evaluation_cli
@@ -83,6 +83,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    if argv is None:  # the command itself (a caller in its own process keeps its handlers)
+        interrupt_on_sigterm()  # SIGTERM ends a command as Ctrl-C does: outputs cleaned
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):

@@ -13,6 +13,17 @@ __all__ = ["CliError", "command_family", "emit", "finite", "given", "json_safe",
            "range2", "range3", "show_help"]
 
 
+def interrupt_on_sigterm() -> None:
+    """SIGTERM handled as SIGINT is: a KeyboardInterrupt where the program is, so every
+    ``finally`` and ``except`` on the way out removes or marks its partial outputs, and the
+    command ends on its "interrupted" line (exit code 130) instead of dying at once (143, no
+    word, partial files left). For ``dva``, ``run_flight`` and ``replay_flight``; the nodes
+    have their own handler (``dva_ros_common.node_tools.run_node``)."""
+    import signal
+
+    signal.signal(signal.SIGTERM, signal.default_int_handler)
+
+
 class CliError(Exception):
     """A user-facing error: printed as ``dva: error: ...`` with exit code 2, no traceback."""
 

@@ -48,7 +48,12 @@ from aero_dva.bag.batch_cdr import (
 from aero_dva.bag.chunk_framing import COMPRESSIONS, MESSAGE_RECORD, ChunkedMcapFile
 from aero_dva.bag.chunk_limits import MAX_CHUNK_BYTES
 from aero_dva.bag.schemas import message_fields, typestore_of
-from aero_dva.bag.writer import BagSummary, qos_profile_yaml
+from aero_dva.bag.writer import (
+    BagSummary,
+    interruption_reason,
+    mark_interrupted,
+    qos_profile_yaml,
+)
 from aero_dva.wing.model import ACCELERATION_NAMES, DISPLACEMENT_NAMES
 
 __all__ = ["DAMPER_COLUMNS", "BatchRecorder", "load_definitions", "recorded_topics"]
@@ -276,6 +281,8 @@ class BatchRecorder:
 
     def __exit__(self, exc_type, exc, tb) -> None:
         self.close()
+        if exc_type is not None:  # closed, and marked as not the whole recording
+            mark_interrupted(self.directory, interruption_reason(exc_type, exc))
 
     def close(self) -> BagSummary | None:
         """Close the bag (idempotent); returns what was written."""

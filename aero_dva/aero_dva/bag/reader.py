@@ -37,6 +37,7 @@ __all__ = [
     "MessageTypeError",
     "TopicNotFoundError",
     "bag_files",
+    "bag_interruption",
     "bag_topics",
     "deserialize",
     "file_summary",
@@ -187,6 +188,24 @@ def _check_metadata_numbers(node, meta: Path, trail: str = "") -> None:
     elif isinstance(node, list):
         for index, value in enumerate(node):
             _check_metadata_numbers(value, meta, f"{trail}[{index}]")
+
+
+def bag_interruption(path) -> str | None:
+    """Why the recording in the bag directory ``path`` stopped before its end, as its writer
+    marked it in metadata.yaml (:data:`aero_dva.bag.writer.INTERRUPTED_KEY`); None for a
+    recording that ran to its end (or a lone MCAP file, or a bag without metadata.yaml)."""
+    from aero_dva.bag.writer import INTERRUPTED_KEY
+
+    meta = Path(path) / "metadata.yaml"
+    if not meta.is_file():
+        return None
+    info = read_yaml(meta, "bag metadata", BagReadError)
+    try:
+        custom = info["rosbag2_bagfile_information"].get("custom_data") or {}
+        reason = custom.get(INTERRUPTED_KEY)
+    except (KeyError, TypeError, AttributeError):
+        return None
+    return None if reason is None else str(reason)
 
 
 def file_summary(path: Path):

@@ -11,6 +11,7 @@ name only when it is complete (written beside it, then renamed).
 """
 from __future__ import annotations
 
+import dataclasses
 import shutil
 import tempfile
 from dataclasses import dataclass, field
@@ -20,7 +21,7 @@ import yaml
 
 from aero_dva.bag.chunk_survey import DamagedRange, FileSurvey, survey_file
 from aero_dva.bag.mcap_scan import Damage, FileScan
-from aero_dva.bag.reader import BagReadError, bag_files, file_summary
+from aero_dva.bag.reader import BagReadError, bag_files, bag_interruption, file_summary
 from aero_dva.bag.writer import COMPRESSIONS, BagWriter, TopicInfo, qos_profile_yaml
 from aero_dva.safe_files import read_yaml
 
@@ -56,6 +57,9 @@ class BagInfo:
         Messages the bag's index promises (summaries whose CRC holds, else metadata.yaml).
     lost : int or None
         Messages that do not read (None: not known).
+    interrupted : str or None
+        Why the recording stopped before its end, as its writer marked it (metadata.yaml);
+        None for a recording that ran to its end.
     """
 
     path: Path
@@ -71,6 +75,7 @@ class BagInfo:
     damaged: tuple[DamagedRange, ...] = ()
     promised: int | None = None
     lost: int | None = None
+    interrupted: str | None = None
 
     @property
     def duration_ns(self) -> int:
@@ -88,7 +93,7 @@ class BagInfo:
                     "reason": self.damage.reason},
                 "problems": list(self.problems), "verified": self.verified,
                 "damaged": [d.to_dict() for d in self.damaged], "promised": self.promised,
-                "lost": self.lost}
+                "lost": self.lost, "interrupted": self.interrupted}
 
 
 def bag_info(path, *, verify: bool = True) -> BagInfo:
@@ -107,8 +112,10 @@ def bag_info(path, *, verify: bool = True) -> BagInfo:
     problems = []
     if path.is_dir() and not (path / "metadata.yaml").is_file():
         problems.append("no metadata.yaml (the recording was not closed)")
+    interrupted = bag_interruption(path) if path.is_dir() else None
     if verify:
-        return _checked_info(path, files, problems)
+        return dataclasses.replace(_checked_info(path, files, problems),
+                                   interrupted=interrupted)
     counts: dict[str, list] = {}  # topic -> [type, count]
     start = end = None
     damage = None
@@ -141,7 +148,8 @@ def bag_info(path, *, verify: bool = True) -> BagInfo:
     topics = tuple(TopicInfo(name, type_name, n) for name, (type_name, n) in counts.items())
     return BagInfo(path=path, files=tuple(files), closed=not problems, topics=topics,
                    message_count=sum(t.message_count for t in topics), start_ns=start or 0,
-                   end_ns=end or 0, damage=damage, problems=tuple(problems))
+                   end_ns=end or 0, damage=damage, problems=tuple(problems),
+                   interrupted=interrupted)
 
 
 def _checked_info(path: Path, files: list[Path], problems: list[str]) -> BagInfo:

@@ -46,6 +46,9 @@ __all__ = [
     "create_bag_directory",
     "message_from_dict",
     "qos_profile_yaml",
+    "INTERRUPTED_KEY",
+    "interruption_reason",
+    "mark_interrupted",
     "write_metadata_yaml",
 ]
 
@@ -209,6 +212,35 @@ def bag_metadata(mcap_name: str, topics: Sequence[tuple[str, str, str, int]],
     }
 
 
+#: Key of ``custom_data`` in a bag's metadata.yaml marking a recording stopped before its end
+#: (its value says why); readers and ``dva bag info`` report it, ``dva train rbf`` refuses it.
+INTERRUPTED_KEY = "dva_interrupted"
+
+
+def interruption_reason(exc_type, exc) -> str:
+    """Why a recording stopped early, from the exception that stopped it."""
+    if exc_type is not None and issubclass(exc_type, KeyboardInterrupt):
+        return "interrupted (SIGINT or SIGTERM) before its end"
+    return f"stopped before its end by an error ({getattr(exc_type, '__name__', exc_type)}: {exc})"
+
+
+def mark_interrupted(directory, reason: str) -> bool:
+    """Mark the closed bag ``directory`` as a recording stopped before its end: its
+    metadata.yaml's ``custom_data`` gets :data:`INTERRUPTED_KEY` = ``reason`` (rewritten
+    atomically). False if it has no metadata.yaml (an unclosed bag says so itself)."""
+    from aero_dva.text_input import loggable
+
+    meta = Path(directory) / "metadata.yaml"
+    if not meta.is_file():
+        return False
+    info = yaml.safe_load(meta.read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
+    custom = info.get("custom_data") or {}
+    custom[INTERRUPTED_KEY] = loggable(reason, 300)
+    info["custom_data"] = custom
+    write_metadata_yaml(Path(directory), info)
+    return True
+
+
 def write_metadata_yaml(directory: Path, metadata: dict) -> None:
     """Write ``<directory>/metadata.yaml`` atomically and durably (it marks the bag complete)."""
     with atomic_output(Path(directory) / "metadata.yaml", fsync=True) as stream:
@@ -363,6 +395,8 @@ class BagWriter:
 
     def __exit__(self, exc_type, exc, tb) -> None:
         self.close()
+        if exc_type is not None:  # closed, and marked as not the whole recording
+            mark_interrupted(self.directory, interruption_reason(exc_type, exc))
 
     @property
     def closed(self) -> bool:

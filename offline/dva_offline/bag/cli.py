@@ -72,6 +72,8 @@ def _info(args) -> int:
     print(f"files      {', '.join(f.name for f in info.files)}")
     problems = [p for p in info.problems if not p.startswith("damaged:")]
     print("closed     " + ("yes" if not problems else "no: " + "; ".join(problems)))
+    if info.interrupted is not None:
+        print(f"interrupted the recording was {info.interrupted}: not the whole flight")
     if not info.verified:
         print("chunks     CRCs not checked (--no-verify)")
         if info.damage is not None:

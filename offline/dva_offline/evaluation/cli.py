@@ -186,6 +186,7 @@ def _paired(args) -> int:
     from tqdm import tqdm
 
     from aero_dva import data_files
+    from aero_dva.atomic_io import atomic_output
     from aero_dva.control import controllers as table
     from aero_dva.control.controllers import BLOCK, REFERENCE, SAMPLE
     from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
@@ -198,7 +199,7 @@ def _paired(args) -> int:
         oracle_table,
         stability_boundaries,
     )
-    from dva_offline.evaluation.inputs import evaluation_directory, log
+    from dva_offline.evaluation.inputs import evaluation_directory, log, resumable_or_removed
     from dva_offline.evaluation.paired import (
         CASE_NAMES,
         REFERENCE_CONTROLLER,
@@ -247,87 +248,89 @@ def _paired(args) -> int:
     if problem is not None:
         raise ValueError(f"--scenario {scenario_path}: {problem}")
     started = time.monotonic()
-    out, made, _ = evaluation_directory(args, controllers)
-    model = AeroelasticModel(config.wing, config.absorber, config.aero)
-    u_cr = FlightRuntime(config).critical_airspeed
-    fixed = made["fixed_c2"]
-    flutter_frequency = fixed.get("flutter_frequency") or _flutter_frequency(model, config,
-                                                                             fixed["damping"])
-    cases = {k: v for k, v in default_cases(flutter_frequency).items() if k in case_names}
-    ramp = config.scenario.airspeed.values
-    if not config.scenario.airspeed.relative:
-        ramp = tuple(v / u_cr for v in ramp)
-    references = [c for c in controllers if table.controller(c).runs == REFERENCE]
-    oracle = oracle_table(model, u_cr, config.scenario.density, list(cases.values()), ramp) \
-        if references else None
-    setup = EvaluationSetup(
-        config=config, model=model, critical_airspeed=u_cr,
-        laws=evaluation_laws(controllers, made, config.damper, oracle),
-        rms_range=(rms_low * u_cr, rms_high * u_cr))
-    total = len(cases) * len(seeds) * len(controllers)
-    bar = tqdm(total=total, desc="flights", unit="flight", file=sys.stderr, leave=False)
+    out, made, _, created = evaluation_directory(args, controllers)
+    with resumable_or_removed(out, created):
+        model = AeroelasticModel(config.wing, config.absorber, config.aero)
+        u_cr = FlightRuntime(config).critical_airspeed
+        fixed = made["fixed_c2"]
+        flutter_frequency = fixed.get("flutter_frequency") or _flutter_frequency(model, config,
+                                                                                 fixed["damping"])
+        cases = {k: v for k, v in default_cases(flutter_frequency).items() if k in case_names}
+        ramp = config.scenario.airspeed.values
+        if not config.scenario.airspeed.relative:
+            ramp = tuple(v / u_cr for v in ramp)
+        references = [c for c in controllers if table.controller(c).runs == REFERENCE]
+        oracle = oracle_table(model, u_cr, config.scenario.density, list(cases.values()), ramp) \
+            if references else None
+        setup = EvaluationSetup(
+            config=config, model=model, critical_airspeed=u_cr,
+            laws=evaluation_laws(controllers, made, config.damper, oracle),
+            rms_range=(rms_low * u_cr, rms_high * u_cr))
+        total = len(cases) * len(seeds) * len(controllers)
+        bar = tqdm(total=total, desc="flights", unit="flight", file=sys.stderr, leave=False)
 
-    def progress(text):
-        bar.set_postfix_str(text)
-        bar.update(1)
+        def progress(text):
+            bar.set_postfix_str(text)
+            bar.update(1)
 
-    from dva_offline.evaluation.resume import FlightStore
+        from dva_offline.evaluation.resume import FlightStore
 
-    store = FlightStore(out / "flights", {
-        "scenario": str(scenario_path), "controllers": list(controllers),
-        "cases": case_table(cases), "rms_range_ratio": [rms_low, rms_high],
-        "fixed_c2": fixed["damping"], "schedule": made.get("schedule"),
-        "network": made.get("network")})
-    done = store.load(seeds)
-    if done:
-        log(f"resuming: {len(done)} of {len(cases) * len(seeds)} (case, seed) jobs already "
-            f"flown in {store.directory}")
-        bar.update(sum(len(v) for k, v in done.items() if k[1] != seeds[0]))
-    flights_started = time.monotonic()
-    try:
-        records, kept = fly_paired(setup, list(cases.values()), seeds, controllers, progress,
-                                  keep_seed=seeds[0], workers=args.workers,
-                                  ray_address=args.ray, done=done, finished=store.save,
-                                  batch=not args.one_flight)
-    finally:
-        bar.close()
-    flight_time = time.monotonic() - flights_started
-    rows = summarise(records, controllers, list(cases))
-    boundaries = {} if args.no_boundaries else stability_boundaries(
-        setup, list(cases.values()), controllers)
-    payload = {
-        "out": str(out), "scenario": str(scenario_path), "controllers": list(controllers),
-        "cases": case_table(cases), "seeds": seeds, "inputs": made,
-        "critical_airspeed_no_dva": u_cr, "fixed_c2": fixed["damping"],
-        "rms_range_ratio": [rms_low, rms_high], "flights": len(records),
-        "flight_wall_time_s": flight_time, "workers": args.workers, "ray": args.ray,
-        "resumed_jobs": len(done),
-        "results": [_row_json(r) for r in rows], "boundaries": boundaries,
-    }
-    if switching:
-        from dva_offline.cli_tools import json_safe
-        from dva_offline.evaluation.switching_section import switching_section
-
-        log("flying the switching law against the best constant c2")
-        payload["switching"] = json_safe(switching_section(case_names, seeds, args.gains))
-    files = write_paired_results(out, payload, records)
-    payload["files"] = {**files, **plot_paired(out, payload, kept, u_cr)}
-    if switching:  # after the paired tables and plots, which are the other controllers'
-        payload["controllers"].append("switching")
-    payload["wall_time_s"] = time.monotonic() - started
-    (out / "results.json").write_text(json.dumps(payload, allow_nan=False))
-    if args.json:
-        print(json.dumps(payload, allow_nan=False))
-    else:
-        from dva_offline.evaluation.paired_io import markdown_results
-
-        print(markdown_results(payload))
+        store = FlightStore(out / "flights", {
+            "scenario": str(scenario_path), "controllers": list(controllers),
+            "cases": case_table(cases), "rms_range_ratio": [rms_low, rms_high],
+            "fixed_c2": fixed["damping"], "schedule": made.get("schedule"),
+            "network": made.get("network")})
+        done = store.load(seeds)
+        if done:
+            log(f"resuming: {len(done)} of {len(cases) * len(seeds)} (case, seed) jobs already "
+                f"flown in {store.directory}")
+            bar.update(sum(len(v) for k, v in done.items() if k[1] != seeds[0]))
+        flights_started = time.monotonic()
+        try:
+            records, kept = fly_paired(setup, list(cases.values()), seeds, controllers, progress,
+                                      keep_seed=seeds[0], workers=args.workers,
+                                      ray_address=args.ray, done=done, finished=store.save,
+                                      batch=not args.one_flight)
+        finally:
+            bar.close()
+        flight_time = time.monotonic() - flights_started
+        rows = summarise(records, controllers, list(cases))
+        boundaries = {} if args.no_boundaries else stability_boundaries(
+            setup, list(cases.values()), controllers)
+        payload = {
+            "out": str(out), "scenario": str(scenario_path), "controllers": list(controllers),
+            "cases": case_table(cases), "seeds": seeds, "inputs": made,
+            "critical_airspeed_no_dva": u_cr, "fixed_c2": fixed["damping"],
+            "rms_range_ratio": [rms_low, rms_high], "flights": len(records),
+            "flight_wall_time_s": flight_time, "workers": args.workers, "ray": args.ray,
+            "resumed_jobs": len(done),
+            "results": [_row_json(r) for r in rows], "boundaries": boundaries,
+        }
         if switching:
-            from dva_offline.evaluation.switching_section import markdown
+            from dva_offline.cli_tools import json_safe
+            from dva_offline.evaluation.switching_section import switching_section
 
-            print(markdown(payload["switching"]))
-        print(f"results: {out / 'results.md'} ({len(records)} flights in {flight_time:.0f} s)")
-    return 0
+            log("flying the switching law against the best constant c2")
+            payload["switching"] = json_safe(switching_section(case_names, seeds, args.gains))
+        files = write_paired_results(out, payload, records)
+        payload["files"] = {**files, **plot_paired(out, payload, kept, u_cr)}
+        if switching:  # after the paired tables and plots, which are the other controllers'
+            payload["controllers"].append("switching")
+        payload["wall_time_s"] = time.monotonic() - started
+        with atomic_output(out / "results.json") as stream:  # last: the run is complete
+            stream.write(json.dumps(payload, allow_nan=False))
+        if args.json:
+            print(json.dumps(payload, allow_nan=False))
+        else:
+            from dva_offline.evaluation.paired_io import markdown_results
+
+            print(markdown_results(payload))
+            if switching:
+                from dva_offline.evaluation.switching_section import markdown
+
+                print(markdown(payload["switching"]))
+            print(f"results: {out / 'results.md'} ({len(records)} flights in {flight_time:.0f} s)")
+        return 0
 
 
 def evaluation_laws(controllers, made: dict, damper, oracle_table) -> dict:

@@ -138,7 +138,7 @@ def evaluate_graph(args) -> int:
         save_json,
         write_scenario,
     )
-    from dva_offline.evaluation.inputs import evaluation_directory, log
+    from dva_offline.evaluation.inputs import evaluation_directory, log, resumable_or_removed
 
     if args.retries < 0:
         raise ValueError(f"--retries must be >= 0, got {args.retries}")
@@ -155,73 +155,74 @@ def evaluate_graph(args) -> int:
         data_files.data_file("scenario_ramp.yaml")
     base = load_base_scenario(scenario_path)
     started = time.monotonic()
-    out, made, _ = evaluation_directory(args, controllers)  # flights read the paths
-    (out / "flights").mkdir(exist_ok=True)
-    scenarios = {(mu, seed): write_scenario(out / "scenarios",
-                                            evaluation_scenario(base, mu, seed))
-                 for mu in mus for seed in seeds}
-    cases = case_grid(controllers, mus, seeds)
-    records = {c: r for c, r in load_records(out, cases).items() if r.get("ok")}
-    todo = [c for c in cases if c not in records]
-    if records:
-        log(f"resuming {out}: {len(records)} of {len(cases)} flights already recorded")
-    bar = tqdm(total=len(cases), initial=len(records), desc="flights", unit="flight",
-               file=sys.stderr, dynamic_ncols=True)
-    flight_times = []
-    try:
-        from functools import partial
+    out, made, _, created = evaluation_directory(args, controllers)  # flights read the paths
+    with resumable_or_removed(out, created):
+        (out / "flights").mkdir(exist_ok=True)
+        scenarios = {(mu, seed): write_scenario(out / "scenarios",
+                                                evaluation_scenario(base, mu, seed))
+                     for mu in mus for seed in seeds}
+        cases = case_grid(controllers, mus, seeds)
+        records = {c: r for c, r in load_records(out, cases).items() if r.get("ok")}
+        todo = [c for c in cases if c not in records]
+        if records:
+            log(f"resuming {out}: {len(records)} of {len(cases)} flights already recorded")
+        bar = tqdm(total=len(cases), initial=len(records), desc="flights", unit="flight",
+                   file=sys.stderr, dynamic_ncols=True)
+        flight_times = []
+        try:
+            from functools import partial
 
-        from dva_offline.evaluation.campaign import run_jobs
+            from dva_offline.evaluation.campaign import run_jobs
 
-        serial = args.workers == 1 and args.ray is None
-        # a worker process or thread does not log: its record says what failed
-        fly = partial(_fly_retried, out, made, args, log if serial else None)
-        jobs = [(c, scenarios[(c.mu, c.seed)]) for c in todo]
-        done = ((job[0], record) for job, record in run_jobs(
-            jobs, fly, workers=args.workers, ray_address=args.ray))
-        for case, record in done:
-            if not record["ok"]:
-                log(f"flight {case.key} failed after {record['attempts']} attempt(s): "
-                    f"{record['error']}")
-            save_json(flight_record_path(out, case), record)
-            records[case] = record
-            flight_times.append(record["runner_wall_time"])
-            if record["ok"]:
-                ratio = record.get(RATIO_KEY)
-                bar.set_postfix_str(f"{case.key}: U_div/U_cr = "
-                                    + (f"{ratio:.3f}" if ratio is not None else "none"))
-            bar.update(1)
-    finally:
-        bar.close()
-    stats = aggregate(records.values(), ratio_key=RATIO_KEY)
-    key = compare_rbf_with_schedule(stats)
-    table = markdown_table(stats)
-    files = _outputs(out, args, mus, controllers, seeds, records, stats, key, table, made,
-                     log)
-    elapsed = time.monotonic() - started
-    payload = {
-        "out": str(out), "scenario": str(scenario_path), "controllers": list(controllers),
-        "mu": list(mus), "seeds": seeds, "inputs": made,
-        "flights": len(cases), "flown_now": len(flight_times),
-        "failed": sum(1 for r in records.values() if not r.get("ok")),
-        "wall_time_s": elapsed,
-        "mean_flight_wall_time_s": (sum(flight_times) / len(flight_times)
-                                    if flight_times else None),
-        "cases": [s.to_dict() for s in stats],
-        "rbf_vs_schedule": [k.to_dict() for k in key],
-        **files,
-    }
-    save_json(out / "results.json", payload)
-    if args.json:
-        print(json.dumps(payload))
-    else:
-        print(table)
-        for k in key:
-            print(f"mu = {k.mu:g}: RBF - schedule = {k.difference:+.3f} U_cr "
-                  f"(SE {k.standard_error:.3f}): {k.verdict}")
-        print(f"results: {out / 'results.md'} ({len(flight_times)} flights flown now in "
-              f"{elapsed:.0f} s)")
-    return 0 if payload["failed"] == 0 else 1
+            serial = args.workers == 1 and args.ray is None
+            # a worker process or thread does not log: its record says what failed
+            fly = partial(_fly_retried, out, made, args, log if serial else None)
+            jobs = [(c, scenarios[(c.mu, c.seed)]) for c in todo]
+            done = ((job[0], record) for job, record in run_jobs(
+                jobs, fly, workers=args.workers, ray_address=args.ray))
+            for case, record in done:
+                if not record["ok"]:
+                    log(f"flight {case.key} failed after {record['attempts']} attempt(s): "
+                        f"{record['error']}")
+                save_json(flight_record_path(out, case), record)
+                records[case] = record
+                flight_times.append(record["runner_wall_time"])
+                if record["ok"]:
+                    ratio = record.get(RATIO_KEY)
+                    bar.set_postfix_str(f"{case.key}: U_div/U_cr = "
+                                        + (f"{ratio:.3f}" if ratio is not None else "none"))
+                bar.update(1)
+        finally:
+            bar.close()
+        stats = aggregate(records.values(), ratio_key=RATIO_KEY)
+        key = compare_rbf_with_schedule(stats)
+        table = markdown_table(stats)
+        files = _outputs(out, args, mus, controllers, seeds, records, stats, key, table, made,
+                         log)
+        elapsed = time.monotonic() - started
+        payload = {
+            "out": str(out), "scenario": str(scenario_path), "controllers": list(controllers),
+            "mu": list(mus), "seeds": seeds, "inputs": made,
+            "flights": len(cases), "flown_now": len(flight_times),
+            "failed": sum(1 for r in records.values() if not r.get("ok")),
+            "wall_time_s": elapsed,
+            "mean_flight_wall_time_s": (sum(flight_times) / len(flight_times)
+                                        if flight_times else None),
+            "cases": [s.to_dict() for s in stats],
+            "rbf_vs_schedule": [k.to_dict() for k in key],
+            **files,
+        }
+        save_json(out / "results.json", payload)
+        if args.json:
+            print(json.dumps(payload))
+        else:
+            print(table)
+            for k in key:
+                print(f"mu = {k.mu:g}: RBF - schedule = {k.difference:+.3f} U_cr "
+                      f"(SE {k.standard_error:.3f}): {k.verdict}")
+            print(f"results: {out / 'results.md'} ({len(flight_times)} flights flown now in "
+                  f"{elapsed:.0f} s)")
+        return 0 if payload["failed"] == 0 else 1
 
 
 def _outputs(out, args, mus, controllers, seeds, records, stats, key, table, made, log) -> dict:

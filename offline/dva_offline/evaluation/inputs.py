@@ -10,6 +10,7 @@ by a later run with the same ``--out``.
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import shutil
@@ -19,7 +20,7 @@ import time
 from pathlib import Path
 
 __all__ = ["best_fixed_damping_of", "check_given_inputs", "evaluation_directory", "inputs",
-           "log"]
+           "log", "resumable_or_removed", "saved_flights"]
 
 
 def _run(argv: list[str], what: str, timeout: float = 3600.0) -> str:
@@ -43,22 +44,48 @@ def log(text: str) -> None:
     tqdm.write(f"dva evaluate: {text}", file=sys.stderr)
 
 
-def evaluation_directory(args, controllers) -> tuple[Path, dict, dict]:
+def evaluation_directory(args, controllers) -> tuple[Path, dict, dict, bool]:
     """The evaluation's directory (``--out``, default ``runs/evaluation_<UTC time>``), the
-    inputs given or made into its ``inputs/`` (paths), and the given ones as read at the door
-    (``{"schedule": ..., "network": ...}``, so nobody reads them again); a directory created
-    here is removed again when making the inputs fails, so nothing is left that looks like an
-    evaluation."""
+    inputs given or made into its ``inputs/`` (paths), the given ones as read at the door
+    (``{"schedule": ..., "network": ...}``, so nobody reads them again), and whether this run
+    created the directory; a directory created here is removed again when making the inputs
+    fails, so nothing is left that looks like an evaluation."""
     given = check_given_inputs(args, controllers)
     stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
     out = Path(args.out or f"runs/evaluation_{stamp}").resolve()
     created = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
     try:
-        return out, inputs(args, controllers, out / "inputs", log), given
+        return out, inputs(args, controllers, out / "inputs", log), given, created
     except BaseException:
         if created:
             shutil.rmtree(out, ignore_errors=True)
+        raise
+
+
+def saved_flights(out: Path) -> int:
+    """Flight records an evaluation has saved in ``out/flights`` (what a resume starts from)."""
+    folder = out / "flights"
+    return sum(1 for p in folder.glob("*.json") if p.name != "settings.json") \
+        if folder.is_dir() else 0
+
+
+@contextlib.contextmanager
+def resumable_or_removed(out: Path, created: bool):
+    """Around an evaluation's flights and results: when they fail or are interrupted, the
+    directory this run created is removed if it saved no flight (its ``inputs/`` alone is
+    not a result); otherwise it is kept, holding flight records and no results, and the
+    line before the error says how to resume. Nothing left looks like a finished
+    evaluation: results.json is written last."""
+    try:
+        yield
+    except BaseException:
+        saved = saved_flights(out)
+        if created and saved == 0:
+            shutil.rmtree(out, ignore_errors=True)
+        elif saved:
+            log(f"{saved} flight record(s) kept in {out / 'flights'} (no results written); "
+                f"the same command with --out {out} resumes")
         raise
 
 

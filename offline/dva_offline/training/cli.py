@@ -22,7 +22,9 @@ airspeeds at which every c2 of its list decays at ``--min-decay`` (``--as-is``: 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -280,12 +282,37 @@ def _out_dir(args) -> Path:
     return out
 
 
+@contextlib.contextmanager
+def _recording_into(out: Path):
+    """Around a sweep's recording into ``out`` (created by this run): an error removes the
+    bag (nothing is left that looks like a sweep); an interrupt keeps what was recorded,
+    closed and marked interrupted in its metadata.yaml (``dva train rbf --allow-partial``
+    reads it and says what is missing), or removes it if it was never closed."""
+    try:
+        yield
+    except KeyboardInterrupt:
+        from aero_dva.bag.writer import interruption_reason, mark_interrupted
+
+        if mark_interrupted(out, interruption_reason(KeyboardInterrupt, None)):
+            print(f"dva train: the sweep recorded so far is kept in {out}, marked "
+                  "interrupted (dva train rbf reads it only with --allow-partial)",
+                  file=sys.stderr)
+        else:
+            shutil.rmtree(out, ignore_errors=True)
+        raise
+    except BaseException:
+        shutil.rmtree(out, ignore_errors=True)
+        raise
+
+
 def _sweep(args) -> int:
     _check_sweep_options(args)
     if args.scenario:
         from dva_offline.training.scenario_sweep import scenario_sweep
 
-        return scenario_sweep(args, _out_dir(args), _range3)
+        out = _out_dir(args)
+        with _recording_into(out):
+            return scenario_sweep(args, out, _range3)
     from tqdm import tqdm
 
     from dva_offline.training.recording_io import record_plan
@@ -299,8 +326,9 @@ def _sweep(args) -> int:
         bar.update(done - bar.n)
 
     try:
-        recorded = record_plan(out, model, plan, wing=wing[0], wing_fingerprint=wing[1],
-                               displacement=args.displacement, progress=progress)
+        with _recording_into(out):
+            recorded = record_plan(out, model, plan, wing=wing[0], wing_fingerprint=wing[1],
+                                   displacement=args.displacement, progress=progress)
     finally:
         bar.close()
     summary = {"bag": str(out), "outcome": "completed", "sim_time_s": recorded.sim_time,

@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import sys
 import time
 from pathlib import Path
 
@@ -71,6 +72,10 @@ def register(sub) -> None:
     r.add_argument("--min-activation", type=float, default=MIN_ACTIVATION,
                    help=f"refuse a network whose median peak activation on the held-out "
                         f"windows is below this (default {MIN_ACTIVATION})")
+    r.add_argument("--allow-partial", action="store_true",
+                   help="train on a sweep that was interrupted (its bag says so), has no "
+                        "end-of-flight report or lacks dwells of its plan, saying what is "
+                        "missing (default: such a sweep is refused)")
     r.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     r.set_defaults(func=_rbf)
 
@@ -126,6 +131,36 @@ def _labelling_wing(args, bag: Path, log):
                          f"m/s, the wing {path} has {u_cr:.4f} m/s (give the bag's wing with "
                          "--wing)")
     return AeroelasticModel(cfg.wing, cfg.absorber, cfg.aero), str(path.resolve()), u_cr
+
+
+def partial_sweep(bag: Path, log, data) -> list[str]:
+    """What a recorded sweep lacks (empty for a whole one): the interruption its bag is marked
+    with, a missing end-of-flight report, the dwells of its plan that have no window."""
+    from aero_dva.bag.reader import bag_interruption
+    from aero_dva.flight.divergence import STOP_PREFIX
+    from dva_offline.training.plan_io import PLAN_FILE, load_plan
+
+    missing = []
+    interrupted = bag_interruption(bag) if bag.is_dir() else None
+    if interrupted is not None:
+        missing.append(f"the recording was {interrupted}")
+    ended = any(d.get("name") == ch.FLIGHT_DIAGNOSTIC_NAME and (
+        d.get("message") == "flight completed"
+        or str(d.get("message", "")).startswith(STOP_PREFIX)) for d in log.diagnostics)
+    if not ended:
+        missing.append("it has no end-of-flight report (the flight was cut short)")
+    if bag.is_dir() and (bag / PLAN_FILE).is_file():
+        plan, _ = load_plan(bag / PLAN_FILE)
+        flown = {(round(float(u), 6), round(float(r), 9), round(float(c), 6))
+                 for u, r, c in zip(data.airspeed, data.density, data.damping, strict=True)}
+        absent = [k for k in range(plan.n_dwells)
+                  if (round(float(plan.airspeed[k]), 6), round(float(plan.density[k]), 9),
+                      round(float(plan.damping[k]), 6)) not in flown]
+        if absent:
+            speeds = plan.airspeed[absent] / plan.critical_airspeed
+            missing.append(f"{len(absent)} of the plan's {plan.n_dwells} dwells have no "
+                           f"window (airspeeds {speeds.min():.3f} .. {speeds.max():.3f} U_cr)")
+    return missing
 
 
 class _Diagnostics:
@@ -184,6 +219,12 @@ def _rbf(args) -> int:
     bag = Path(args.bag)
     _check_topics(bag)
     log, data = _read_windows(bag, args.window)
+    partial = partial_sweep(bag, log, data)
+    if partial and not args.allow_partial:
+        raise ValueError(f"bag {str(bag)!r} is not a whole sweep: {'; '.join(partial)} "
+                         "(--allow-partial trains on it anyway)")
+    for text in partial:
+        print(f"dva train rbf: warning: a partial sweep: {text}", file=sys.stderr)
     wing, u_cr = None, _bag_value(log, "critical_airspeed_no_dva")
     dropped = 0
     u_cr = float(u_cr) if u_cr is not None else None
@@ -210,6 +251,7 @@ def _rbf(args) -> int:
     val, trn = outcome.validation_metrics, outcome.training_metrics
     summary = _summary(args, bag, data, labels, outcome, wing, u_cr)
     summary["windows_left_out_single_c2"] = dropped
+    summary["partial"] = partial
     if val.median_peak_activation < args.min_activation:
         held = summary["windows"] - summary["training_windows"]
         raise ValueError(

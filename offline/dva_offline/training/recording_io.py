@@ -79,6 +79,8 @@ def record_plan(bag_dir, model, plan, *, wing: str = "", wing_fingerprint: str =
     total = plan.n_dwells * n
     per_dwell = n // block_size
     with BatchRecorder(bag_dir, s.sample_rate, displacement=displacement) as recorder:
+        # the plan first: a recording cut short still says what it was to hold
+        save_plan(plan, Path(bag_dir) / PLAN_FILE, wing)
         done = 0
         for chunk in simulate_dwells(model, plan, batch=batch):
             k = np.arange(chunk.first_dwell, chunk.first_dwell + chunk.n_dwells)
@@ -113,7 +115,6 @@ def record_plan(bag_dir, model, plan, *, wing: str = "", wing_fingerprint: str =
         topics = tuple(recorder.topics.values())
         summary = recorder.close()
     directory = Path(getattr(summary, "directory", bag_dir))
-    save_plan(plan, Path(bag_dir) / PLAN_FILE, wing)
     size = sum(f.stat().st_size for f in Path(bag_dir).iterdir() if f.is_file())
     return RecordedPlan(bag=directory, dwells=plan.n_dwells, samples=done,
                         sim_time=done / s.sample_rate, wall_time=time.monotonic() - started,

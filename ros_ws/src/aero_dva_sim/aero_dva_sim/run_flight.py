@@ -279,6 +279,7 @@ def run(args) -> dict:
     env = dict(os.environ, ROS_DOMAIN_ID=str(args.domain_id), PYTHONUNBUFFERED="1")
     processes: dict[str, subprocess.Popen] = {}
     started = time.monotonic()
+    ended = False
     try:
         for name, argv in commands.items():
             with open(logs / f"{name}.log", "wb") as log:
@@ -286,8 +287,10 @@ def run(args) -> dict:
                     argv, env=env, stdout=log, stderr=subprocess.STDOUT,
                     preexec_fn=recorder_child if name == RECORDER else die_with_parent)
         _wait_for_flight(processes, args.timeout, logs)
+        ended = True
     finally:
         codes = stop_graph(processes)
+        mark_unfinished(bag, ended, codes.get("simulator"), *sys.exc_info()[:2])
     wall = time.monotonic() - started
     if codes.get("simulator") not in (0, None):
         raise SystemExit(f"run_flight: error: simulator failed ({codes['simulator']}): "
@@ -303,6 +306,23 @@ def run(args) -> dict:
     summary.update(applied_control(args, final, bag))
     return {k: (None if isinstance(v, float) and math.isnan(v) else v)
             for k, v in summary.items()}
+
+
+def mark_unfinished(bag: Path, ended: bool, simulator_code, exc_type, exc) -> None:
+    """Mark the recorder's (closed) bag as a recording stopped before its end when the flight
+    did not end (interrupted, timed out, a node failed) or the simulator did not exit 0: its
+    metadata.yaml then says why, ``dva bag info`` says "interrupted", and the bag cannot pass
+    for a whole flight."""
+    from aero_dva.bag.writer import interruption_reason, mark_interrupted
+
+    if ended and simulator_code in (0, None):
+        return
+    if not ended:
+        reason = interruption_reason(exc_type, exc) if exc_type is not None else \
+            "stopped before its end"
+    else:
+        reason = f"stopped before its end: the simulator exited with {simulator_code}"
+    mark_interrupted(bag, reason)
 
 
 def _last_error(path: Path) -> str:
