@@ -187,11 +187,11 @@ def _wing(path):
 def _make_plan(args):
     """(plan, model, (wing file, its fingerprint)) from --plan or the plan options."""
     from dva_offline.training.plan import PlanSettings, make_training_plan, ratio_grid
-    from dva_offline.training.plan_io import load_plan
+    from dva_offline.training.plan_io import load_plan, plan_wing_file
 
     if getattr(args, "plan", None):
         plan, wing = load_plan(args.plan)
-        _, model, u_cr, wing = _wing(args.wing or (wing if Path(wing).is_file() else None))
+        _, model, u_cr, wing = _wing(args.wing or plan_wing_file(args.plan, wing))
         if abs(u_cr / plan.critical_airspeed - 1) > 1e-6:
             raise ValueError(f"--plan {args.plan}: made for a wing with U_cr = "
                              f"{plan.critical_airspeed:.4f} m/s, the wing {wing[0]} has "

@@ -14,6 +14,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -26,7 +27,7 @@ from aero_dva.safe_files import read_json
 from dva_offline.training.plan import PlanSettings, TrainingPlan
 
 __all__ = ["FILE_FORMAT", "PLAN_FILE", "load_plan", "plan_damping_problem", "plan_from_dict",
-           "plan_to_dict", "save_plan"]
+           "plan_to_dict", "plan_wing_file", "save_plan"]
 
 FILE_FORMAT = "dva_training_plan"
 FILE_VERSION = 1
@@ -137,6 +138,27 @@ def save_plan(plan: TrainingPlan, path, wing: str = "") -> Path:
     with atomic_output(path) as handle:
         json.dump(plan_to_dict(plan, wing), handle, allow_nan=False)
     return Path(path)
+
+
+def plan_wing_file(plan_path, wing: str) -> Path:
+    """The wing file the plan ``plan_path`` names (``wing``, as :func:`load_plan` gives it): a
+    relative path is taken from the plan's folder; it must exist and be readable, else
+    ValueError in one line (a default wing never takes its place)."""
+    from aero_dva.text_input import loggable
+
+    where = f"training plan {str(plan_path)!r}"
+    if not wing:
+        raise ValueError(f"{where} names no wing file; give its wing with --wing")
+    path = Path(wing)
+    if not path.is_absolute():
+        path = Path(plan_path).parent / path
+    if not path.is_file():
+        raise ValueError(f"{where}: its wing file '{loggable(path)}' does not exist (a "
+                         "relative path is taken from the plan's folder); give the wing "
+                         "with --wing")
+    if not os.access(path, os.R_OK):
+        raise ValueError(f"{where}: its wing file '{loggable(path)}' is not readable")
+    return path.resolve()
 
 
 def load_plan(path) -> tuple[TrainingPlan, str]:

@@ -108,15 +108,19 @@ def _labelling_wing(args, bag: Path, log):
     from aero_dva.wing.absorbers import MaxwellAbsorber
     from aero_dva.wing.model import AeroelasticModel
     from aero_dva.wing.wing_io import default_wing_path, load_wing, wing_fingerprint
-    from dva_offline.training.plan_io import PLAN_FILE, load_plan
+    from dva_offline.training.plan_io import PLAN_FILE, load_plan, plan_wing_file
 
     density = None
     planned = None
     if (bag / PLAN_FILE).is_file():
         plan, planned = load_plan(bag / PLAN_FILE)
         density = plan.base_density
-    path = Path(args.wing) if args.wing else (
-        Path(planned) if planned and Path(planned).is_file() else default_wing_path())
+    if args.wing:
+        path = Path(args.wing)
+    elif planned is not None:  # the plan's own wing, never a default in its place
+        path = plan_wing_file(bag / PLAN_FILE, planned)
+    else:  # a scenario sweep: the bag's wing fingerprint is checked below
+        path = default_wing_path()
     cfg = load_wing(path)
     if not isinstance(cfg.absorber, MaxwellAbsorber):
         raise ValueError(f"--wing {path}: the file needs a Maxwell absorber whose c2 is tuned")

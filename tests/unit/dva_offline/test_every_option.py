@@ -189,7 +189,7 @@ TABLE: dict[str, dict] = {
     "train rbf": {
         **{o: ALL for o in ("bag", "--out", "--labels", "--plot", "--window", "--spreads",
                             "--validation-every", "--max-neurons", "--max-candidates",
-                            "--tolerance", "--min-activation", "--json")},
+                            "--tolerance", "--min-activation", "--allow-partial", "--json")},
         "--wing": ("with --labels exact", [(["BAG", "--out", "n.npz", "--labels",
                                              "measured-argmin"], "uses none")]),
     },
