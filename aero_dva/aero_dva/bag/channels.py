@@ -15,6 +15,7 @@ from dataclasses import dataclass
 __all__ = [
     "ACCELERATION",
     "CLOCK",
+    "DAMPER_BLOCK",
     "DAMPER_COMMAND",
     "DAMPER_STATE",
     "DIAGNOSTICS",
@@ -55,6 +56,8 @@ FLIGHT_CONDITION = Channel("flight/condition", "dva_msgs/msg/FlightCondition")
 DAMPER_STATE = Channel("dva/damper_state", "dva_msgs/msg/DamperState")
 DAMPER_COMMAND = Channel("dva/damper_command", "dva_msgs/msg/DamperCommand")
 SPECTRUM = Channel("dva/spectrum", "dva_msgs/msg/ScaledSpectrum")
+#: A per-sample law's damper, sample by sample, beside each block it flew (not every block).
+DAMPER_BLOCK = Channel("dva/damper_block", "dva_msgs/msg/DamperBlock")
 DIAGNOSTICS = Channel("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray")
 
 #: The topic of each input a control law reads (aero_dva.control.controllers: CONDITION, ...).

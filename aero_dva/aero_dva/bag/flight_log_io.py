@@ -28,11 +28,11 @@ from aero_dva.wing.model import ACCELERATION_NAMES, DISPLACEMENT_NAMES
 
 #: Topics a flight log reads, relative to the simulator's namespace (``/diagnostics`` global).
 FLIGHT_TOPICS = (ch.DISPLACEMENT, ch.ACCELERATION, ch.EXCITATION, ch.FLIGHT_CONDITION,
-                 ch.DAMPER_STATE)
+                 ch.DAMPER_STATE, ch.DAMPER_BLOCK)
 REQUIRED = (ch.DISPLACEMENT, ch.FLIGHT_CONDITION)
 # Sample topics -> the message fields that make the rows of their FlightLog array.
 SAMPLE_ROWS = {ch.DISPLACEMENT: DISPLACEMENT_NAMES, ch.ACCELERATION: ACCELERATION_NAMES,
-               ch.EXCITATION: ("aileron_force",)}
+               ch.EXCITATION: ("aileron_force",), ch.DAMPER_BLOCK: ("damping", "force")}
 
 
 @dataclass(frozen=True)
@@ -48,7 +48,11 @@ class FlightLog:
     displacements : (4, n) plunge [m], pitch [rad], leading edge [m], DVA stroke [m]
     accelerations : (3, n) plunge [m/s^2], pitch [rad/s^2], leading edge [m/s^2] (NaN if absent)
     force : (n,) [N] aileron force (NaN if absent)
-    applied_damping : (n,) [N s/m] c2 acting (NaN if the damper state was not recorded)
+    applied_damping : (n,) [N s/m] c2 held over each block (NaN if the damper state was not
+        recorded; at a block a per-sample law flew, the c2 at its start)
+    law_damping, damper_force : (n,) [N s/m], [N] a per-sample law's c2 acting over each
+        sample and the damper force k2 delta at each (``dva/damper_block``; NaN where no law
+        flew the block)
     missing_samples : int
         Samples of the flight with no displacement block in the log.
     diagnostics : tuple of dict
@@ -66,6 +70,16 @@ class FlightLog:
     applied_damping: np.ndarray
     missing_samples: int
     diagnostics: tuple[dict, ...]
+    law_damping: np.ndarray | None = None
+    damper_force: np.ndarray | None = None
+
+    @property
+    def damping(self) -> np.ndarray:
+        """(n,) [N s/m] the c2 that acted at each sample: a per-sample law's where it flew,
+        else the c2 the damper held over the block."""
+        if self.law_damping is None:
+            return self.applied_damping
+        return np.where(np.isnan(self.law_damping), self.applied_damping, self.law_damping)
 
 
 def _fill(target: np.ndarray, blocks: list[tuple[int, list[np.ndarray]]]) -> None:
@@ -108,7 +122,8 @@ def load_flight_log(bag: str | Path, namespace: str = "", *,
             accelerations=_stack(rows, ch.ACCELERATION, n),
             force=_stack(rows, ch.EXCITATION, n)[0], applied_damping=rows.applied_damping,
             missing_samples=int(np.isnan(displacements[0]).sum()),
-            diagnostics=diagnostics)
+            diagnostics=diagnostics, **dict(zip(("law_damping", "damper_force"),
+                                                _stack(rows, ch.DAMPER_BLOCK, n))))
     blocks: dict = {c: [] for c in SAMPLE_ROWS}  # sample topic -> [(first index, rows)]
     rates = set()
     conditions, damper = [], []
@@ -147,7 +162,8 @@ def load_flight_log(bag: str | Path, namespace: str = "", *,
         displacements=displacements, accelerations=arrays[ch.ACCELERATION],
         force=arrays[ch.EXCITATION][0], applied_damping=applied,
         missing_samples=int(np.isnan(displacements[0]).sum()),
-        diagnostics=diagnostics,
+        diagnostics=diagnostics, law_damping=arrays[ch.DAMPER_BLOCK][0],
+        damper_force=arrays[ch.DAMPER_BLOCK][1],
     )
 
 

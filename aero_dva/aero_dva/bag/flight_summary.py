@@ -36,7 +36,8 @@ class FlightSummary:
         2 s: :mod:`aero_dva.flight.range_rms`, the range ``dva evaluate`` compares controllers
         over); NaN when the flight did not pass the range's top or U_cr is unknown.
     mean_damping : float
-        [N s/m] mean applied c2 over the same samples.
+        [N s/m] mean c2 that acted over the same samples (a per-sample law's, sample by
+        sample, where it flew).
     rms_range : (float, float)
         [U/U_cr] the range of the two above.
     leading_edge_rms_before_divergence : float
@@ -127,7 +128,7 @@ def summarize(log: FlightLog, rms_range: tuple[float, float] = RMS_RANGE) -> Fli
         divergence_ratio=float(u_div / u_cr) if known else math.nan,
         leading_edge_rms=range_rms(speeds_logged, edge, log.sample_rate, speeds) if known
         else math.nan,
-        mean_damping=range_mean(speeds_logged, log.applied_damping, log.sample_rate, speeds)
+        mean_damping=range_mean(speeds_logged, log.damping, log.sample_rate, speeds)
         if known else math.nan,
         rms_range=(float(rms_range[0]), float(rms_range[1])),
         leading_edge_rms_before_divergence=float(np.sqrt(np.mean(response[stable] ** 2)))

@@ -172,7 +172,7 @@ def arrays_from_log(log) -> FlightArrays:
         pitch=np.asarray(log.displacements[1], dtype=float),
         airspeed=np.asarray(log.airspeed, dtype=float),
         density=np.asarray(log.density, dtype=float),
-        damping=np.asarray(log.applied_damping, dtype=float))
+        damping=np.asarray(log.damping, dtype=float))  # a per-sample law's c2 where it flew
 
 
 class FlightDomain:

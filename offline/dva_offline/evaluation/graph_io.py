@@ -119,7 +119,7 @@ def plot_traces(path, mu: float, runs: Mapping[str, object], u_cr: float) -> Pat
         u_div = divergence_airspeed(log.airspeed[valid], edge[valid],
                                     log.sample_rate) / u_cr  # as in the table
         # without the DVA the recorded c2 acts on nothing: leave its panel empty
-        c2 = log.applied_damping if controller != NONE else np.full(ratio.shape, np.nan)
+        c2 = log.damping if controller != NONE else np.full(ratio.shape, np.nan)
         if controller == NONE:
             row[2].text(0.5, 0.5, label(NONE), ha="center", transform=row[2].transAxes)
         for ax, values, ylabel in ((row[0], log.displacements[0] * 1e3, "w [mm]"),

@@ -160,3 +160,45 @@ def write_outputs(out, spectra, commands, channels, frequencies, window_duration
     finally:
         shutil.rmtree(work, ignore_errors=True)
     return out
+
+
+def write_flight(out, flight, block_size: int) -> Path:
+    """Write a flight flown again (FlightSamples of one flight) as a new bag ``out`` (must not
+    exist), a flight log :func:`aero_dva.bag.flight_log_io.load_flight_log` reads: its
+    ``wing/acceleration``, ``wing/displacement`` and ``wing/excitation`` blocks of
+    ``block_size`` samples and each block's ``flight/condition``, stamped and logged at the
+    block's first sample."""
+    from aero_dva.wing.model import DISPLACEMENT_NAMES
+
+    out = Path(out)
+    if out.exists():
+        raise FileExistsError(f"output {str(out)!r} exists; choose another --out")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    work = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    staged = work / out.name
+    rows = {ch.ACCELERATION: (ACCELERATION_CHANNELS, flight.accelerations),
+            ch.DISPLACEMENT: (DISPLACEMENT_NAMES, flight.displacements),
+            ch.EXCITATION: (("aileron_force",), flight.force[None, :])}
+    try:
+        with BagWriter(staged) as writer:
+            for channel in (*rows, ch.FLIGHT_CONDITION):
+                writer.add_topic(channel.absolute(), channel.type_name)
+            for a in range(0, flight.n, block_size):
+                stamp_ns = round((flight.first_index + a) / flight.sample_rate * _NS)
+                sec, nsec = divmod(stamp_ns, _NS)
+                header = {"stamp": {"sec": sec, "nanosec": nsec}, "frame_id": ""}
+                for channel, (names, values) in rows.items():
+                    message = {"header": {**header, "frame_id": "" if channel == ch.EXCITATION
+                                          else ch.WING_FRAME},
+                               "sample_rate": float(flight.sample_rate),
+                               "first_sample_index": flight.first_index + a}
+                    message.update({name: np.ascontiguousarray(values[k, a:a + block_size])
+                                    for k, name in enumerate(names)})
+                    writer.write(channel.absolute(), message, stamp_ns)
+                writer.write(ch.FLIGHT_CONDITION.absolute(), {
+                    "header": header, "airspeed": float(flight.airspeed[a]),
+                    "air_density": float(flight.density[a])}, stamp_ns)
+        staged.rename(out)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    return out

@@ -52,10 +52,21 @@ def register(subparsers) -> None:
     from aero_dva.control import controllers as table
 
     laws = table.controllers((table.BLOCK,))
-    p.add_argument("--controller", choices=[c.name for c in laws], required=True,
+    per_sample = table.controllers((table.SAMPLE,))
+    p.add_argument("--controller", choices=[c.name for c in (*laws, *per_sample)],
+                   required=True,
                    help="the block-rate law to re-run: "
-                        + "; ".join(f"{c.name}: {c.label}" for c in laws))
+                        + "; ".join(f"{c.name}: {c.label}" for c in laws)
+                        + "; or a per-sample law whose flight to fly again with the c2 it "
+                          "recorded (--offline): "
+                        + ", ".join(c.name for c in per_sample))
     table.add_options(p, laws)
+    p.add_argument("--scenario", metavar="FILE",
+                   help="a per-sample law's flight: the scenario it flew (default the "
+                        "package's scenario_ramp.yaml)")
+    p.add_argument("--wing", metavar="FILE",
+                   help="a per-sample law's flight: the wing it flew (default the package's "
+                        "chapter-6 wing)")
     p.add_argument("--out", metavar="DIR", required=True, help="new bag directory to create")
     p.add_argument("--offline", action="store_true", help="without ROS (the nodes' code)")
     p.add_argument("--rate", type=float, default=None,
@@ -73,6 +84,21 @@ def _check_args(args) -> None:
     from dva_offline.cli_tools import CliError, not_with
 
     entry = controller(args.controller)
+    if entry.runs != BLOCK:  # a per-sample law's flight is flown again, offline
+        if not args.offline:
+            raise CliError(f"--controller {entry.name} is a per-sample law: its flight is "
+                           "flown again with the c2 it recorded, offline only (add --offline)")
+        for other in controllers((BLOCK,)):
+            for option in other.options:
+                not_with(args, f"is for --controller {other.name}, not {entry.name}",
+                         f"--{option.name}")
+        not_with(args, "is an option of the ROS path: drop it or --offline", "--rate",
+                 "--retries")
+        if Path(args.out).exists():
+            raise CliError(f"--out {args.out} exists; choose another directory")
+        return
+    not_with(args, f"is for a per-sample law's flight, not --controller {entry.name}",
+             "--scenario", "--wing")
     for option in entry.options:
         if option.required and not getattr(args, option.name, None):
             raise CliError(f"--controller {entry.name} needs --{option.name} FILE")
@@ -152,6 +178,41 @@ def _ros(args, expected: list[int]) -> dict:
     return json.loads(result.stdout)
 
 
+def _per_sample(args) -> bool:
+    from aero_dva.control.controllers import SAMPLE, controller
+
+    return controller(args.controller).runs == SAMPLE
+
+
+def _fly_again(args, started: float) -> int:
+    """A per-sample law's flight flown again with its recorded c2 (:mod:`.refly`)."""
+    from dva_offline.replay.refly import refly
+
+    check = refly(args)
+    wall = time.monotonic() - started
+    result = {"bag": str(args.bag), "controller": args.controller,
+              "path": "offline: the wing flown again with the c2 the bag recorded",
+              "out": str(args.out), **check, "wall_time_s": wall}
+    if args.json:
+        print(json.dumps(result))
+    else:
+        print(f"bag          {args.bag}: {check['samples']} samples, {check['law_blocks']} "
+              f"blocks flown by the law, {check['held_blocks']} on a held c2")
+        print(f"controller   {args.controller}; {result['path']}")
+        for name, c in check["accelerations"].items():
+            print(f"{name:12s} max |difference| {c['max_abs_difference']:.3g} of a peak "
+                  f"{c['peak']:.4g} ({c['relative_to_peak']:.2g} of it)")
+        print(f"new bag      {args.out}")
+        print(f"wall time    {wall:.1f} s")
+    if not check["agrees"]:
+        print(f"dva replay: error: the accelerations flown again differ from the recorded by "
+              f"{check['relative_to_peak']:.3g} of their peak (more than {check['rtol']:g}): "
+              "another scenario or wing than the flight's, or a bag that lost blocks",
+              file=sys.stderr)
+        return 1
+    return 0
+
+
 def _timed(args) -> bool:
     """The law answers its node's own timer, not the played inputs (its commands in the graph
     come at other times: nothing to count)."""
@@ -180,6 +241,8 @@ def _replay(args) -> int:
 
     _check_args(args)
     started = time.monotonic()
+    if _per_sample(args):
+        return _fly_again(args, started)
     recording = read_recording(args.bag)
     if args.offline:
         spectra, commands = _offline(args, recording)

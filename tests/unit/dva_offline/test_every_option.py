@@ -227,6 +227,9 @@ TABLE: dict[str, dict] = {
         **{o: ("on the ROS path", [([*REPLAY, "--controller", "fixed", "--offline"],
                                     "is an option of the ROS path")])
            for o in ("--rate", "--retries")},
+        **{o: ("with a per-sample law's --controller", [
+            ([*REPLAY, "--controller", "fixed"], "is for a per-sample law's flight")])
+           for o in ("--scenario", "--wing")},
     },
     "bag info": {o: ALL for o in ("bag", "--no-verify", "--json")},
     "bag recover": {o: ALL for o in ("bag", "--out", "--compression", "--json")},

@@ -10,5 +10,6 @@ far faster than the graph's blocks; a supervising node only arms it
 - :mod:`.flight`: a whole flight (or a batch of seeds) with the law armed;
 - :mod:`.stream`: the law in the simulator's damper path, block by block;
 - :mod:`.kernel`: the compiled per-sample loop both run (numba);
-- :mod:`.smooth_tables`: the loop's per-sample maps, interpolated over airspeed and c2.
+- :mod:`.smooth_tables`: the loop's per-sample maps, interpolated over airspeed and c2;
+- :mod:`.replay`: a flight flown again with the c2 a law recorded, sample by sample.
 """

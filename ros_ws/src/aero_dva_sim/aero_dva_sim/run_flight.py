@@ -364,7 +364,7 @@ def bag_completeness(final: dict, counts: dict) -> dict:
     ``data_published``, ``data_recorded`` and ``data_missing`` (None without the report).
     A recorder starved of CPU can lose the last messages a writer sent before it exited; a
     flight's divergence is judged from its last seconds, so such a bag must not pass as whole."""
-    data = [c for c in ch.SIMULATOR_BLOCK if c != ch.CLOCK]
+    data = [c for c in ch.SIMULATOR_BLOCK if c != ch.CLOCK] + [ch.DAMPER_BLOCK]
     recorded = sum(counts.get(c.absolute(), 0) for c in data)
     if not final:
         return {"end_report_recorded": False, "data_published": None,

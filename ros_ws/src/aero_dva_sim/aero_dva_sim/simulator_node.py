@@ -12,14 +12,16 @@ controller table (``"switching"``, ``"clipped_optimal"``) arms that law in the d
 from its file, ``switching_gains``, ``clipped_optimal_gains``, checked on load): every sample of
 the block then runs the law (:mod:`aero_dva.flight.per_sample.stream`), its observer reading the
 measurements with ``damper_sensor_noise``; dva/damper_state reports the mode and switching rate,
-and /diagnostics each change of mode with its reason. A stepped-sweep scenario applies its own c2
-values and ignores commands.
+dva/damper_block the c2 and the damper force at each sample of the block (for an exact replay,
+``dva replay --offline``), and /diagnostics each change of mode with its reason. A stepped-sweep
+scenario applies its own c2 values and ignores commands.
 
 Its parameters (units, defaults, ranges) are the table ``SPEC`` below, which the node declares
 them from and ``simulator --help`` prints.
 
 Publishes wing/acceleration, wing/displacement, wing/excitation, flight/condition,
-dva/damper_state, /clock and /diagnostics; subscribes dva/damper_command.
+dva/damper_state, /clock and /diagnostics (and, with a per-sample law's gains, dva/damper_block
+for each block the law flies); subscribes dva/damper_command.
 Rejected commands are reported on /diagnostics at most once a second per reason, each report
 with the number rejected since the last one (all are counted in the end-of-flight summary).
 """
@@ -192,6 +194,12 @@ class Simulator(Node):
         self._diag_pub = self.create_publisher(message_class(ch.DIAGNOSTICS.type_name),
                                                ch.DIAGNOSTICS.name, 10)
         self.published = dict.fromkeys(DATA_TOPICS, 0)
+        # A per-sample law's damper, sample by sample, beside each block it flies.
+        if any(not isinstance(law, str) for law in self.runtime.config.per_sample.values()):
+            channel = ch.DAMPER_BLOCK
+            self._pub[channel.name] = self.create_publisher(
+                message_class(channel.type_name), channel.name, DATA_DEPTH)
+            self.published[channel.name] = 0
         self._latencies: list[float] = []  # [s] sim time from a command's input to its effect
         self._max_lag = float(self.get_parameter("max_command_lag").value)
         self._lag_timeout = float(self.get_parameter("command_wait_timeout").value)
@@ -275,7 +283,7 @@ class Simulator(Node):
     def _missing(self) -> list[str]:
         """What the start of the flight still waits for (empty: nothing)."""
         own = {**self._pub, ch.CLOCK.name: self._clock_pub}
-        missing = [f"{self._wait_for} subscribers on {t}" for t in DATA_TOPICS
+        missing = [f"{self._wait_for} subscribers on {t}" for t in self._pub
                    if self._pub[t].get_subscription_count() < self._wait_for]
         missing += [f"node {n}" for n in sorted(set(self._wait_for_nodes)
                                                 - set(self.get_node_names()))]
@@ -452,6 +460,11 @@ class Simulator(Node):
                 (ch.EXCITATION, lambda: conversions.force_block(t0, fs, i0, block.force))):
             self._pub[channel.name].publish(make())
             self.published[channel.name] += 1
+        if block.damper_force is not None:  # a per-sample law flew the block
+            self._pub[ch.DAMPER_BLOCK.name].publish(conversions.damper_block(
+                t0, fs, i0, self.runtime.flown_damper.source, block.damping,
+                block.damper_force))
+            self.published[ch.DAMPER_BLOCK.name] += 1
 
     def _summary(self) -> dict:
         wall = time.monotonic() - (self._started_wall or time.monotonic())

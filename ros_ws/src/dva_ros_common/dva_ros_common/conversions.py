@@ -25,6 +25,7 @@ from aero_dva.control.spectrum import ScaledSpectrum as SpectrumResult
 from aero_dva.wing.model import ACCELERATION_NAMES, DISPLACEMENT_NAMES
 from dva_msgs.msg import (
     AccelerationBlock,
+    DamperBlock,
     DamperCommand,
     DamperState,
     DisplacementBlock,
@@ -131,6 +132,17 @@ def force_block(stamp: Time | float, sample_rate: float, first_index: int,
     """``force`` (n,): aileron force [N] (no frame)."""
     return _sample_block(ForceBlock(), stamp, sample_rate, first_index,
                          np.asarray(force, dtype=np.float64)[None, :], ("aileron_force",), "")
+
+
+def damper_block(stamp: Time | float, sample_rate: float, first_index: int, source: str,
+                 damping, force) -> DamperBlock:
+    """A per-sample law's damper over a block: ``damping`` (n,) [N s/m] the c2 acting over each
+    sample, ``force`` (n,) [N] the damper force at each."""
+    msg = _sample_block(DamperBlock(), stamp, sample_rate, first_index,
+                        np.stack([np.asarray(damping, float), np.asarray(force, float)]),
+                        ("damping", "force"), WING_FRAME)
+    msg.source = str(source)
+    return msg
 
 
 def flight_condition(stamp: Time | float, airspeed: float,
