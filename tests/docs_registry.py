@@ -137,6 +137,10 @@ NOT_RUN = {
         "test_round_trip_into_the_recorder_keeps_every_message_its_order_and_bytes checks the "
         "same round trip on a 4 s flight",
     ("docs/replay.md", "dva replay BAG --controller {rbf,schedule,fixed}"): USAGE,
+    ("docs/replay.md", "dva replay BAG --controller {switching,clipped_optimal}"): USAGE,
+    ("docs/replay.md", "plunge       max |difference| 1.73e-12"):
+        "a dated record of one flight through the graph; tests/integration/"
+        "test_per_sample_replay.py flies both per-sample laws and checks the same",
     ("docs/training.md", "$ python bench/bench_sweep_recording.py"): BENCH,
     ("docs/training.md", "$ /usr/bin/time .venv/bin/dva train sweep"):
         "the sweep's JSON summary, shortened, with its wall and CPU times (a dated record; its "
