@@ -109,6 +109,9 @@ USAGE = "a usage synopsis (options in brackets)"
 NOT_RUN = {
     ("README.md", "aero_dva/aero_dva/          the ROS-free"): "a listing of the folders",
     ("docs/control.md", "default (chapter-6) wing, U_cr"): BENCH,
+    ("docs/control.md", '[project.entry-points."aero_dva.controllers"]'):
+        "the entry point of tests/data/external_law/pyproject.toml (test_controller_docs holds "
+        "the two to each other; test_external_law installs and flies the package)",
     ("docs/discrepancy.md", "dva discrepancy frf tests/data/discrepancy/dma_tension_raw.csv"):
         "the command of the next block",
     ("docs/discrepancy.md", "dva discrepancy frf tests/data/discrepancy/dma_shear_eplexor"):
