@@ -217,6 +217,14 @@ def _paired(args) -> int:
     per_sample = [c for c in wanted if c in table.names((SAMPLE,))]
     switching = bool(per_sample)
     if switching:  # its own flights (dva_offline/evaluation/switching_section.py)
+        from dva_offline.evaluation.switching_section import LAW
+
+        other = [c for c in per_sample if c != LAW]
+        if other:  # never the switching law's flights under another law's name
+            raise ValueError(f"--controllers {','.join(other)}: in process, a per-sample law "
+                             f"is flown by a section of its own, which only {LAW} has; fly "
+                             f"{','.join(other)} through the graph (--graph, or run_flight "
+                             "--controller)")
         wanted = [c for c in wanted if c not in per_sample]
         args.controllers = ",".join(wanted) or REFERENCE_CONTROLLER
     controllers = _choose("--controllers", args.controllers, known,
@@ -315,7 +323,7 @@ def _paired(args) -> int:
         files = write_paired_results(out, payload, records)
         payload["files"] = {**files, **plot_paired(out, payload, kept, u_cr)}
         if switching:  # after the paired tables and plots, which are the other controllers'
-            payload["controllers"].append("switching")
+            payload["controllers"].extend(per_sample)
         payload["wall_time_s"] = time.monotonic() - started
         with atomic_output(out / "results.json") as stream:  # last: the run is complete
             stream.write(json.dumps(payload, allow_nan=False))

@@ -11,7 +11,9 @@ noise they were designed for. Seeds: the evaluation's seeds plus
 """
 from __future__ import annotations
 
-__all__ = ["SWITCHING_CASES", "switching_section"]
+__all__ = ["LAW", "SWITCHING_CASES", "switching_section"]
+
+LAW = "switching"  # the per-sample law of the controller table this section flies
 
 SWITCHING_CASES = ("rho0", "x0.9", "x1.1")
 DESIGN_NOISE = 0.05  # sensor noise / output RMS at U_cr, as `dva switching design` uses

@@ -45,3 +45,12 @@ def test_a_bad_gains_file_ends_the_run_before_any_flight(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and str(gains) in err[0]
     assert not out.exists()  # nothing flown, nothing left behind
+
+
+def test_another_per_sample_law_is_refused_not_flown_as_the_switching_law(tmp_path, capsys):
+    out = tmp_path / "ev"
+    assert cli.main(["evaluate", "--out", str(out), "--seeds", "1", "--cases", "rho0",
+                     "--controllers", "fixed,clipped_optimal"]) == 2
+    err = capsys.readouterr().err
+    assert "clipped_optimal: in process, a per-sample law is flown by a section" in err
+    assert not out.exists()
