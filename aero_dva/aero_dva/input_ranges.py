@@ -12,9 +12,14 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-__all__ = ["AIR_DENSITY", "ABSORBER", "AIRSPEED", "GAINS", "GAIN_ROWS", "NETWORK", "PLAN",
-           "Range", "SAMPLE_RATE", "SCHEDULE", "SECTION", "WING", "check_fields",
-           "check_number", "check_numbers"]
+__all__ = ["AIR_DENSITY", "ABSORBER", "AIRSPEED", "GAINS", "GAIN_ROWS", "MAX_AIRSPEED",
+           "NETWORK", "PLAN", "Range", "SAMPLE_RATE", "SCHEDULE", "SECTION", "WING",
+           "check_fields", "check_number", "check_numbers"]
+
+
+#: [m/s] a subsonic wing: an airspeed above this, in a file, a scenario or measured in flight,
+#: is a unit or sensor error (the airspeed controller ignores it).
+MAX_AIRSPEED = 400.0
 
 
 @dataclass(frozen=True)
@@ -112,18 +117,18 @@ SECTION = {
 SCHEDULE = {
     "a0": Range(-1e6, 1e6, "N s/m"),
     "a1": Range(-1e5, 1e5, "N s^2/m^2"),
-    "airspeed_min": Range(0.0, 400.0, "m/s"),
-    "airspeed_max": Range(0.0, 400.0, "m/s"),
+    "airspeed_min": Range(0.0, MAX_AIRSPEED, "m/s"),
+    "airspeed_max": Range(0.0, MAX_AIRSPEED, "m/s"),
 }
 
 #: [m/s] an airspeed of this subsonic model (the scenarios' bound).
-AIRSPEED = Range(0.0, 400.0, "m/s")
+AIRSPEED = Range(0.0, MAX_AIRSPEED, "m/s")
 #: [Hz] a flight's sample rate (aero_dva.flight.flight_limits.SAMPLE_RATE_RANGE).
 SAMPLE_RATE = Range(100.0, 20_000.0, "Hz")
 
 #: A switching-gains file's numbers (its c2 levels are the damper's range).
 GAINS = {
-    "design_airspeed": Range(1.0, 400.0, "m/s"),
+    "design_airspeed": Range(1.0, MAX_AIRSPEED, "m/s"),
     "density": AIR_DENSITY,
     "time_constant": Range(0.0, 10.0, "s"),
     "sample_rate": SAMPLE_RATE,
@@ -137,12 +142,12 @@ GAIN_ROWS = {
     "gain": Range(-1e6, 1e6),
     "observer": Range(-1e6, 1e6),
     "force_gain": Range(-1e12, 1e12),
-    "airspeeds": Range(1.0, 400.0, "m/s"),
+    "airspeeds": Range(1.0, MAX_AIRSPEED, "m/s"),
 }
 
 #: A training plan's own numbers besides its settings (PlanSettings checks those) and c2.
 PLAN = {
-    "critical_airspeed": Range(1.0, 400.0, "m/s"),
+    "critical_airspeed": Range(1.0, MAX_AIRSPEED, "m/s"),
     "base_density": AIR_DENSITY,
 }
 

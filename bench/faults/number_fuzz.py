@@ -206,6 +206,7 @@ def _file_kinds(work: Path) -> dict:
     from aero_dva.control.rbf_io import load_rbf_network
     from aero_dva.control.schedule_io import load_schedule
     from aero_dva.flight.damper import DAMPER_RANGE
+    from aero_dva.input_ranges import MAX_AIRSPEED
 
     short = _short_scenario(work)
 
@@ -214,10 +215,11 @@ def _file_kinds(work: Path) -> dict:
         _fly({"wing": str(path), "scenario": short})
 
     def schedule(path):
-        law = _start(lambda: ScheduleLaw(load_schedule(path), DAMPER_RANGE, True, 400.0))
+        law = _start(lambda: ScheduleLaw(load_schedule(path), DAMPER_RANGE, True,
+                                         MAX_AIRSPEED))
 
         def run():
-            for u in (0.0, 50.0, 100.0, 115.0, 200.0, 400.0):
+            for u in (0.0, 50.0, 100.0, 115.0, 200.0, MAX_AIRSPEED):
                 c2 = law.command_for(u)
                 if not DAMPER_RANGE[0] <= c2 <= DAMPER_RANGE[1]:
                     raise RuntimeError(f"the schedule commands {c2} N s/m")

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aero_dva.flight.scenario import MAX_AIRSPEED
+from aero_dva.input_ranges import MAX_AIRSPEED
 
 __all__ = ["MAX_AIRSPEED", "AirspeedSchedule", "ScheduleFit", "fit_airspeed_schedule"]
 

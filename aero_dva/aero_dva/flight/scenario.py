@@ -33,13 +33,10 @@ from aero_dva.flight.flight_limits import (
     SAMPLE_RATE_RANGE,
 )
 from aero_dva.flight.hidden_plant import PlantOptions
+from aero_dva.input_ranges import MAX_AIRSPEED
 
 AIRSPEED_KINDS = ("constant", "ramp", "steps")
 
-
-#: [m/s] a subsonic wing: an airspeed above this, in a scenario or measured in flight, is a
-#: unit or sensor error (the airspeed controller ignores it).
-MAX_AIRSPEED = 400.0
 
 class ScenarioError(ValueError):
     """A scenario is malformed or physically meaningless; the message names the field."""

@@ -2,7 +2,7 @@
 defaults' homes, and the nodes' parameters and the CLIs take them from there.
 
 The homes: the damper's range, MAX_DAMPING and the stale-command timeout in
-``aero_dva.flight.damper``; the airspeed limit in ``aero_dva.flight.scenario``; the spectrum
+``aero_dva.flight.damper``; the airspeed limit in ``aero_dva.input_ranges``; the spectrum
 band in ``aero_dva.control.spectrum``; the controllers' parameters in the controller table.
 """
 from __future__ import annotations
@@ -14,7 +14,7 @@ import yaml
 
 from aero_dva.control.spectrum import DEFAULT_FREQUENCIES
 from aero_dva.flight.damper import DAMPER_RANGE, DEFAULT_STALE_TIMEOUT, MAX_DAMPING, DamperConfig
-from aero_dva.flight.scenario import MAX_AIRSPEED
+from aero_dva.input_ranges import MAX_AIRSPEED
 
 SRC = Path(__file__).resolve().parents[3] / "ros_ws" / "src"
 
