@@ -278,8 +278,7 @@ def test_airspeed_controller_schedule_file(executor, spin, ros_context, tmp_path
                                 damping_range=(200.0, 1800.0))
     path = save_schedule(schedule, tmp_path / "schedule.json")
     _, _, commands, _, conditions = _airspeed_rig(
-        executor, spin, ros_context, schedule_file=str(path), a0=0.0, a1=0.0,
-        extrapolate=extrapolate,
+        executor, spin, ros_context, schedule_file=str(path), extrapolate=extrapolate,
     )
     speeds = (100.0, 150.0, 200.0, 10.0)
     for i, u in enumerate(speeds):

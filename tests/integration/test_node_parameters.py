@@ -59,3 +59,21 @@ def test_a_parameter_the_node_does_not_declare_is_refused(node_class, ros_contex
     with pytest.raises(ValueError, match=r"unknown parameter 'dampng': \w+ has .* \(see --help\)"):
         node_class(context=ros_context, parameter_overrides=overrides)
     assert not (tmp_path / "bag").exists()
+
+
+def test_a_parameter_its_mode_has_no_use_for_is_refused(ros_context):
+    """The simulator's DVA values with absorber:=none, the airspeed controller's a0/a1 beside a
+    schedule file (whose line replaces them) and extrapolate without one: one line each."""
+    from dva_controller.controller_node import ControllerNode
+
+    with pytest.raises(ValueError, match="parameter 'absorber_mass' sets the DVA, but absorber "
+                                         "is 'none'"):
+        Simulator(context=ros_context, parameter_overrides=[
+            Parameter("absorber", value="none"), Parameter("absorber_mass", value=40.0)])
+    with pytest.raises(ValueError, match="parameter 'a0' has no use with 'schedule_file' set"):
+        ControllerNode("schedule", context=ros_context, parameter_overrides=[
+            Parameter("schedule_file", value="schedule.json"), Parameter("a0", value=-1000.0)])
+    with pytest.raises(ValueError, match="parameter 'extrapolate' acts only with "
+                                         "'schedule_file' set"):
+        ControllerNode("schedule", context=ros_context, parameter_overrides=[
+            Parameter("extrapolate", value=False)])

@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 import pytest
-from diagnostic_msgs.msg import DiagnosticArray
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
@@ -184,3 +184,24 @@ def test_paced_flight_keeps_its_real_time_factor(executor, spin, ros_context, tm
     assert values["sim_time_s"] == pytest.approx(1.0)
     assert values["real_time_factor"] <= 4.0 * 1.05  # never faster than asked
     assert len(probe.blocks) == 50
+
+
+def test_a_flight_ahead_of_its_controller_is_said_once_and_loudly(executor, spin, ros_context,
+                                                                  tmp_path):
+    """Without max_command_lag the flight runs free: a command for an input it flew past more
+    than a block ago is said once (log and /diagnostics, WARN), however many follow."""
+    probe = Probe(ros_context)
+    sim = _simulator(ros_context, tmp_path,
+                     _scenario(tmp_path, "{kind: constant, value_ratio: 0.8}", duration=5.0),
+                     real_time_factor=2.0, max_command_lag=0.0)
+    executor.add_node(probe.node)
+    executor.add_node(sim)
+    assert spin(executor, lambda: len(probe.blocks) >= 10, timeout=60.0)  # 0.2 s flown
+    for _ in range(3):
+        probe.commands.publish(DamperCommand(damping=600.0, source="test"))  # stamped t = 0
+    assert spin(executor, lambda: sim.commands_received >= 3, timeout=30.0)
+    assert spin(executor, lambda: any("FLYING AHEAD" in m for m in probe.messages()), 10.0)
+    ahead = [m for m in probe.messages(level=DiagnosticStatus.WARN) if "FLYING AHEAD" in m]
+    assert len(ahead) == 1 and sim.flew_ahead
+    assert "a command for t = 0.000 s arrived at t = " in ahead[0]
+    assert "max_command_lag 0 s, so the flight runs free" in ahead[0]

@@ -138,6 +138,8 @@ class LawParam:
     nan_means: str = ""
     default_text: str = ""
     dynamic: bool = False
+    needs: str = ""
+    excludes: str = ""
 
 
 @dataclass(frozen=True)
@@ -319,6 +321,11 @@ SUPERVISOR_PARAMS = (
              "Hz", 0.01, 1000.0),
 )
 
+#: [N s/m] The best constant c2 of the default (chapter-6) wing: the constant c2 with the highest
+#: flutter airspeed (``dva_offline.evaluation.inputs.best_fixed_damping_of``: 624.71; a test
+#: checks the rounding), the fixed controller's default.
+BEST_FIXED_DAMPING = 624.7
+
 BUILTIN = (
     Controller(
         name="fixed", label="best fixed c2", source="fixed", runs=BLOCK,
@@ -328,10 +335,14 @@ BUILTIN = (
         summary="Publish a constant damper command c2: the fixed-c2 baseline of chapter 7 of "
                 "Zhang (2006).",
         params=(
-            LawParam("damping", 1500.0, "c2 to command", "N s/m", 0.0, MAX_DAMPING,
-                     dynamic=True),
-            LawParam("rate", 10.0, "publishing rate, in ROS time (sim time with "
-                     "use_sim_time)", "Hz", 0.01, 1000.0),
+            LawParam("damping", BEST_FIXED_DAMPING, "c2 to command; the default is the best "
+                     "constant c2 of the default (chapter-6) wing, the c2 with the highest "
+                     "flutter airspeed (115.05 m/s = 1.1505 U_cr), which dva evaluate's fixed "
+                     "controller flies (the simulator's start-up and fallback c2 is the wing "
+                     "file's design c2, 500 N s/m, the DVA as designed without control)", "N s/m",
+                     0.0, MAX_DAMPING, dynamic=True),
+            LawParam("rate", 20.0, "publishing rate, in ROS time (sim time with "
+                     "use_sim_time); run_flight's", "Hz", 0.01, 1000.0),
         ),
         options=(Option("damping", "damping", "c2 [N s/m] of the fixed controller", "number"),),
         flight_values={"rate": 20.0}),
@@ -346,14 +357,14 @@ BUILTIN = (
                 "ignored and reported on /diagnostics.",
         params=(
             LawParam("a0", -2150.0, "eq. 7.1 intercept (used when schedule_file is empty)",
-                     "N s/m", -1.0e6, 1.0e6),
+                     "N s/m", -1.0e6, 1.0e6, excludes="schedule_file"),
             LawParam("a1", 31.5, "eq. 7.1 slope (used when schedule_file is empty)",
-                     "N s^2/m^2", -1.0e5, 1.0e5),
+                     "N s^2/m^2", -1.0e5, 1.0e5, excludes="schedule_file"),
             LawParam("schedule_file", "", "JSON airspeed schedule (dva control schedule); when "
                      "set, its a0, a1 and ranges replace the parameters",
                      default_text="'' (use a0, a1)"),
             LawParam("extrapolate", True, "continue the schedule file's line outside its "
-                     "fitted airspeeds (false: hold the end values)"),
+                     "fitted airspeeds (false: hold the end values)", needs="schedule_file"),
             *DAMPER_RANGE_PARAMS,
             LawParam("min_period", 0.0, "least ROS time between two commands (0: one per "
                      "flight condition)", "s", 0.0, 3600.0),

@@ -52,7 +52,7 @@ from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
 from dva_msgs.msg import DamperCommand
 from dva_ros_common import conversions
 from dva_ros_common.conversions import message_class, time_to_seconds
-from dva_ros_common.node_params import NodeSpec, Param, declare_parameters
+from dva_ros_common.node_params import NodeSpec, Param, declare_parameters, given_parameters
 from dva_ros_common.node_tools import DATA_DEPTH, run_node
 
 POLL_PERIOD = 0.005  # [s] wall time between checks before the start and while held
@@ -79,6 +79,10 @@ PER_SAMPLE_PARAMS = tuple(
           "invalid file or one for another wing leaves the damper on the commands' c2, and "
           "says so", default_text="none: the law cannot run")
     for entry, option in PER_SAMPLE_FILES)
+
+#: The DVA's parameters (nothing to set with absorber:=none).
+ABSORBER_PARAMS = ("absorber_mass", "absorber_stiffness", "absorber_series_stiffness",
+                   "absorber_position")
 
 SPEC = NodeSpec(
     name="simulator",
@@ -162,6 +166,10 @@ class Simulator(Node):
     def __init__(self, **kwargs) -> None:
         super().__init__(SPEC.name, **kwargs)
         params = self._declare_parameters()
+        dva = sorted(given_parameters(self) & set(ABSORBER_PARAMS))
+        if params["absorber"] == "none" and dva:  # a DVA's value for a wing without one
+            raise ValueError(f"parameter '{dva[0]}' sets the DVA, but absorber is 'none': drop "
+                             "it or set absorber:=maxwell")
         config = load_runtime_config(params)
         for entry, option in PER_SAMPLE_FILES:
             config = with_per_sample(
@@ -207,6 +215,7 @@ class Simulator(Node):
         self._lag_since: float | None = None
         self._controller_silent = False
         self.lag_timeouts = 0
+        self.flew_ahead = False  # said once: the flight ran ahead of its controller
         self.rejected: dict[str, int] = {}  # rejection reason -> commands rejected
         self._rejections_reported: dict[str, tuple[float, int]] = {}  # reason -> (wall, count)
         self._command_sub = self.create_subscription(DamperCommand, ch.DAMPER_COMMAND.name,
@@ -258,6 +267,7 @@ class Simulator(Node):
             # The command acts from the next block on; its stamp is its input's time.
             stamp = time_to_seconds(msg.header.stamp)
             self._latencies.append(self.runtime.time - stamp)
+            self._check_ahead(stamp)
             self._last_command_stamp = max(stamp, self._last_command_stamp or 0.0)
             self._controller_silent = False
             if not self._stepping and self._started_wall is not None:
@@ -330,7 +340,31 @@ class Simulator(Node):
         self._lag_since = None
         self._controller_silent = True
         self.lag_timeouts += 1
+        self._say_ahead(f"no command for {self._lag_timeout:g} s of wall time "
+                        "(command_wait_timeout): flying on without the controller")
         return False
+
+    def _check_ahead(self, stamp: float) -> None:
+        """Say it when a command arrives for an input the flight has already flown past by more
+        than ``max_command_lag`` and a block: its c2 then acts later than in step."""
+        behind = self.runtime.time - stamp
+        if behind > max(self._max_lag, 0.0) + self.runtime.block_duration + 1e-9:
+            self._say_ahead(f"a command for t = {stamp:.3f} s arrived at t = "
+                            f"{self.runtime.time:.3f} s of the flight ({behind:.3f} s behind; "
+                            f"max_command_lag {self._max_lag:g} s"
+                            + (", so the flight runs free" if self._max_lag <= 0 else "") + ")")
+
+    def _say_ahead(self, what: str) -> None:
+        """Once per flight, loudly (log and /diagnostics): the flight is ahead of its
+        controller, so the commands act later than the lockstep run_flight keeps, and the
+        record depends on how fast this machine is."""
+        if self.flew_ahead:
+            return
+        self.flew_ahead = True
+        self._diagnose("warn", f"FLYING AHEAD OF THE CONTROLLER: {what}; its c2 acts later "
+                       "than in step, and this flight's record depends on the machine's speed. "
+                       "Keep the nodes in step with max_command_lag (config/graph.yaml sets "
+                       "it; run_flight does). Said once.", {"event": "flying_ahead"})
 
     def _waiting_for_first_command(self) -> bool:
         """Hold past the controller's first input until its first command has arrived: a

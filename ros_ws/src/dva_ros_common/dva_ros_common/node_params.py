@@ -21,7 +21,8 @@ from dataclasses import dataclass, field
 HELP_WIDTH = 99
 #: Parameters every rclpy node has; listed in the help, declared by rclpy itself.
 ROS_STANDARD = (
-    ("use_sim_time", "bool", "false", "follow /clock (sim time) instead of the wall clock"),
+    ("use_sim_time", "bool", "false", "follow /clock (sim time) instead of the wall clock; "
+     "true in run_flight's graph and config/graph.yaml"),
 )
 
 
@@ -51,6 +52,10 @@ class Param:
         How the help shows the default when the value alone would not say it.
     dynamic : bool
         May change while the node runs (``ros2 param set``); others are read at start-up.
+    needs, excludes : str
+        Another parameter this one acts only with (set: not empty, not false, not zero) or
+        only without; given a value other than its default against that, it is refused (never
+        ignored).
     """
 
     name: str
@@ -63,6 +68,8 @@ class Param:
     nan_means: str = ""
     default_text: str = ""
     dynamic: bool = False
+    needs: str = ""
+    excludes: str = ""
 
     @property
     def type_name(self) -> str:
@@ -90,6 +97,10 @@ class Param:
             parts.append("one of " + ", ".join(self.choices))
         if self.nan_means:
             parts.append(f"NaN: {self.nan_means}")
+        if self.needs:
+            parts.append(f"only with {self.needs} set")
+        if self.excludes:
+            parts.append(f"not with {self.excludes} set")
         return parts
 
     def range_text(self) -> str:
@@ -179,7 +190,8 @@ def help_text(spec: NodeSpec) -> str:
         lines += _wrap(f"{p.name} ({p.type_name}{unit}): {p.description}", "  ", " " * 6)
         lines += _wrap("; ".join(facts), " " * 6)
     for name, type_name, default, text in ROS_STANDARD:
-        lines += [f"  {name} ({type_name}): {text} (every node)", f"      default {default}"]
+        lines += _wrap(f"{name} ({type_name}): {text} (every node)", "  ", " " * 6)
+        lines.append(f"      default {default}")
     if spec.topics:
         lines += ["", "topics:", *("  " + t.strip() for t in spec.topics.strip().splitlines())]
     lines += [
@@ -295,11 +307,38 @@ def refuse_changes(node, names) -> None:
     node.add_on_set_parameters_callback(check)
 
 
+def given_parameters(node) -> set[str]:
+    """The parameters given to ``node`` (``-p``, ``--params-file``, overrides)."""
+    return set(getattr(node, "_parameter_overrides", {}))  # rclpy keeps no public accessor
+
+
+def _is_set(value) -> bool:
+    if isinstance(value, list):
+        return any(v != "" for v in value)
+    return bool(value) and not (isinstance(value, float) and math.isnan(value))
+
+
+def refuse_unused(node, spec: NodeSpec, values: dict) -> None:
+    """ValueError naming a parameter given a value of its own that has no use with the others'
+    values (its ``needs`` not set, or its ``excludes`` set). Its default value, as a file that
+    lists every parameter gives it, changes nothing and passes."""
+    given = given_parameters(node)
+    for p in spec.params:
+        if p.name not in given or values.get(p.name) == p.default:
+            continue
+        if p.needs and not _is_set(values.get(p.needs)):
+            raise ValueError(f"parameter '{p.name}' acts only with '{p.needs}' set, and it is "
+                             f"not: drop '{p.name}' or set '{p.needs}'")
+        if p.excludes and _is_set(values.get(p.excludes)):
+            raise ValueError(f"parameter '{p.name}' has no use with '{p.excludes}' set "
+                             f"({values[p.excludes]!r}): drop one of them")
+
+
 def refuse_undeclared(node, spec: NodeSpec) -> None:
     """ValueError naming a parameter given to ``node`` (``-p``, ``--params-file``, overrides)
     that neither its table nor rclpy declares: a misspelt ``-p dampng:=750.0`` would else be
     ignored without a word."""
-    given = getattr(node, "_parameter_overrides", {})  # rclpy keeps no public accessor
+    given = given_parameters(node)
     known = {p.name for p in spec.params}
     unknown = sorted(n for n in given if n not in known and not node.has_parameter(n))
     if unknown:
@@ -313,7 +352,8 @@ def declare_parameters(node, spec: NodeSpec, names: Iterable[str] | None = None)
     """Declare the table's parameters (or only ``names``) on ``node``; return their values.
 
     With the whole table (``names`` None), a parameter given to the node that the table does
-    not hold is refused first (:func:`refuse_undeclared`). Values outside a row's range or
+    not hold is refused first (:func:`refuse_undeclared`), and one given where its ``needs`` or
+    ``excludes`` say it has no use after (:func:`refuse_unused`). Values outside a row's range or
     choices raise ValueError naming the parameter. Parameters not marked ``dynamic`` refuse
     run-time changes (they are read at start-up).
     """
@@ -332,6 +372,8 @@ def declare_parameters(node, spec: NodeSpec, names: Iterable[str] | None = None)
             raise ValueError(f"parameter '{p.name}' must be in {p.range_text()}{unit}, "
                              f"got {value}{unit}") from None
         values[p.name] = check_value(p, node.get_parameter(p.name).value)
+    if names is None:
+        refuse_unused(node, spec, values)
     fixed = [p.name for p in rows if not p.dynamic]
     if fixed:
         refuse_changes(node, fixed)

@@ -106,3 +106,19 @@ def test_law_params_are_the_node_params_fields():
 
     node_params = pytest.importorskip("dva_ros_common.node_params")
     assert [f.name for f in fields(LawParam)] == [f.name for f in fields(node_params.Param)]
+
+
+def test_the_fixed_controllers_default_is_the_best_constant_c2_of_the_default_wing():
+    """Its --help says so: the c2 with the highest flutter airspeed of the chapter-6 wing (the
+    fixed controller dva evaluate flies), to the 0.1 N s/m the table keeps."""
+    from aero_dva.control.controllers import BEST_FIXED_DAMPING, controller
+    from aero_dva.control.dva_design import best_fixed_damping
+    from aero_dva.wing.model import AeroelasticModel
+    from aero_dva.wing.wing_io import load_wing
+
+    cfg = load_wing()
+    best = best_fixed_damping(AeroelasticModel(cfg.wing, cfg.absorber, cfg.aero),
+                              cfg.air_density)
+    assert round(best.damping, 1) == BEST_FIXED_DAMPING == controller("fixed").defaults()[
+        "damping"]
+    assert "best constant c2" in controller("fixed").params[0].description
