@@ -128,8 +128,6 @@ NOT_RUN = {
     ("docs/discrepancy.md", ".venv/bin/python bench/bench_discrepancy_acceptance.py --cases "
                             "40"): BENCH,
     ("docs/discrepancy.md", ".venv/bin/python bench/bench_discrepancy_combined.py"): BENCH,
-    ("docs/evaluation.md", "$ /usr/bin/time .venv/bin/dva evaluate"):
-        "the wall and CPU times of a 7-8 min evaluation (a dated record)",
     ("docs/evaluation.md", "$ source scripts/env.sh; .venv/bin/dva evaluate --graph"):
         "the command of the table below it (a graph evaluation of 20 min)",
     ("docs/isolator.md", "50 random M-V systems per row"): BENCH,

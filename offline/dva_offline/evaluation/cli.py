@@ -32,6 +32,7 @@ from aero_dva.flight.range_rms import RMS_RANGE
 __all__ = ["register"]
 
 DEFAULT_SEEDS = 30
+RAMP_TO = 1.4  # [U_cr] the study's ramp (0.8 -> 1.2 in 30 s) carried on at its slope
 DEFAULT_RMS_RANGE = f"{RMS_RANGE[0]:g}:{RMS_RANGE[1]:g}"  # the range run_flight's summary uses
 
 
@@ -56,11 +57,16 @@ def register(subparsers) -> None:
                    help=f"subset of {','.join(in_process + table.names((SAMPLE,)))} (default "
                         f"{','.join(default)}; fixed is always flown, the reference); --graph: "
                         f"of {','.join(graph)}. A per-sample law "
-                        f"({','.join(table.names((SAMPLE,)))}): against the best constant c2 "
-                        "in the constant-density cases (its own flights)")
+                        f"({','.join(table.names((SAMPLE,)))}) flies the same flights, with "
+                        "its damper lag and sensor noise, in the constant-density cases (the "
+                        "others are marked in the table)")
     p.add_argument("--gains", metavar="FILE", default=None,
-                   help="switching gains JSON for --controllers switching (default: the "
-                        "package's)")
+                   help="gains JSON of the one per-sample law flown (default: the package's "
+                        "file of each)")
+    p.add_argument("--ramp-to", type=float, default=None, metavar="RATIO",
+                   help=f"carry the scenario's ramp on at its slope to RATIO U_cr, so that "
+                        f"laws that hold past its end diverge on it too (default {RAMP_TO:g}; "
+                        "the ramp's own end or below: as the scenario)")
     p.add_argument("--cases", default=None,
                    help="subset of rho0,x0.9,x1.1,slow,1Hz,2f (default all)")
     p.add_argument("--rms-range", metavar="LOW:HIGH", default=None,
@@ -114,7 +120,8 @@ def register(subparsers) -> None:
 GRAPH_DEFAULTS = {"mu": "0,0.05,0.1", "timeout": 300.0, "retries": 1, "real_time_factor": 0.0,
                   "reports": "first", "no_rrd": False}
 #: The options of the in-process evaluation only (--graph has no use for them).
-PAIRED_ONLY = ("--cases", "--rms-range", "--no-boundaries", "--one-flight", "--gains")
+PAIRED_ONLY = ("--cases", "--rms-range", "--no-boundaries", "--one-flight", "--gains",
+               "--ramp-to")
 
 
 def _evaluate(args) -> int:
@@ -197,13 +204,17 @@ def _paired(args) -> int:
         flight_memory_problem,
         fly_paired,
         oracle_table,
+        peak_limit,
+        refused,
         stability_boundaries,
     )
     from dva_offline.evaluation.inputs import evaluation_directory, log, resumable_or_removed
     from dva_offline.evaluation.paired import (
         CASE_NAMES,
+        HOLD,
         REFERENCE_CONTROLLER,
         default_cases,
+        law_pairs,
         summarise,
     )
     from dva_offline.evaluation.paired_io import plot_paired, write_paired_results
@@ -212,38 +223,22 @@ def _paired(args) -> int:
     if seeds_n < 1 or args.first_seed < 0:
         raise ValueError(f"--seeds must be >= 1 and --first-seed >= 0, got {seeds_n}, "
                          f"{args.first_seed}")
-    known = table.names((BLOCK, REFERENCE))
-    wanted = [c.strip() for c in (args.controllers or "").split(",") if c.strip()]
-    per_sample = [c for c in wanted if c in table.names((SAMPLE,))]
-    switching = bool(per_sample)
-    if switching:  # its own flights (dva_offline/evaluation/switching_section.py)
-        from dva_offline.evaluation.switching_section import LAW
-
-        other = [c for c in per_sample if c != LAW]
-        if other:  # never the switching law's flights under another law's name
-            raise ValueError(f"--controllers {','.join(other)}: in process, a per-sample law "
-                             f"is flown by a section of its own, which only {LAW} has; fly "
-                             f"{','.join(other)} through the graph (--graph, or run_flight "
-                             "--controller)")
-        wanted = [c for c in wanted if c not in per_sample]
-        args.controllers = ",".join(wanted) or REFERENCE_CONTROLLER
+    known = table.names((BLOCK, REFERENCE, SAMPLE))
     controllers = _choose("--controllers", args.controllers, known,
                           table.names((BLOCK, REFERENCE), builtin_only=True))
     controllers = tuple(c for c in known if c in controllers or c == REFERENCE_CONTROLLER)
+    per_sample = [c for c in controllers if table.controller(c).runs == SAMPLE]
     case_names = _choose("--cases", args.cases, CASE_NAMES)
-    if switching:
-        from dva_offline.evaluation.switching_section import SWITCHING_CASES
-
-        wrong = [c for c in case_names if c not in SWITCHING_CASES]
-        if wrong:
-            raise ValueError(f"--controllers switching flies the constant-density cases "
-                             f"{','.join(SWITCHING_CASES)} only, not {','.join(wrong)} "
-                             "(choose them with --cases)")
-        if args.gains:  # a bad file ends the run here, not after the other flights
-            from aero_dva.control.switching_io import load_gains
-
-            load_gains(args.gains)
-    check_inputs_used(args, (*controllers, *per_sample))
+    if args.gains and len(per_sample) > 1:
+        raise ValueError(f"--gains is the file of one per-sample law; --controllers flies "
+                         f"{' and '.join(per_sample)} (fly one, or both on their package "
+                         "files)")
+    args.ramp_to = RAMP_TO if args.ramp_to is None else args.ramp_to
+    if not (math.isfinite(args.ramp_to) and 0.5 < args.ramp_to <= 2.0):
+        raise ValueError(f"--ramp-to is a ratio of U_cr in (0.5, 2], got {args.ramp_to}")
+    check_inputs_used(args, controllers)
+    for name in per_sample:  # a bad file ends the run here, not in every flight
+        _check_gains(table.controller(name), args.gains)
     rms_low, rms_high = _rms_range(args.rms_range or DEFAULT_RMS_RANGE)
     seeds = list(range(args.first_seed, args.first_seed + seeds_n))
     scenario_path = Path(args.scenario) if args.scenario else \
@@ -267,14 +262,21 @@ def _paired(args) -> int:
         ramp = config.scenario.airspeed.values
         if not config.scenario.airspeed.relative:
             ramp = tuple(v / u_cr for v in ramp)
+        ramp = (ramp[0], max(ramp[1], args.ramp_to))
         references = [c for c in controllers if table.controller(c).runs == REFERENCE]
         oracle = oracle_table(model, u_cr, config.scenario.density, list(cases.values()), ramp) \
             if references else None
         setup = EvaluationSetup(
             config=config, model=model, critical_airspeed=u_cr,
-            laws=evaluation_laws(controllers, made, config.damper, oracle),
-            rms_range=(rms_low * u_cr, rms_high * u_cr))
-        total = len(cases) * len(seeds) * len(controllers)
+            laws=evaluation_laws(controllers, made, config.damper, oracle, args.gains),
+            rms_range=(rms_low * u_cr, rms_high * u_cr), ramp_to=args.ramp_to,
+            peak_limits={name: peak_limit(model, ramp[0] * u_cr, config.scenario.density
+                                          * case.factor, fixed["damping"])
+                         for name, case in cases.items()},
+            safe_damping=fixed["damping"])
+        not_flown = {(c, case.name): reason for c in controllers for case in cases.values()
+                     if (reason := refused(c, case))}
+        total = len(cases) * len(seeds) * len(controllers) - len(not_flown) * len(seeds)
         bar = tqdm(total=total, desc="flights", unit="flight", file=sys.stderr, leave=False)
 
         def progress(text):
@@ -287,7 +289,8 @@ def _paired(args) -> int:
             "scenario": str(scenario_path), "controllers": list(controllers),
             "cases": case_table(cases), "rms_range_ratio": [rms_low, rms_high],
             "fixed_c2": fixed["damping"], "schedule": made.get("schedule"),
-            "network": made.get("network")})
+            "network": made.get("network"), "gains": args.gains, "ramp_to": args.ramp_to,
+            "hold": list(HOLD), "records": "with practical boundary and hold"})
         done = store.load(seeds)
         if done:
             log(f"resuming: {len(done)} of {len(cases) * len(seeds)} (case, seed) jobs already "
@@ -302,7 +305,7 @@ def _paired(args) -> int:
         finally:
             bar.close()
         flight_time = time.monotonic() - flights_started
-        rows = summarise(records, controllers, list(cases))
+        rows = summarise(records, controllers, list(cases), not_flown)
         boundaries = {} if args.no_boundaries else stability_boundaries(
             setup, list(cases.values()), controllers)
         payload = {
@@ -310,20 +313,17 @@ def _paired(args) -> int:
             "cases": case_table(cases), "seeds": seeds, "inputs": made,
             "critical_airspeed_no_dva": u_cr, "fixed_c2": fixed["damping"],
             "rms_range_ratio": [rms_low, rms_high], "flights": len(records),
+            "ramp_ratio": list(ramp), "hold": list(HOLD),
+            "peak_limits": setup.peak_limits,
+            "not_flown": [{"controller": c, "case": k, "reason": r}
+                          for (c, k), r in not_flown.items()],
             "flight_wall_time_s": flight_time, "workers": args.workers, "ray": args.ray,
             "resumed_jobs": len(done),
             "results": [_row_json(r) for r in rows], "boundaries": boundaries,
+            "law_pairs": law_pairs(records, per_sample, list(cases)),
         }
-        if switching:
-            from dva_offline.cli_tools import json_safe
-            from dva_offline.evaluation.switching_section import switching_section
-
-            log("flying the switching law against the best constant c2")
-            payload["switching"] = json_safe(switching_section(case_names, seeds, args.gains))
         files = write_paired_results(out, payload, records)
         payload["files"] = {**files, **plot_paired(out, payload, kept, u_cr)}
-        if switching:  # after the paired tables and plots, which are the other controllers'
-            payload["controllers"].extend(per_sample)
         payload["wall_time_s"] = time.monotonic() - started
         with atomic_output(out / "results.json") as stream:  # last: the run is complete
             stream.write(json.dumps(payload, allow_nan=False))
@@ -333,21 +333,32 @@ def _paired(args) -> int:
             from dva_offline.evaluation.paired_io import markdown_results
 
             print(markdown_results(payload))
-            if switching:
-                from dva_offline.evaluation.switching_section import markdown
-
-                print(markdown(payload["switching"]))
             print(f"results: {out / 'results.md'} ({len(records)} flights in {flight_time:.0f} s)")
         return 0
 
 
-def evaluation_laws(controllers, made: dict, damper, oracle_table) -> dict:
+def _check_gains(entry, path: str | None) -> None:
+    """A per-sample law's gains file (``path``, or its package file) must be its design and
+    made for the evaluation's wing; ValueError naming the file otherwise."""
+    from aero_dva.control.switching_io import gains_problem
+    from aero_dva.data_files import data_file
+
+    default = next(o.default_file for o in entry.options if o.default_file)
+    problem = gains_problem(path or str(data_file(default)), None,
+                            lambda p: entry.make_law({"gains_file": str(p)}))
+    if problem is not None:
+        raise ValueError(f"--controllers {entry.name}: {problem}")
+
+
+def evaluation_laws(controllers, made: dict, damper, oracle_table, gains=None) -> dict:
     """Each controller's law, made from its table entry with the evaluation's inputs: its
     options' values from ``made`` (the best fixed c2 for ``--damping``, the schedule and network
     files), the damper's range for a law that clamps to it, a reference's table."""
     from aero_dva.control import controllers as table
 
     given = {"damping": made.get("fixed_c2", {}).get("damping"), **made}
+    if gains:
+        given["gains"] = gains
     laws = {}
     for name in controllers:
         entry = table.controller(name)
@@ -371,8 +382,8 @@ def _row_json(row: dict) -> dict:
     def clean(v):
         return None if isinstance(v, float) and not math.isfinite(v) else v
 
-    stats = ("divergence_difference", "rms_change", "divergence_to_oracle",
-             "divergence_to_schedule", "rms_to_schedule")
-    out = {k: clean(v) for k, v in row.items() if k not in stats}
-    out.update({k: row[k].to_dict() for k in stats})
+    from dva_offline.evaluation.paired import ROW_STATS
+
+    out = {k: clean(v) for k, v in row.items() if k not in ROW_STATS}
+    out.update({k: row[k].to_dict() for k in ROW_STATS})
     return out

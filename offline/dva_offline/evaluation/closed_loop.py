@@ -19,11 +19,15 @@ that block:
   accelerations over 2 s windows every 0.1 s (the spectrum node's defaults), each with the
   window's mean applied c2; the last command acts;
 - a reference that reads the truth (the oracle, :mod:`aero_dva.control.oracle`): the true
-  airspeed and density of the block it commands (the middle of the next block).
+  airspeed and density of the block it commands (the middle of the next block);
+- a per-sample law (the switching law, the clipped-optimal law): :class:`PerSampleControl`,
+  its supervisor's command after every block, which arms the law in the runtime's damper path
+  (the simulator's, sample by sample, with the law's damper lag and sensor noise).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -42,7 +46,7 @@ from aero_dva.flight.flight_runtime import FlightRuntime
 from aero_dva.flight.scenario import airspeed_at, density_at
 from aero_dva.wing.model import ACCELERATION_NAMES, LEADING_EDGE
 
-__all__ = ["FlightOutcome", "LawControl", "fly", "law_control"]
+__all__ = ["FlightOutcome", "LawControl", "PerSampleControl", "fly", "law_control"]
 
 SPECTRUM_HOP = 0.1  # [s] the spectrum node's default hop
 
@@ -124,6 +128,41 @@ def law_control(name: str, values=None, sample_rate: float = 1000.0) -> LawContr
     return LawControl(entry, entry.make_law(values), sample_rate)
 
 
+class PerSampleControl:
+    """A per-sample law of the controller table in the loop: after every block its supervisor's
+    command, which arms the law in the damper path for the next block, with the safe constant
+    c2 the damper holds if the law cannot run. The supervisor's burst detector is not flown: it
+    would disarm the law at its first burst (the practical boundary) and leave the wing on the
+    safe c2 beyond that c2's own flutter, so the law's bounded boundary could not be measured.
+
+    :meth:`configure` gives a flight the law's gains for the commands of its source, and its
+    damper lag and sensor noise as designed (the table entry's).
+
+    Parameters
+    ----------
+    entry : Controller
+    gains : SwitchingGains
+        The law (``entry.make_law(values)``).
+    safe_damping : float
+        [N s/m] the constant c2 of its commands.
+    """
+
+    def __init__(self, entry: Controller, gains, safe_damping: float):
+        self.entry, self.gains, self.name = entry, gains, entry.name
+        self.safe_damping = float(safe_damping)
+        self.peak_activation: list[float] = []
+
+    def configure(self, config):
+        """``config`` (a RuntimeConfig) flown with this law in the damper path."""
+        entry = self.entry
+        return replace(config, per_sample={**config.per_sample, entry.source: self.gains},
+                       damper=replace(config.damper, time_constant=float(entry.damper_lag)),
+                       sensor_noise=entry.sensor_noise)
+
+    def command(self, block, runtime) -> float | None:
+        return self.safe_damping
+
+
 @dataclass(frozen=True)
 class FlightOutcome:
     """One closed-loop flight.
@@ -140,6 +179,12 @@ class FlightOutcome:
     peak_activation : ndarray
         The RBF network's largest hidden activation per spectrum (empty for other
         controllers).
+    target : ndarray, shape (samples,)
+        [N s/m] the c2 the damper was asked for at each sample: a block law's command in
+        force, a per-sample law's choice of its two levels (its lag then follows).
+    damper_power : ndarray, shape (samples,)
+        [W] the power the damper dissipated over each sample, F^2 / c2 from the damper force
+        F = k2 delta the flight reports (a per-sample law's); NaN where it reports none.
     """
 
     diverged: bool
@@ -150,18 +195,24 @@ class FlightOutcome:
     damping: np.ndarray
     leading_edge: np.ndarray
     peak_activation: np.ndarray
+    target: np.ndarray | None = None
+    damper_power: np.ndarray | None = None
 
 
 def fly(config, controller=None, critical_airspeed: float | None = None) -> FlightOutcome:
     """Fly ``config`` (a :class:`~aero_dva.flight.flight_runtime.RuntimeConfig`) with
     ``controller`` (None: nothing commands c2; the damper holds its initial value).
     ``critical_airspeed``: the bare wing's U_cr [m/s] if the caller has it (else solved)."""
+    if hasattr(controller, "configure"):
+        config = controller.configure(config)
     runtime = FlightRuntime(config, critical_airspeed)
     n = runtime.scenario.n_samples
-    out = {k: np.empty(n) for k in ("airspeed", "density", "damping", "leading_edge")}
+    keys = ("airspeed", "density", "damping", "leading_edge", "target", "damper_power")
+    out = {k: np.empty(n) for k in keys}
     done = 0
     diverged = False
     source = table.NONE if controller is None else controller.entry.source
+    law = getattr(controller, "gains", None)
     while not runtime.done:
         block = runtime.step()
         k = block.force.size
@@ -169,6 +220,12 @@ def fly(config, controller=None, critical_airspeed: float | None = None) -> Flig
         out["density"][done:done + k] = block.density
         out["damping"][done:done + k] = block.damping
         out["leading_edge"][done:done + k] = block.displacements[LEADING_EDGE]
+        target = getattr(block, "target", None)
+        out["target"][done:done + k] = block.damping if target is None or law is None else \
+            np.where(target, law.law.c_hi, law.law.c_lo)
+        force = getattr(block, "damper_force", None)
+        out["damper_power"][done:done + k] = math.nan if force is None else \
+            force ** 2 / block.damping
         done += k
         if block.diverged:
             diverged = True

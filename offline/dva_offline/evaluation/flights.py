@@ -24,13 +24,19 @@ import numpy as np
 from aero_dva.control import controllers as table
 from aero_dva.control.oracle import OptimalDampingTable
 from aero_dva.control.periodic_stability import floquet_boundary, frozen_boundary
-from dva_offline.evaluation.closed_loop import LawControl, fly
+from dva_offline.evaluation.closed_loop import LawControl, PerSampleControl, fly
 from dva_offline.evaluation.closed_loop_batch import fly_batch
-from dva_offline.evaluation.paired import DensityCase, FlightRecord, case_scenario, flight_record
+from dva_offline.evaluation.paired import (
+    DensityCase,
+    FlightRecord,
+    case_scenario,
+    flight_record,
+    hold_scenario,
+)
 
-__all__ = ["BATCH_MEMORY", "BATCH_SEEDS", "EvaluationSetup", "batch_seeds",
+__all__ = ["BATCH_MEMORY", "BATCH_SEEDS", "PEAK_FACTOR", "EvaluationSetup", "batch_seeds",
            "flight_memory_problem", "case_table", "fly_paired", "fly_seed", "fly_seeds",
-           "oracle_table", "seed_batches", "stability_boundaries"]
+           "oracle_table", "peak_limit", "refused", "seed_batches", "stability_boundaries"]
 
 
 @dataclass(frozen=True)
@@ -47,9 +53,18 @@ class EvaluationSetup:
         [m/s] U_cr of the bare wing at the base density.
     laws : mapping
         Controller name -> its law as made from the evaluation's inputs (each flight flies a
-        copy, so a law's state is its flight's own).
+        copy, so a law's state is its flight's own); a per-sample law's gains.
     rms_range : (float, float)
         [m/s] airspeeds of the RMS.
+    ramp_to : float or None
+        [U/U_cr] the ramp carried on at its slope to this airspeed (None: as the scenario).
+    peak_limits : mapping
+        Case name -> [m] the leading-edge displacement beyond which a flight has reached its
+        practical boundary (:func:`peak_limit`).
+    safe_damping : float
+        [N s/m] the constant c2 of a per-sample law's commands (the best fixed c2).
+    hold : bool
+        Fly each controller's hold at :data:`~dva_offline.evaluation.paired.HOLD` too.
     """
 
     config: object
@@ -57,12 +72,59 @@ class EvaluationSetup:
     critical_airspeed: float
     laws: Mapping[str, object] = field(default_factory=dict)
     rms_range: tuple[float, float] = (80.0, 105.0)
+    ramp_to: float | None = None
+    peak_limits: Mapping[str, float] = field(default_factory=dict)
+    safe_damping: float = math.nan
+    hold: bool = True
 
-    def controller(self, name: str) -> LawControl:
+    def controller(self, name: str) -> LawControl | PerSampleControl:
         if name not in self.laws:
             raise ValueError(f"no law for controller {name!r} in this evaluation")
-        return LawControl(table.controller(name), copy.deepcopy(self.laws[name]),
+        entry = table.controller(name)
+        if entry.runs == table.SAMPLE:
+            return PerSampleControl(entry, self.laws[name], self.safe_damping)
+        return LawControl(entry, copy.deepcopy(self.laws[name]),
                           self.config.scenario.sample_rate)
+
+    def scenario(self, case: DensityCase, seed: int):
+        """The ramp of ``case`` and ``seed``."""
+        return case_scenario(self.config.scenario, case, self.critical_airspeed, seed,
+                             self.ramp_to)
+
+    def record(self, name: str, case: DensityCase, seed: int, outcome, hold) -> FlightRecord:
+        return flight_record(name, case.name, seed, outcome, self.critical_airspeed,
+                             self.rms_range, peak_limit=self.peak_limits.get(case.name,
+                                                                             math.inf),
+                             hold=hold)
+
+
+#: A per-sample law cannot fly a density that varies in time: it multiplies the held
+#: conditions, each with its own table of c2 levels, all kept for the whole flight.
+VARYING_DENSITY = ("a density varying in time multiplies the held conditions, each with its "
+                   "own table of the law's c2 levels")
+
+
+def refused(controller: str, case: DensityCase) -> str | None:
+    """Why ``controller`` does not fly ``case`` in the evaluation, or None."""
+    if table.controller(controller).runs == table.SAMPLE and case.variation != 0.0:
+        return VARYING_DENSITY
+    return None
+
+
+#: The practical boundary's peak limit: this many times the best fixed c2's stationary
+#: leading-edge RMS at the start of the ramp (the switching law's study took 20x the fixed
+#: damper's RMS over its first seconds, 13 mm on the chapter-6 wing; this is the same number
+#: from the model, known before any flight).
+PEAK_FACTOR = 20.0
+
+
+def peak_limit(model, airspeed: float, density: float, damping: float) -> float:
+    """[m] :data:`PEAK_FACTOR` x the stationary leading-edge RMS at ``airspeed`` [m/s],
+    ``density`` and the constant c2 ``damping`` (1 kN white force at 1 kHz)."""
+    from aero_dva.control.stationary_rms import stationary_rms
+
+    rms = stationary_rms(model, airspeed, density, damping).output("leading_edge")
+    return PEAK_FACTOR * float(rms)
 
 
 def oracle_table(model, critical_airspeed: float, base_density: float,
@@ -82,15 +144,20 @@ def oracle_table(model, critical_airspeed: float, base_density: float,
 def fly_seed(setup: EvaluationSetup, controllers: Sequence[str], keep_seed: int | None,
              job: tuple[DensityCase, int]) -> tuple[list[FlightRecord], dict]:
     """One job of the evaluation: every controller on one (case, seed), the same force realisation
-    for all (paired); the outcomes too when the seed is ``keep_seed`` (for plots)."""
+    for all (paired), its ramp and its hold; the outcomes too when the seed is ``keep_seed``
+    (for plots). A controller that cannot fly the case (:func:`refused`) flies nothing."""
     case, seed = job
-    scenario = case_scenario(setup.config.scenario, case, setup.critical_airspeed, seed)
-    config = replace(setup.config, scenario=scenario)
+    config = replace(setup.config, scenario=setup.scenario(case, seed))
+    held = replace(setup.config, scenario=hold_scenario(setup.config.scenario, case,
+                                                         setup.critical_airspeed, seed))
     records, kept = [], {}
     for name in controllers:
+        if refused(name, case):
+            continue
         outcome = fly(config, setup.controller(name), setup.critical_airspeed)
-        records.append(flight_record(name, case.name, seed, outcome, setup.critical_airspeed,
-                                     setup.rms_range))
+        hold = fly(held, setup.controller(name), setup.critical_airspeed) if setup.hold \
+            else None
+        records.append(setup.record(name, case, seed, outcome, hold))
         if seed == keep_seed:
             kept[(name, case.name, seed)] = outcome
     return records, kept
@@ -100,20 +167,24 @@ def fly_seeds(setup: EvaluationSetup, controllers: Sequence[str], keep_seed: int
               job: tuple[DensityCase, tuple[int, ...]]
               ) -> tuple[dict[int, list[FlightRecord]], dict]:
     """One batched job: every controller on a batch of seeds of one case, each controller's
-    flights of the batch flown together (:func:`.closed_loop_batch.fly_batch`). Returns the
-    records per seed (in controller order, as :func:`fly_seed`) and the outcomes of
-    ``keep_seed`` when it is in the batch."""
+    flights of the batch flown together (:func:`.closed_loop_batch.fly_batch`; a per-sample
+    law one at a time), ramps and holds. Returns the records per seed (in controller order, as
+    :func:`fly_seed`) and the outcomes of ``keep_seed`` when it is in the batch."""
     case, seeds = job
-    scenario = case_scenario(setup.config.scenario, case, setup.critical_airspeed, seeds[0])
-    config = replace(setup.config, scenario=scenario)
+    config = replace(setup.config, scenario=setup.scenario(case, seeds[0]))
+    held = replace(setup.config, scenario=hold_scenario(setup.config.scenario, case,
+                                                         setup.critical_airspeed, seeds[0]))
     records: dict[int, list[FlightRecord]] = {s: [] for s in seeds}
     kept = {}
     for name in controllers:
-        outcomes = fly_batch(config, partial(setup.controller, name), seeds,
-                             setup.critical_airspeed)
-        for seed, outcome in zip(seeds, outcomes, strict=True):
-            records[seed].append(flight_record(name, case.name, seed, outcome,
-                                               setup.critical_airspeed, setup.rms_range))
+        if refused(name, case):
+            continue
+        make = partial(setup.controller, name)
+        outcomes = fly_batch(config, make, seeds, setup.critical_airspeed)
+        holds = fly_batch(held, make, seeds, setup.critical_airspeed) if setup.hold \
+            else [None] * len(seeds)
+        for seed, outcome, hold in zip(seeds, outcomes, holds, strict=True):
+            records[seed].append(setup.record(name, case, seed, outcome, hold))
             if seed == keep_seed:
                 kept[(name, case.name, seed)] = outcome
     return records, kept

@@ -57,26 +57,55 @@ def _oracle(row: Mapping) -> str:
 
 def markdown_results(payload: Mapping) -> str:
     """The results table and the boundaries as markdown."""
+    ramp = payload.get("ramp_ratio") or [math.nan, math.nan]
+    hold = payload.get("hold") or [math.nan, math.nan, math.nan]
+    limits = payload.get("peak_limits") or {}
     lines = [
         f"U_cr = {payload['critical_airspeed_no_dva']:.3f} m/s (bare wing, base density); "
         f"best fixed c2 = {payload['fixed_c2']:.1f} N s/m; {len(payload['seeds'])} seeds "
-        f"per case; RMS over {payload['rms_range_ratio'][0]:g} .. "
-        f"{payload['rms_range_ratio'][1]:g} U_cr. Differences are paired (same seed) "
-        "against the best fixed c2, with 95 % t-intervals over the seeds; * marks an interval "
-        "that excludes zero.", "",
+        f"per case. Every controller flies the same flights: the ramp {ramp[0]:g} -> "
+        f"{ramp[1]:g} U_cr at the study's slope, and {hold[1]:g} s held at {hold[0]:g} U_cr. "
+        "U_div: the divergence airspeed (the project's one detector); practical: the first "
+        "leading edge beyond the peak limit ("
+        + ", ".join(f"{k} {v * 1e3:.1f} mm" for k, v in limits.items())
+        + f", 20x the fixed c2's stationary RMS at {ramp[0]:g} U_cr). RMS change: over "
+        f"{payload['rms_range_ratio'][0]:g} .. {payload['rms_range_ratio'][1]:g} U_cr of the "
+        f"ramp, and over the hold after {hold[2]:g} s (a hold that flutters has none). "
+        "Switches/s: changes of the damper's target; damper power: F^2/c2 over the hold, "
+        "from the damper force a per-sample law's flight reports (- for the block laws, "
+        "whose flights report none). Differences are paired (same seed) against the best "
+        "fixed c2, with 95 % t-intervals over the seeds; * marks an interval that excludes "
+        "zero.", "",
         "| case | controller | U_div/U_cr | diff. to fixed [U_cr] | diff. to oracle [U_cr] | "
-        "RMS ratio | RMS change [%] | mean c2 [N s/m] | activation |",
-        "|---|---|---|---|---|---|---|---|---|"]
+        "practical [U_cr] | diff. to fixed [U_cr] | RMS change [%] | RMS at "
+        f"{hold[0]:g} U_cr change [%] | switches/s | damper power [W] | mean c2 [N s/m] | "
+        "activation |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for row in payload["results"]:
+        name = label(row["controller"])
+        if row.get("not_flown"):
+            lines.append(f"| {row['case']} | {name} | not flown: {row['not_flown']} |"
+                         + " - |" * 10)
+            continue
         div = _f(row["mean_divergence_ratio"], ".4f")
         if row["diverged"] < row["flights"]:
             div += f" ({row['flights'] - row['diverged']} reached the end)"
+        practical = _f(row.get("mean_practical_ratio"), ".4f")
+        if row.get("reached_limit", row["flights"]) < row["flights"]:
+            practical += f" ({row['flights'] - row['reached_limit']} never reached the limit)"
+        hold_change = "-" if row["controller"] == "fixed" else \
+            _interval(row["rms_hold_change"], 100.0, "+.1f")
+        if row.get("hold_fluttered"):
+            hold_change += f" ({row['hold_fluttered']} fluttered)"
         fixed = row["controller"] == "fixed"
         lines.append(
-            f"| {row['case']} | {label(row['controller'])} | {div} | "
+            f"| {row['case']} | {name} | {div} | "
             f"{'-' if fixed else _interval(row['divergence_difference'], 1.0, '+.4f')} | "
-            f"{_oracle(row)} | {_f(row['mean_rms_ratio'], '.4f')} | "
+            f"{_oracle(row)} | {practical} | "
+            f"{'-' if fixed else _interval(row['practical_difference'], 1.0, '+.4f')} | "
             f"{'-' if fixed else _interval(row['rms_change'], 100.0, '+.2f')} | "
+            f"{hold_change} | {_f(row.get('switches_per_second'), '.1f')} | "
+            f"{_f(row.get('damper_power'), '.1f')} | "
             f"{_f(row['mean_c2'], '.0f')} | {_f(row['median_peak_activation'], '.3f')} |")
     rbf = [r for r in payload["results"] if r["controller"] == "rbf"
            and (r.get("divergence_to_schedule") or {}).get("n")]
@@ -86,6 +115,17 @@ def markdown_results(payload: Mapping) -> str:
                   "| case | U_div/U_cr difference | RMS change [%] |", "|---|---|---|"]
         lines += [f"| {r['case']} | {_interval(r['divergence_to_schedule'], 1.0, '+.4f')} | "
                   f"{_interval(r['rms_to_schedule'], 100.0, '+.2f')} |" for r in rbf]
+    pairs = payload.get("law_pairs") or []
+    if pairs:
+        lines += ["", "The per-sample laws against each other, same seeds (paired differences, "
+                  "95 % intervals):", "",
+                  "| case | law minus law | U_div/U_cr difference | practical difference | "
+                  "RMS change [%] | RMS at the hold change [%] |", "|---|---|---|---|---|---|"]
+        lines += [f"| {r['case']} | {label(r['law'])} minus {label(r['against'])} | "
+                  f"{_interval(r['divergence'], 1.0, '+.4f')} | "
+                  f"{_interval(r['practical'], 1.0, '+.4f')} | "
+                  f"{_interval(r['rms'], 100.0, '+.2f')} | "
+                  f"{_interval(r['rms_hold'], 100.0, '+.1f')} |" for r in pairs]
     bounds = payload.get("boundaries") or {}
     if bounds:
         laws = list(dict.fromkeys(law for rows in bounds.values() for law in rows))

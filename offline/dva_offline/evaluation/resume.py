@@ -7,6 +7,7 @@ directory written with other settings is refused rather than mixed.
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -54,6 +55,7 @@ class FlightStore:
 
 
 def _record(row: dict) -> FlightRecord:
-    floats = ("divergence_ratio", "rms", "mean_damping", "median_peak_activation")
+    """A saved record (its NaN numbers saved as null)."""
+    floats = {f.name for f in dataclasses.fields(FlightRecord) if f.type == "float"}
     return FlightRecord(**{k: (math.nan if k in floats and v is None else v)
                            for k, v in row.items()})

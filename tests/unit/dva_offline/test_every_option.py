@@ -29,7 +29,7 @@ FRF_READ = ("--quantity", "--format", "--area", "--thickness", "--geometry-facto
 PLAN = ("--ratios", "--factors", "--n-damping", "--min-decay", "--max-offset", "--window",
         "--seed")
 GRAPH_ONLY = ("--mu", "--timeout", "--retries", "--real-time-factor", "--reports", "--no-rrd")
-PAIRED_ONLY = ("--cases", "--rms-range", "--no-boundaries", "--one-flight", "--gains")
+PAIRED_ONLY = ("--cases", "--rms-range", "--no-boundaries", "--one-flight", "--gains", "--ramp-to")
 
 
 def _wing_absorber(command: str) -> dict:
