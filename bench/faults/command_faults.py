@@ -67,7 +67,8 @@ class BurstTrial:
     statuses : dict
         Status name -> number of those states.
     diagnostics : int
-        /diagnostics statuses from the simulator during the burst.
+        /diagnostics reports of rejected commands from the simulator during the burst (its
+        once-per-flight warnings, such as flying ahead of the controller, are not counted).
     diagnostic_rate : float
         [1/s] of those, per second of burst.
     diagnostic_texts : list of str
@@ -188,7 +189,8 @@ def _burst_result(kind: str, probe, sent: int, begin: float, end: float) -> Burs
     until = end + 0.1
     states = [s for s in list(probe.states) if begin <= s.wall <= until]
     diagnostics = [d for d in list(probe.diagnostics)
-                   if begin <= d.wall <= until and d.name.startswith("simulator")]
+                   if begin <= d.wall <= until and d.name.startswith("simulator")
+                   and d.message.startswith("rejected damper command")]
     logs = [g for g in list(probe.logs)
             if begin <= g.wall <= until and g.name == "simulator" and g.level >= 30]
     applied = [s.applied for s in states] or [math.nan]
