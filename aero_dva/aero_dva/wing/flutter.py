@@ -29,8 +29,8 @@ from aero_dva.wing.aerodynamics import TheodorsenAero
 from aero_dva.wing.checks import non_negative, real_scalar
 from aero_dva.wing.flutter_march import TangentGrowth, march_to_instability
 
-__all__ = ["FlutterResult", "NoFlutterError", "bare_critical_airspeed", "flutter_speed",
-           "flutter_vs_density", "grid_flutter_speed", "growth_rate",
+__all__ = ["FlutterResult", "NoFlutterError", "bare_critical_airspeed", "bare_flutter",
+           "flutter_speed", "flutter_vs_density", "grid_flutter_speed", "growth_rate",
            "reference_flutter_speed"]
 
 NEUTRAL = 1e-7
@@ -190,12 +190,17 @@ def growth_rate(model, airspeed, density: float, damping=None) -> np.ndarray:
     return g
 
 
+def bare_flutter(wing, density: float, aero=None) -> FlutterResult:
+    """The onset of instability of the wing without DVA (quasi-steady by default)."""
+    from aero_dva.wing.model import AeroelasticModel  # the model module imports none of this
+
+    return flutter_speed(AeroelasticModel(wing, None, aero), density)
+
+
 def bare_critical_airspeed(wing, density: float, aero=None) -> float:
     """Critical airspeed [m/s] of the wing without DVA (quasi-steady by default): the
     reference of every U/U_cr."""
-    from aero_dva.wing.model import AeroelasticModel  # the model module imports none of this
-
-    return flutter_speed(AeroelasticModel(wing, None, aero), density).critical_airspeed
+    return bare_flutter(wing, density, aero).critical_airspeed
 
 
 def flutter_speed(model, density: float = 1.2, airspeed_range=None, damping=None,

@@ -39,7 +39,7 @@ from scipy.optimize import brentq, minimize
 from aero_dva.control import dva_design as dd
 from aero_dva.wing.absorbers import MaxwellAbsorber, PassiveAbsorber
 from aero_dva.wing.aerodynamics import QuasiSteadyAero
-from aero_dva.wing.flutter import bare_critical_airspeed, flutter_speed
+from aero_dva.wing.flutter import bare_critical_airspeed, bare_flutter, flutter_speed
 from aero_dva.wing.model import AeroelasticModel, WingParameters
 
 __all__ = [
@@ -220,7 +220,7 @@ def build_wing(params: dict, pitch_damping: str = "thin_airfoil", density: float
     """
     aero = QuasiSteadyAero(pitch_damping=pitch_damping)
     wing = _unscaled_wing(params)
-    res = flutter_speed(AeroelasticModel(wing, None, aero), density)  # NoFlutterError: ValueError
+    res = bare_flutter(wing, density, aero)  # NoFlutterError: a ValueError
     if res.kind != "flutter":
         raise ValueError(f"the wing diverges statically at {res.critical_airspeed:.4g} m/s "
                          "before it flutters")
@@ -228,7 +228,7 @@ def build_wing(params: dict, pitch_damping: str = "thin_airfoil", density: float
     wing = wing.replace(plunge_stiffness=wing.plunge_stiffness * s * s,
                         pitch_stiffness=wing.pitch_stiffness * s * s,
                         damping_factor=wing.damping_factor / s)
-    return wing, aero, flutter_speed(AeroelasticModel(wing, None, aero), density)
+    return wing, aero, bare_flutter(wing, density, aero)
 
 
 # -- the study's ratios on one wing ----------------------------------------------------------
