@@ -691,6 +691,13 @@ def run(domain: Domain, rule: DecisionRule | None = None, split: HoldoutSplit | 
             verdict = decide(base, noise, features, scores, rule, reference)
         verdict = _loop_verdict(verdict, steps, final, rule.joint_ratio,
                                 reference if used else None)
+    odd = [c for c in scores if c.implausible]
+    if odd:  # the first step's significant candidates that mean nothing physically
+        verdict = replace(verdict, evidence=verdict.evidence + "; listed implausible, never "
+                          "added: " + "; ".join(f"{c.effect}" + (f" ({c.label})" if c.label
+                                                                 else "")
+                                                + f" (held-out error {c.fit.error:.4f}, dBIC "
+                                                  f"{c.delta_bic:.1f})" for c in odd))
     augmented = aug_features = None
     if verdict.status == "explained":
         chosen = (steps[0].fit if steps else

@@ -70,6 +70,7 @@ def test_a_phase_in_a_narrow_band_is_no_delay():
     tau = delay.fit.added[0]
     assert tau.std >= 0.3 * abs(tau.value) and "slope alone shows" in delay.reason
     assert res.verdict.effect is None and not res.steps
+    assert "listed implausible, never added: sensor_delay" in res.verdict.evidence
 
 
 def test_a_delay_across_a_wide_band_is_plausible():
