@@ -390,7 +390,7 @@ class FlightRuntime:
         u = np.asarray(self.scenario.airspeed.values)
         absorber = self.config.absorber
         return {
-            "scenario": self.scenario.name, "duration_s": self.scenario.duration,
+            "scenario": loggable(self.scenario.name), "duration_s": self.scenario.duration,
             "sample_rate_hz": self.sample_rate, "airspeed_min": float(u.min()),
             "airspeed_max": float(u.max()), "critical_airspeed": self.critical_airspeed,
             "absorber": "none" if absorber is None else (

@@ -117,6 +117,8 @@ def simulator_command(args, others: list[str]) -> list[str]:
                  first_command_timeout=args.wait_timeout,
                  command_wait_timeout=args.command_wait_timeout,
                  damper_timeout=1e9 if entry is None else args.damper_timeout,
+                 controller=args.controller,
+                 strict_commands=getattr(args, "strict_commands", True),
                  **per_sample_params(args)),
     ]
 
@@ -355,7 +357,29 @@ def applied_control(args, final: dict, bag: Path) -> dict:
         commands_recorded=counts.get(ch.DAMPER_COMMAND.absolute(), 0),
         control_problem=None if args.controller == NONE else control_problem(
             blocks, out["blocks_controlled"], out["blocks_fallback"], args.max_fallback_share))
+    out.update(commanders(final))
+    problems = [p for p in (out["control_problem"], out["commander_problem"]) if p]
+    out["control_problem"] = "; ".join(problems) or None
     return out
+
+
+def commanders(final: dict) -> dict:
+    """Who commanded the damper, from the simulator's end-of-flight report: the commands from
+    a node or source other than the controller's (``commands_foreign``, by node and source),
+    whether they were refused (``strict_commands``), and ``commander_problem``: a flight with
+    a second commander does not count as controlled, refused or not."""
+    foreign = int(final.get("commands_foreign", 0))
+    nodes, sources = final.get("foreign_nodes", ""), final.get("foreign_sources", "")
+    strict = str(final.get("strict_commands", "False")) == "True"
+    problem = None
+    if foreign:
+        who = "; ".join(part for part in (f"nodes {nodes}" if nodes else "",
+                                          f"sources {sources}" if sources else "") if part)
+        problem = (f"{foreign} damper commands came from an unexpected commander ({who}), "
+                   + ("refused" if strict else "applied: its c2 flew"))
+    return {"commands_foreign": foreign, "foreign_nodes": nodes or None,
+            "foreign_sources": sources or None, "strict_commands": strict,
+            "commander_problem": problem}
 
 
 def bag_completeness(final: dict, counts: dict) -> dict:
@@ -413,6 +437,14 @@ def _format(summary: dict) -> str:
         f"{summary['blocks_fallback']}",
         f"commands             {summary['commands_received']} received of "
         f"{summary['commands_expected']} expected, {summary['commands_recorded']} recorded",
+        "commanders           " + (
+            f"{summary['commands_foreign']} commands from unexpected commanders ("
+            + "; ".join(p for p in (summary.get("foreign_nodes") and
+                                    f"nodes {summary['foreign_nodes']}",
+                                    summary.get("foreign_sources") and
+                                    f"sources {summary['foreign_sources']}") if p)
+            + ("), refused" if summary.get("strict_commands") else "), applied")
+            if summary.get("commands_foreign") else "only the controller's node and sources"),
         "bag data             " + (
             f"{summary['data_recorded']} of the {summary['data_published']} messages the "
             f"simulator published ({summary['data_missing']} missing)"
@@ -436,6 +468,12 @@ def build_parser() -> argparse.ArgumentParser:
                              "(duration x sample rate, 100..20000 Hz)")
     parser.add_argument("--wing", default="", help="wing YAML (default: the chapter-6 wing)")
     parser.add_argument("--absorber", choices=("maxwell", "none"), default="maxwell")
+    parser.add_argument("--strict-commands", action=argparse.BooleanOptionalAction,
+                        default=True,
+                        help="refuse damper commands from any node but the controller's, or "
+                             "of another source than its (default; --no-strict-commands "
+                             "applies them). Either way they are counted and reported, and a "
+                             "flight that had them fails (exit 1)")
     flown = table.controllers((BLOCK, SAMPLE))
     parser.add_argument("--controller", choices=(*(c.name for c in flown), NONE),
                         default="fixed",

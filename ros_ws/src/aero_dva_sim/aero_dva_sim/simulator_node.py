@@ -49,6 +49,7 @@ from aero_dva.flight.damper import (
 )
 from aero_dva.flight.divergence import stop_message
 from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
+from aero_dva.text_input import loggable
 from dva_msgs.msg import DamperCommand
 from dva_ros_common import conversions
 from dva_ros_common.conversions import message_class, time_to_seconds
@@ -62,6 +63,9 @@ CATCH_UP_SLICE = 0.02
 # [s] wall time between two reports of rejected commands of one kind: a controller gone wrong
 # can send thousands a second, and one report (with the count) per second says as much.
 REJECTION_REPORT_PERIOD = 1.0
+# [s] wall time between two looks at the publishers of dva/damper_command (a graph query per
+# command of a 10 kHz burst would cost more than the command)
+GRAPH_PERIOD = 0.05
 #: The per-block topics besides /clock (published in the order of :meth:`Simulator._publish`).
 DATA_CHANNELS = tuple(c for c in ch.SIMULATOR_BLOCK if c != ch.CLOCK)
 DATA_TOPICS = tuple(c.name for c in DATA_CHANNELS)
@@ -149,6 +153,14 @@ SPEC = NodeSpec(
         Param("first_input_time", 0.0, "with max_command_lag: sim time of the controller's "
               "first input (0: the first block; the spectrum window for the RBF network); the "
               "flight holds past it until the first command has arrived", "s", 0.0, 1.0e6),
+        Param("controller", "", "the controller the flight is flown with (its table name): "
+              "its node is the one commander expected on dva/damper_command and its sources "
+              "the ones expected in the commands; commands from anyone else are counted and "
+              "reported", choices=("", *table.names(), table.NONE),
+              default_text="'' (any commander)"),
+        Param("strict_commands", False, "refuse commands of another source than the "
+              "controller's, and every command while another node publishes on "
+              "dva/damper_command (the damper then falls back when stale)"),
         Param("first_command_timeout", 30.0, "wall time the flight holds for the first command "
               "before it fails (exit code 1): the controller never acted", "s", 0.0, 1.0e6),
     ),
@@ -220,6 +232,8 @@ class Simulator(Node):
         self._rejections_reported: dict[str, tuple[float, int]] = {}  # reason -> (wall, count)
         self._command_sub = self.create_subscription(DamperCommand, ch.DAMPER_COMMAND.name,
                                                      self._on_command, 10)
+        self.commanders = Commanders(self, self._command_sub, params["controller"],
+                                     params["strict_commands"], self._diagnose)
 
         self._wall = Clock(clock_type=ClockType.STEADY_TIME)
         self._started_wall: float | None = None
@@ -262,10 +276,20 @@ class Simulator(Node):
     # ------------------------------------------------------------------ callbacks
     def _on_command(self, msg: DamperCommand) -> None:
         self.commands_received += 1
+        stamp = time_to_seconds(msg.header.stamp)
+        if stamp > self.runtime.time + self.runtime.block_duration * (1 + 1e-9):
+            # a command answers an input the flight has published: one from beyond the next
+            # block is a clock gone wrong or a forgery, and would skew the latencies
+            self._report_rejection(msg, "stamp_ahead_of_sim_time")
+            return
+        if not self.commanders.admit(msg.source, self.runtime.time):
+            self._report_rejection(msg, "unexpected_commander")
+            if self.commanders.stop_reason is not None:
+                self._fail(self.commanders.stop_reason)
+            return
         result = self.runtime.command(msg.damping, msg.source)
         if result is not None and result.accepted:
             # The command acts from the next block on; its stamp is its input's time.
-            stamp = time_to_seconds(msg.header.stamp)
             self._latencies.append(self.runtime.time - stamp)
             self._check_ahead(stamp)
             self._last_command_stamp = max(stamp, self._last_command_stamp or 0.0)
@@ -284,10 +308,11 @@ class Simulator(Node):
             return
         self._rejections_reported[reason] = (wall, count)
         since = count - last_count
+        source = loggable(msg.source)  # outside text: escaped and cut
         self._diagnose("warn", f"rejected damper command {msg.damping!r} N s/m from "
-                       f"'{msg.source}': {reason}"
+                       f"'{source}': {reason}"
                        + (f" ({since} such commands since the last report)" if since > 1 else ""),
-                       {"command": msg.damping, "source": msg.source, "reason": reason,
+                       {"command": msg.damping, "source": source, "reason": reason,
                         "rejected_since_last_report": since, "rejected_total": count})
 
     def _missing(self) -> list[str]:
@@ -515,6 +540,7 @@ class Simulator(Node):
                   "switching_rate_mean": (float(np.mean(self._switching_rates))
                                           if self._switching_rates else 0.0),
                   **self.runtime.applied.values()}
+        values.update(self.commanders.values())
         values.update({f"published:{t}": n for t, n in self.published.items()})
         values.update({f"rejected:{reason}": n for reason, n in self.rejected.items()})
         if self._latencies:
@@ -548,6 +574,103 @@ class Simulator(Node):
         self._poll.cancel()
         if not self.finished.done():
             self.finished.set_result(outcome)
+
+
+class Commanders:
+    """Who commands the damper, against the controller the flight was started with.
+
+    The expected commander is the controller's node (by name) and its command sources (the
+    controller table's). Every command is checked as it comes: its source, and the nodes
+    publishing on ``dva/damper_command`` (the graph, looked at most every
+    :data:`GRAPH_PERIOD` of wall time, and the publishers the subscription has matched; a
+    command cannot be traced to its publisher, which the DDS message info does not carry
+    here). What is foreign is counted by source and by node, reported on /diagnostics once a
+    period, and carried in the end-of-flight report. ``strict`` refuses it: a foreign source
+    always; a foreign node publishing stops the flight (:attr:`stop_reason`), since none of
+    the commands can then be told apart. A controller of '' expects nothing (any commander,
+    as before); ``none`` expects no command at all. Without DDS security a node can take the
+    expected name: this tells an honest second commander, not an impostor
+    (docs/reliability.md)."""
+
+    def __init__(self, node: Node, subscription, controller: str, strict: bool, diagnose):
+        self._node, self._subscription, self._diagnose = node, subscription, diagnose
+        self.controller, self.strict = controller, bool(strict)
+        entry = table.controller(controller) if controller not in ("", table.NONE) else None
+        self.sources = set() if entry is None else {entry.source, *entry.sources}
+        self.expected_node = None if entry is None else entry.node
+        self.foreign_sources: dict[str, int] = {}
+        self.foreign_nodes: dict[str, int] = {}
+        self._nodes: tuple[str, ...] = ()
+        self._looked = -math.inf
+        self.stop_reason: str | None = None  # strict: why the flight must stop
+        self._reported: dict[str, float] = {}
+
+    def _publishers(self) -> tuple[str, ...]:
+        """Publishers of commands other than the expected node's: their node names from the
+        graph (cached), and "unnamed publisher" for each further publisher the command
+        subscription has matched (a message that came was matched; its node's name may
+        reach the graph later)."""
+        now = time.monotonic()
+        if now - self._looked >= GRAPH_PERIOD:
+            self._looked = now
+            topic = self._node.resolve_topic_name(ch.DAMPER_COMMAND.name)
+            names = [info.node_name for info in
+                     self._node.get_publishers_info_by_topic(topic)]
+            self._nodes = tuple(sorted(n for n in names if n != self.expected_node))
+        matched = self._subscription.get_publisher_count()
+        unnamed = matched - (self.expected_node is not None) - len(self._nodes)
+        return self._nodes + ("unnamed publisher",) * max(unnamed, 0)
+
+    def admit(self, source: str, sim_time: float) -> bool:
+        """Whether a command of ``source`` may reach the damper (all are counted)."""
+        if not self.controller:
+            return True
+        foreign_source = source not in self.sources
+        nodes = self._publishers()
+        if foreign_source:
+            key = loggable(source)
+            self.foreign_sources[key] = self.foreign_sources.get(key, 0) + 1
+            self._report(f"source '{key}'", sim_time)
+        for name in dict.fromkeys(nodes):
+            key = loggable(name)
+            self.foreign_nodes[key] = self.foreign_nodes.get(key, 0) + 1
+            self._report(f"node '{key}'", sim_time)
+        if self.strict and nodes and self.stop_reason is None:
+            # no command can be told from the other node's: none is applied, and the flight
+            # stops at once, saying why (it cannot count as controlled)
+            self.stop_reason = (f"a second commander ({', '.join(dict.fromkeys(nodes))}) "
+                                f"publishes on {ch.DAMPER_COMMAND.name} beside "
+                                f"{self.expected_node or 'no controller'}: flight stopped "
+                                "(strict_commands)")
+        return not (self.strict and (foreign_source or nodes))
+
+    def _report(self, who: str, sim_time: float) -> None:
+        wall = time.monotonic()
+        if wall - self._reported.get(who, -math.inf) < REJECTION_REPORT_PERIOD:
+            return
+        self._reported[who] = wall
+        expected = (f"only {self.expected_node} with source(s) "
+                    f"{', '.join(repr(s) for s in sorted(self.sources))}"
+                    if self.expected_node else "no commands (controller none)")
+        self._diagnose(
+            "error", f"damper command from an unexpected commander, {who}: the flight is "
+            f"flown with controller {self.controller} ({expected}); "
+            + ("refused (strict_commands)" if self.strict else "counted, not refused"),
+            {"commander": who, "controller": self.controller})
+
+    @property
+    def foreign(self) -> int:
+        """Commands from an unexpected source or while an unexpected node published."""
+        return max(sum(self.foreign_sources.values()), sum(self.foreign_nodes.values()))
+
+    def values(self) -> dict:
+        """For the end-of-flight report."""
+        return {"controller": self.controller, "strict_commands": self.strict,
+                "commands_foreign": self.foreign,
+                "foreign_sources": ", ".join(f"{k} ({n})" for k, n in
+                                             sorted(self.foreign_sources.items())),
+                "foreign_nodes": ", ".join(f"{k} ({n})" for k, n in
+                                           sorted(self.foreign_nodes.items()))}
 
 
 def topic_count(entry: str) -> tuple[str, int]:
