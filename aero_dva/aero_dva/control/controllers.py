@@ -34,14 +34,17 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import cache
+from typing import TYPE_CHECKING
 
-import numpy as np
+# The table imports named values only, never the numerics: every node's --help, run_flight's
+# and the controller node's start read it (docs/performance.md, the start-up budget).
+from aero_dva.control.law_defaults import FALLBACK_SOURCE, STUDY_BAND, WINDOW_FUNCTIONS
+from aero_dva.flight.flight_limits import DAMPER_RANGE, MAX_DAMPING, SWITCHING_SOURCE
+from aero_dva.input_ranges import MAX_AIRSPEED
+from aero_dva.wing.channel_names import ACCELERATION_NAMES
 
-from aero_dva.control.airspeed_schedule import MAX_AIRSPEED
-from aero_dva.control.spectrum import DEFAULT_FREQUENCIES, WINDOW_FUNCTIONS
-from aero_dva.control.switching_supervisor import FALLBACK_SOURCE
-from aero_dva.flight.damper import DAMPER_RANGE, MAX_DAMPING, SWITCHING_SOURCE
-from aero_dva.wing.model import ACCELERATION_NAMES
+if TYPE_CHECKING:
+    import numpy as np
 
 __all__ = ["BLOCK", "CONDITION", "ENTRY_POINT_GROUP", "NONE", "REFERENCE", "SAMPLE",
            "SPECTRUM", "TICK", "TRUTH", "Condition", "Controller", "LawParam", "LawStep",
@@ -294,11 +297,11 @@ DAMPER_RANGE_PARAMS = (
 SPECTRUM_SHAPE = (
     LawParam("channels", ["plunge", "pitch"], "acceleration channels of the spectra, in order",
              choices=ACCELERATION_NAMES),
-    LawParam("frequencies", DEFAULT_FREQUENCIES.tolist(),
+    LawParam("frequencies", list(STUDY_BAND),
              "frequencies of the spectra: distinct, below the blocks' Nyquist frequency", "Hz",
-             low=1.0e-2, high=1.0e4, default_text=f"{DEFAULT_FREQUENCIES[0]:g}, "
-             f"{DEFAULT_FREQUENCIES[1]:g}, ..., {DEFAULT_FREQUENCIES[-1]:g} "
-             f"({DEFAULT_FREQUENCIES[1] - DEFAULT_FREQUENCIES[0]:g} Hz steps)"),
+             low=1.0e-2, high=1.0e4, default_text=f"{STUDY_BAND[0]:g}, "
+             f"{STUDY_BAND[1]:g}, ..., {STUDY_BAND[-1]:g} "
+             f"({STUDY_BAND[1] - STUDY_BAND[0]:g} Hz steps)"),
     LawParam("window", "rectangular", "window function (rectangular: the study's)",
              choices=tuple(WINDOW_FUNCTIONS)),
     LawParam("window_duration", 2.0,
@@ -500,6 +503,9 @@ def names(runs: tuple[str, ...] = (BLOCK, SAMPLE, REFERENCE),
 
 def controller(name: str) -> Controller:
     """The entry of ``name``; ValueError naming the known ones if there is none."""
+    for entry in BUILTIN:  # the project's own first: no other package's can take their names
+        if entry.name == name:
+            return entry
     for entry in _table()[0]:
         if entry.name == name:
             return entry
@@ -509,8 +515,10 @@ def controller(name: str) -> Controller:
 
 
 def by_node(node: str) -> Controller | None:
-    """The entry whose node (executable) is ``node``, or None."""
-    return next((c for c in _table()[0] if c.node == node), None)
+    """The entry whose node (executable) is ``node``, or None (the project's own looked at
+    first, without reading the other packages' entry points)."""
+    return next((c for c in BUILTIN if c.node == node), None) or \
+        next((c for c in _table()[0] if c.node == node), None)
 
 
 def by_source(source: str) -> Controller | None:

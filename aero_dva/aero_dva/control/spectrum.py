@@ -23,6 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from aero_dva.control.law_defaults import STUDY_BAND, WINDOW_FUNCTIONS
+
 __all__ = [
     "DEFAULT_FREQUENCIES",
     "WINDOW_FUNCTIONS",
@@ -36,11 +38,8 @@ __all__ = [
 ]
 
 #: [Hz] the study's band: 5..20 Hz in 1 Hz steps (section 7.2.1).
-DEFAULT_FREQUENCIES = np.arange(5.0, 21.0, 1.0)
+DEFAULT_FREQUENCIES = np.array(STUDY_BAND)
 DEFAULT_FREQUENCIES.setflags(write=False)
-
-#: Window functions understood by :func:`scaled_spectrum` (names as in dva_msgs/ScaledSpectrum).
-WINDOW_FUNCTIONS = ("rectangular", "hann")
 
 
 def _frozen(array: np.ndarray) -> np.ndarray:

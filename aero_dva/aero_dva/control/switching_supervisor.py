@@ -20,11 +20,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from aero_dva.control.law_defaults import FALLBACK_SOURCE
 from aero_dva.flight.damper import SWITCHING_SOURCE
 
 __all__ = ["FALLBACK_SOURCE", "SupervisorCommand", "SwitchingSupervisor"]
 
-FALLBACK_SOURCE = "switching_fallback"  # dva_msgs/DamperCommand.SOURCE_SWITCHING_FALLBACK
 
 
 @dataclass(frozen=True)

@@ -35,6 +35,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from aero_dva.flight.flight_limits import (  # their home: said once, re-exported here
+    DAMPER_RANGE,
+    DEFAULT_STALE_TIMEOUT,
+    MAX_DAMPING,
+    SWITCHING_SOURCE,
+)
+
 __all__ = [
     "DAMPER_RANGE",
     "DEFAULT_STALE_TIMEOUT",
@@ -50,18 +57,6 @@ __all__ = [
     "check_damping",
     "damping_problem",
 ]
-
-#: ``DamperCommand.source`` that asks for the per-sample switching law
-#: (``DamperCommand.SOURCE_SWITCHING``).
-SWITCHING_SOURCE = "switching"
-
-#: [N s/m] the damper's default range of c2 (the simulator's, and the controllers' clamp).
-DAMPER_RANGE = (0.0, 2500.0)
-#: [N s/m] far above any damper of this size class: a larger c2 parameter is a unit error.
-MAX_DAMPING = 1.0e6
-#: [s] sim time without an accepted command before the damper falls back (the simulator's
-#: default).
-DEFAULT_STALE_TIMEOUT = 0.5
 
 
 def damping_problem(values, what: str, damping_range=DAMPER_RANGE) -> str | None:

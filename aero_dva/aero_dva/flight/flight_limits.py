@@ -1,5 +1,6 @@
-"""The limits every flight, scenario and training plan is held to (pure constants, no imports,
-so that ``dva --help`` can state them without loading the numerics).
+"""The limits every flight, scenario and training plan is held to, and the damper's defaults
+(pure constants, no imports, so that ``dva --help``, a node's ``--help`` and the controller table
+can state them without loading the numerics; the modules that use them re-export them).
 
 Past them a scenario or plan is refused at the door, in one line (exit code 2); the memory a
 flight takes per sample on each route is in docs/reliability.md.
@@ -19,3 +20,14 @@ MAX_FORCE_STD = 1.0e6
 MAX_WINDOW_SAMPLES = 600_000
 #: [kg/m^3] air densities a flight may have (40 km altitude to a cold sea-level day).
 DENSITY_RANGE = (1e-3, 2.0)
+
+#: [N s/m] the damper's default range of c2 (the simulator's, and the controllers' clamp).
+DAMPER_RANGE = (0.0, 2500.0)
+#: [N s/m] far above any damper of this size class: a larger c2 parameter is a unit error.
+MAX_DAMPING = 1.0e6
+#: [s] sim time without an accepted command before the damper falls back (the simulator's
+#: default).
+DEFAULT_STALE_TIMEOUT = 0.5
+#: ``DamperCommand.source`` that asks for the per-sample switching law
+#: (``DamperCommand.SOURCE_SWITCHING``).
+SWITCHING_SOURCE = "switching"

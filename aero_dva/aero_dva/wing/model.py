@@ -38,6 +38,7 @@ from aero_dva.wing.aerodynamics import (
     WagnerAero,
     aero_matrices,
 )
+from aero_dva.wing.channel_names import ACCELERATION_NAMES, DISPLACEMENT_NAMES
 from aero_dva.wing.checks import finite, non_negative, positive, real_array
 
 __all__ = [
@@ -50,8 +51,6 @@ __all__ = [
     "WingParameters",
 ]
 
-DISPLACEMENT_NAMES = ("plunge", "pitch", "leading_edge", "absorber_stroke")
-ACCELERATION_NAMES = ("plunge", "pitch", "leading_edge")
 #: Row of the leading edge in the displacements and in the accelerations (the same in both).
 LEADING_EDGE = DISPLACEMENT_NAMES.index("leading_edge")
 

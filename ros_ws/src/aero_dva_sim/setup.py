@@ -24,9 +24,9 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
-            "bag_player = aero_dva_sim.bag_player_node:main",
-            "mcap_recorder = aero_dva_sim.mcap_recorder_node:main",
-            "simulator = aero_dva_sim.simulator_node:main",
+            "bag_player = aero_dva_sim.bag_player_spec:main",
+            "mcap_recorder = aero_dva_sim.mcap_recorder_spec:main",
+            "simulator = aero_dva_sim.simulator_spec:main",
             "run_flight = aero_dva_sim.run_flight:main",
             "replay_flight = aero_dva_sim.replay_flight:main",
         ],

@@ -9,9 +9,9 @@ from setuptools import find_packages, setup
 from aero_dva.control.controllers import BLOCK, SAMPLE, controllers
 
 PACKAGE = "dva_controller"
-ALIASES = [f"{entry.node} = dva_controller.controller_node:main"
+ALIASES = [f"{entry.node} = dva_controller.controller_spec:main"
            for entry in controllers((BLOCK,), builtin_only=True)]
-SUPERVISORS = [f"{entry.node} = dva_controller.switching_controller_node:main"
+SUPERVISORS = [f"{entry.node} = dva_controller.switching_controller_spec:main"
                for entry in controllers((SAMPLE,), builtin_only=True)]
 
 setup(
@@ -32,9 +32,9 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
-            "controller = dva_controller.controller_node:main",
+            "controller = dva_controller.controller_spec:main",
             *ALIASES,
-            "spectrum = dva_controller.spectrum_node:main",
+            "spectrum = dva_controller.spectrum_spec:main",
             *SUPERVISORS,
         ],
     },

@@ -2,8 +2,11 @@
 defaults' homes, and the nodes' parameters and the CLIs take them from there.
 
 The homes: the damper's range, MAX_DAMPING and the stale-command timeout in
-``aero_dva.flight.damper``; the airspeed limit in ``aero_dva.input_ranges``; the spectrum
-band in ``aero_dva.control.spectrum``; the controllers' parameters in the controller table.
+``aero_dva.flight.flight_limits`` (re-exported by ``aero_dva.flight.damper``, which uses them);
+the airspeed limit in ``aero_dva.input_ranges``; the spectrum band in
+``aero_dva.control.law_defaults`` (``aero_dva.control.spectrum`` holds it as an array); the
+controllers' parameters in the controller table. The homes import no numerics, so that a node's
+``--help`` states them without loading numpy (docs/performance.md).
 """
 from __future__ import annotations
 

@@ -18,8 +18,9 @@ A damaged bag (crashed recorder, cut file, a chunk failing its CRC) plays every 
 CRC holds, with a warning there and in the status saying how much was skipped; the process
 then exits with ``PLAYED_LESS`` (3) unless it played all that the bag's index promises.
 
-Its parameters (units, defaults, ranges) are the table ``SPEC`` below, which the node declares
-them from and ``bag_player --help`` prints.
+Its parameters (units, defaults, ranges) are the table ``SPEC`` of
+:mod:`aero_dva_sim.bag_player_spec`, which the node declares them from and ``bag_player --help``
+prints.
 """
 from __future__ import annotations
 
@@ -41,11 +42,11 @@ from rclpy.task import Future
 from rosgraph_msgs.msg import Clock
 
 from aero_dva.bag import channels as ch
+from aero_dva_sim.bag_player_spec import SPEC, main
 from aero_dva_sim.bag_source import BagSource, BagTopic
 from dva_ros_common import conversions
 from dva_ros_common.conversions import message_class
-from dva_ros_common.node_params import NodeSpec, Param, declare_parameters
-from dva_ros_common.node_tools import run_node
+from dva_ros_common.node_params import declare_parameters
 
 POLL = 0.01  # [s] wall time between looks at the graph while waiting for subscribers
 SLICE = 0.1  # [s] longest sleep, so a stop request is noticed quickly
@@ -53,53 +54,6 @@ ACK_TIMEOUT = 4.0  # [s] at the end: longest wait for the subscribers' acknowled
 #: Exit code when the bag is damaged and less was played than its index promises (or an
 #: unclosed bag, which has no index to tell).
 PLAYED_LESS = 3
-
-SPEC = NodeSpec(
-    name="bag_player",
-    package="aero_dva_sim",
-    summary="Publish a recorded bag (rosbag2-layout MCAP, one file or split) into the graph: "
-            "the recorded CDR bytes in log-time order, with the recorded timing scaled by "
-            "rate, each topic with the QoS recorded in metadata.yaml, /clock from the log "
-            "times. Remap topics with --ros-args -r /bag/topic:=/new/topic. A damaged bag "
-            "plays every chunk whose CRC holds, with a warning, and exits 3. Reports on "
-            "/diagnostics when it ends.",
-    params=(
-        Param("bag", "", "bag directory (or one .mcap file) to play; required",
-              default_text="none (required)"),
-        Param("rate", 1.0, "speed relative to the recording (1: recorded timing; 0: as fast "
-              "as the player can publish, lossless only for subscribers with deep enough "
-              "queues)", "", 0.0, 1.0e6),
-        Param("topics", [""], "play only these topics (bag names, with or without the "
-              "leading /)", default_text="[] (every topic)"),
-        Param("start_offset", 0.0, "skip this much of the bag's start (log time)", "s",
-              0.0, 1.0e9),
-        Param("duration", 0.0, "play this much log time from start_offset (0: to the end)",
-              "s", 0.0, 1.0e9),
-        Param("loop", False, "play again from start_offset when the end is reached"),
-        Param("clock", True, "publish /clock from the log times (the bag's own /clock is then "
-              "not played)"),
-        Param("wait_for_subscribers", 0, "before the first message, wait until every played "
-              "topic has this many subscribers", "", 0, 1000),
-        Param("wait_for_nodes", [""], "... and these nodes are in the graph with all their "
-              "subscriptions to played topics matched"),
-        Param("wait_for_topics", [""], "... and these topics, not played, have a publisher and "
-              "N subscribers in the graph (TOPIC or TOPIC:N, N default 1), e.g. the links "
-              "between the nodes the bag is replayed into"),
-        Param("wait_timeout", 30.0, "wall time after which playing starts anyway (with a "
-              "warning), or fails (wait_timeout_fails)", "s", 0.0, 1.0e6),
-        Param("wait_timeout_fails", False, "fail (exit code 1, nothing played) when the graph "
-              "is not complete after wait_timeout, instead of playing anyway"),
-        Param("delay", 0.5, "wall time from the end of the wait to the first message: DDS "
-              "matches the two ends of a topic separately, and a subscriber that has not yet "
-              "matched the player drops what it is sent", "s", 0.0, 3600.0),
-        Param("qos_depth", 100, "keep-last depth of a topic whose recorded depth is unknown",
-              "", 1, 100000),
-        Param("exit_on_end", True, "stop the node when the bag has been played"),
-    ),
-    topics="""
-publishes every played topic of the bag (remappable), /clock, /diagnostics (once, at the end)
-""",
-)
 
 
 def qos_profile(topic: BagTopic, default_depth: int) -> QoSProfile:
@@ -358,10 +312,6 @@ class BagPlayer(Node):
             self._thread.join(timeout=60.0)
             if self._thread.is_alive():
                 raise RuntimeError("the playing thread did not stop within 60 s")
-
-
-def main(args=None) -> int:
-    return run_node(BagPlayer, SPEC, args)
 
 
 if __name__ == "__main__":

@@ -8,8 +8,9 @@ Once it has recorded the simulator's end-of-flight report, which counts what the
 published on each topic, it takes queued messages until it holds every one of them (at most
 ``DRAIN_LIMIT`` s), and says on closing whether it does.
 
-Its parameters (units, defaults, ranges) are the table ``SPEC`` below, which the node declares
-them from and ``mcap_recorder --help`` prints. Log times are the node's clock: sim time with
+Its parameters (units, defaults, ranges) are the table ``SPEC`` of
+:mod:`aero_dva_sim.mcap_recorder_spec`, which the node declares them from and
+``mcap_recorder --help`` prints. Log times are the node's clock: sim time with
 ``use_sim_time:=true``.
 """
 from __future__ import annotations
@@ -29,33 +30,12 @@ from aero_dva.bag import channels as ch
 from aero_dva.bag.schemas import MessageDefinitionNotFound
 from aero_dva.bag.writer import BagWriter, qos_profile_yaml
 from aero_dva.text_input import loggable
+from aero_dva_sim.mcap_recorder_spec import SPEC, main
 from dva_ros_common.conversions import message_class
-from dva_ros_common.node_params import NodeSpec, Param, declare_parameters
-from dva_ros_common.node_tools import RCLError, run_node
+from dva_ros_common.node_params import declare_parameters
+from dva_ros_common.node_tools import RCLError
 
 PUBLISHED = "published:"  # the simulator's count of a topic in its flight reports
-
-SPEC = NodeSpec(
-    name="mcap_recorder",
-    package="aero_dva_sim",
-    summary="Record topics to a rosbag2-layout MCAP bag, like `ros2 bag record -s mcap`: "
-            "topics are discovered while the node runs and recorded as serialized CDR, "
-            "untouched, with their schemas and the QoS their publishers offer. On SIGINT or "
-            "SIGTERM the bag is closed cleanly (MCAP footer and metadata.yaml).",
-    params=(
-        Param("output", "", "bag directory to create; it must not exist or be empty (nothing "
-              "is overwritten)", default_text="bags/run_<UTC time>"),
-        Param("topics", [""], "record only these topics (resolved in the node's namespace)",
-              default_text="[] (every topic)"),
-        Param("exclude", [""], "never record these topics"),
-        Param("discovery_period", 0.1, "wall time between looks for new topics", "s",
-              1.0e-3, 60.0),
-        Param("flush_period", 1.0, "wall time between flushes of the MCAP chunk (bounds what a "
-              "crash can lose)", "s", 1.0e-3, 3600.0),
-    ),
-    topics="subscribes every matching topic (raw CDR); writes <output>/<name>_0.mcap and "
-           "metadata.yaml",
-)
 
 
 def offered_qos_yaml(profiles) -> str:
@@ -229,13 +209,6 @@ class McapRecorder(Node):
                       for t, n in self.simulator_published.items())
         return (f"; all {wanted} the simulator published" if not missing else
                 f"; {missing} of the {wanted} the simulator published missing")
-
-
-def main(args=None) -> int:
-    # On SIGINT/SIGTERM, record what is still queued before closing the bag: every message the
-    # simulator counted, once its report is in.
-    return run_node(McapRecorder, SPEC, args, drain=lambda node: node.received,
-                    complete=lambda node: node.complete())
 
 
 if __name__ == "__main__":

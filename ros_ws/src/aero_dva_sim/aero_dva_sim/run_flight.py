@@ -28,7 +28,7 @@ from pathlib import Path
 from aero_dva.bag import channels as ch
 from aero_dva.control import controllers as table
 from aero_dva.control.controllers import BLOCK, NONE, SAMPLE, SPECTRUM, TICK
-from aero_dva.flight.damper import DEFAULT_STALE_TIMEOUT
+from aero_dva.flight.flight_limits import DEFAULT_STALE_TIMEOUT
 
 RECORDER = "mcap_recorder"
 

@@ -21,7 +21,6 @@ import dataclasses
 import math
 import sys
 from functools import partial
-from pathlib import Path
 
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
@@ -34,18 +33,14 @@ from aero_dva.control.controllers import (
     SPECTRUM,
     TICK,
     Condition,
-    Controller,
     LawStep,
 )
-from dva_controller.shared_params import param
+from dva_controller.controller_spec import main, node_spec
 from dva_msgs.msg import DamperCommand, FlightCondition, ScaledSpectrum
 from dva_ros_common import conversions
-from dva_ros_common.held_publisher import HOLD_PARAM, HeldPublisher
-from dva_ros_common.node_params import NodeSpec, declare_parameters
-from dva_ros_common.node_tools import INPUT_HEALTH_PARAMS, InputHealth, Status, run_node
-
-PACKAGE = "dva_controller"
-GENERIC = "controller"  # the executable that takes the law's name first
+from dva_ros_common.held_publisher import HeldPublisher
+from dva_ros_common.node_params import declare_parameters
+from dva_ros_common.node_tools import InputHealth, Status
 
 
 def _condition(msg: FlightCondition) -> tuple[int, Condition]:
@@ -70,28 +65,12 @@ class TopicInput:
     read: object
 
 
-TOPIC_INPUTS = {
+TOPIC_INPUTS = {  # the kinds of controller_spec.TOPIC_KINDS
     CONDITION: TopicInput(FlightCondition, "conditions", "rejected_airspeed", "flight condition",
                           _condition),
     SPECTRUM: TopicInput(ScaledSpectrum, "spectra", "rejected_spectrum", "spectrum", _spectrum),
 }
 LEVELS = {"ok": conversions.OK, "warn": conversions.WARN, "error": conversions.ERROR}
-
-
-def node_spec(entry: Controller) -> NodeSpec:
-    """The node's parameter table and help for ``entry``'s law."""
-    topics = [k for k in entry.inputs if k in TOPIC_INPUTS]
-    lines = [f"subscribes {ch.LAW_INPUTS[k].name} ({_type(ch.LAW_INPUTS[k])})" for k in topics]
-    lines.append(f"publishes {ch.DAMPER_COMMAND.name} ({_type(ch.DAMPER_COMMAND)}, source "
-                 f"\"{entry.source}\")" + (", /diagnostics" if topics else ""))
-    return NodeSpec(name=entry.node, package=PACKAGE, summary=entry.summary,
-                    params=(*(param(p) for p in entry.params),
-                            *(INPUT_HEALTH_PARAMS if topics else ()), HOLD_PARAM),
-                    topics="\n".join(lines))
-
-
-def _type(channel: ch.Channel) -> str:
-    return channel.type_name.replace("/msg/", "/")
 
 
 class ControllerNode(Node):
@@ -197,41 +176,6 @@ def law_node(name: str) -> type:
 
     return type(f"{entry.name.title()}Controller", (ControllerNode,),
                 {"__init__": __init__, "SPEC": node_spec(entry)})
-
-
-def _usage() -> str:
-    laws = ", ".join(table.names((BLOCK,))) or "none"
-    return (f"usage: ros2 run {PACKAGE} {GENERIC} NAME [-h] [--ros-args ...]\n\n"
-            "Run the block-rate control law NAME of the controller table in a node (its "
-            "parameters: NAME --help).\n"
-            f"laws: {laws}\n")
-
-
-def main(args=None) -> int:
-    """The node of the law its executable is the alias of, or of the name that follows
-    ``controller``."""
-    argv = list(sys.argv if args is None else args)
-    entry = table.by_node(Path(argv[0]).name)
-    if entry is None or entry.runs != BLOCK:
-        rest = argv[1:]
-        if not rest or rest[0] in ("-h", "--help"):
-            sys.stdout.write(_usage())
-            for problem in table.load_problems():
-                print(f"{GENERIC}: warning: {problem}", file=sys.stderr)
-            return 0 if rest else 2
-        try:
-            entry = table.controller(rest[0])
-        except ValueError as exc:
-            print(f"{GENERIC}: error: {exc}", file=sys.stderr)
-            return 2
-        if entry.runs != BLOCK:
-            print(f"{GENERIC}: error: controller {entry.name!r} does not run in a controller "
-                  f"node (it runs {entry.runs}-wise)", file=sys.stderr)
-            return 2
-        del argv[1]
-    # On SIGINT/SIGTERM, answer the inputs still queued (the last block's) before stopping.
-    return run_node(partial(ControllerNode, entry.name), node_spec(entry), argv,
-                    drain=lambda node: node.taken(), own_process=args is None)
 
 
 if __name__ == "__main__":

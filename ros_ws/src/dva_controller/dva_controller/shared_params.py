@@ -6,10 +6,9 @@ from __future__ import annotations
 import dataclasses
 
 from aero_dva.control import controllers as table
-from aero_dva.control.command_laws import spectrum_shape
 from dva_ros_common.node_params import Param
 
-__all__ = ["SPECTRUM_SHAPE", "param", "spectrum_shape"]
+__all__ = ["SPECTRUM_SHAPE", "param"]
 
 
 def param(row: table.LawParam) -> Param:

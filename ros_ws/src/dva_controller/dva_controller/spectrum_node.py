@@ -10,9 +10,10 @@ block with NaN/inf samples, or a change of ``sample_rate`` drops the window coll
 and starts a new one; each reset is reported on ``/diagnostics`` (WARN) with its reason and the
 sample indices. A window whose band holds no signal (scaling by a zero sum) is not published.
 
-Its parameters (units, defaults, ranges) are the table ``SPEC`` below, which the node declares
-them from and ``spectrum --help`` prints; the spectra's shape rows are shared with the RBF
-controller (:mod:`dva_controller.shared_params`).
+Its parameters (units, defaults, ranges) are the table ``SPEC`` of
+:mod:`dva_controller.spectrum_spec`, which the node declares them from and ``spectrum --help``
+prints; the spectra's shape rows are shared with the RBF controller
+(:mod:`dva_controller.shared_params`).
 
 Subscribes ``wing/acceleration`` (dva_msgs/AccelerationBlock) and ``dva/damper_state``
 (dva_msgs/DamperState, for the c2 applied during the window: the spectrum's ``damping`` is the
@@ -30,37 +31,18 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 
 from aero_dva.bag import channels as ch
+from aero_dva.control.command_laws import spectrum_shape
 from aero_dva.control.spectrum_stream import SpectrumStream
-from dva_controller.shared_params import SPECTRUM_SHAPE, spectrum_shape
+from dva_controller.spectrum_spec import SPEC, main
 from dva_msgs.msg import AccelerationBlock, DamperState, ScaledSpectrum
 from dva_ros_common import conversions
-from dva_ros_common.held_publisher import HOLD_PARAM, HeldPublisher
-from dva_ros_common.node_params import NodeSpec, Param, declare_parameters
-from dva_ros_common.node_tools import INPUT_HEALTH_PARAMS, InputHealth, Status, run_node
+from dva_ros_common.held_publisher import HeldPublisher
+from dva_ros_common.node_params import declare_parameters
+from dva_ros_common.node_tools import InputHealth, Status
 
 QOS_DEPTH = 100  # blocks of 10-50 ms: a few seconds of slack at 20x real time before a gap
 STATE_WAIT = 1.0  # [s] wall time a block waits for its damper state (1-2 ticks) before it is
 # analysed with the last known c2: long for a busy executor, short for a stalled state topic
-
-SPEC = NodeSpec(
-    name="spectrum",
-    package="dva_controller",
-    summary="Sliding-window scaled magnitude spectra of the wing's accelerations (eq. 7.3 of "
-            "Zhang (2006)): every hop, the last window of each channel at the chosen "
-            "frequencies, each channel divided by its sum over the band.",
-    params=(
-        *SPECTRUM_SHAPE,
-        Param("hop", 0.1, "time between window starts; a whole number of samples", "s",
-              1.0e-3, 3600.0),
-        *INPUT_HEALTH_PARAMS,
-        HOLD_PARAM,
-    ),
-    topics="""
-subscribes wing/acceleration (dva_msgs/AccelerationBlock)
-subscribes dva/damper_state (dva_msgs/DamperState: c2 applied during the window)
-publishes dva/spectrum (dva_msgs/ScaledSpectrum), /diagnostics
-""",
-)
 
 
 class SpectrumNode(Node):
@@ -146,12 +128,6 @@ class SpectrumNode(Node):
         if self._stream.problem is not None:
             return conversions.ERROR, self._stream.problem, values
         return conversions.OK, f"{self.counts['spectra']} spectra published", values
-
-
-def main(args=None) -> int:
-    # On SIGINT/SIGTERM, analyse the blocks still queued before stopping.
-    return run_node(SpectrumNode, SPEC, args,
-                    drain=lambda node: node.counts["blocks"] + node.counts["damper_states"])
 
 
 if __name__ == "__main__":

@@ -20,41 +20,22 @@ prints.
 from __future__ import annotations
 
 import sys
-from functools import partial
-from pathlib import Path
 
 from rclpy.node import Node
 
 from aero_dva.bag import channels as ch
-from aero_dva.control import controllers as table
-from aero_dva.control.controllers import SAMPLE, controller
+from aero_dva.control.controllers import controller
 from aero_dva.control.switching_supervisor import SwitchingSupervisor
-from dva_controller.shared_params import param
+from dva_controller.switching_controller_spec import (  # noqa: F401  (SPEC: its users')
+    ENTRY,
+    SPEC,
+    main,
+    node_spec,
+)
 from dva_msgs.msg import DamperCommand, DamperState, DisplacementBlock
 from dva_ros_common import conversions
-from dva_ros_common.held_publisher import HOLD_PARAM, HeldPublisher
-from dva_ros_common.node_params import NodeSpec, declare_parameters
-from dva_ros_common.node_tools import run_node
-
-
-def node_spec(entry) -> NodeSpec:
-    """The supervisor node of the per-sample law ``entry``: its parameters, its topics."""
-    return NodeSpec(
-        name=entry.node,
-        package="dva_controller",
-        summary=entry.summary,
-        params=(*(param(row) for row in entry.params), HOLD_PARAM),
-        topics=f"""
-publishes dva/damper_command (dva_msgs/DamperCommand, source "{entry.source}" or
-  "{entry.sources[0]}"), /diagnostics (each fallback and its reason)
-subscribes wing/displacement (burst detector), dva/damper_state (whether the damper runs the law)
-""",
-    )
-
-
-#: The switching law's entry of the controller table and its node's parameters.
-ENTRY = controller("switching")
-SPEC = node_spec(ENTRY)
+from dva_ros_common.held_publisher import HeldPublisher
+from dva_ros_common.node_params import declare_parameters
 
 
 def gains_problem(entry, path: str, wing: str) -> str | None:
@@ -147,18 +128,6 @@ class SwitchingController(Supervisor):
 
     def __init__(self, **kwargs) -> None:
         super().__init__(ENTRY.name, **kwargs)
-
-
-def main(args=None) -> int:
-    """The supervisor of the per-sample law whose node this executable is."""
-    argv = list(sys.argv if args is None else args)
-    entry = table.by_node(Path(argv[0]).name)
-    if entry is None or entry.runs != SAMPLE:
-        print(f"{Path(argv[0]).name}: error: no per-sample law of the controller table has "
-              f"this node; they are {', '.join(c.node for c in table.controllers((SAMPLE,)))}",
-              file=sys.stderr)
-        return 2
-    return run_node(partial(Supervisor, entry.name), node_spec(entry), argv)
 
 
 if __name__ == "__main__":

@@ -11,21 +11,15 @@ from __future__ import annotations
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 
-from dva_ros_common.node_params import Param
 from dva_ros_common.node_tools import DATA_DEPTH
 
 POLL_PERIOD = 0.005  # [s] wall time between looks at the matched count while holding
 MAX_HELD = 10000  # messages held at most; the oldest go first beyond it
 
-#: The row of a node's parameter table that sets the gate.
-HOLD_PARAM = Param(
-    "hold_until_subscribers", 0, "hold the first outputs until the output topic has this many "
-    "matched subscribers (run_flight: whoever must not miss them; 0: publish at once)", "",
-    0, 1000)
-
 
 class HeldPublisher:
-    """``publish`` as rclpy's, except that messages wait until ``count`` subscribers match.
+    """``publish`` as rclpy's, except that messages wait until ``count`` subscribers match
+    (:data:`dva_ros_common.node_params.HOLD_PARAM` is the row of a node's table that sets it).
 
     Its writer on ``topic`` keeps :data:`~dva_ros_common.node_tools.DATA_DEPTH` messages: what
     it publishes is recorded, and a starved recorder must still get it whole."""

@@ -164,6 +164,20 @@ class NodeSpec:
         return tuple(p.name for p in self.params if not p.dynamic)
 
 
+#: The rows of ``dva_ros_common.node_tools.InputHealth`` for a node's parameter table.
+INPUT_HEALTH_PARAMS = (
+    Param("stale_timeout", 1.0, "ROS time without input after which the status turns WARN", "s",
+          1.0e-3, 3600.0),
+    Param("diagnostic_period", 1.0, "ROS time between status reports on /diagnostics", "s",
+          1.0e-2, 3600.0),
+)
+#: The row of a node's parameter table that sets ``dva_ros_common.held_publisher``'s gate.
+HOLD_PARAM = Param(
+    "hold_until_subscribers", 0, "hold the first outputs until the output topic has this many "
+    "matched subscribers (run_flight: whoever must not miss them; 0: publish at once)", "",
+    0, 1000)
+
+
 def _wrap(text: str, indent: str, then: str | None = None) -> list[str]:
     return textwrap.wrap(text, HELP_WIDTH, initial_indent=indent,
                          subsequent_indent=indent if then is None else then,
@@ -207,8 +221,12 @@ def command_line(spec: NodeSpec, argv: Sequence[str]) -> int | None:
     """Answer ``-h``/``--help`` (0) or refuse unknown non-ROS arguments (2); None: start the node.
 
     ``argv`` is the full command line (``sys.argv``: the program first). ROS arguments (after
-    ``--ros-args``, up to ``--``) are left to rcl; only the rest is checked here.
+    ``--ros-args``, up to ``--``) are left to rcl; only the rest is checked here. A ``-h`` or
+    ``--help`` anywhere is help, answered before rclpy is imported.
     """
+    if set(argv[1:]) & {"-h", "--help"}:
+        sys.stdout.write(help_text(spec))
+        return 0
     from rclpy.utilities import remove_ros_args  # parses; creates no context
 
     try:
@@ -222,14 +240,31 @@ def command_line(spec: NodeSpec, argv: Sequence[str]) -> int | None:
             text = f"unknown ROS arguments {text}"
         print(f"{spec.name}: error: {text} (see --help)", file=sys.stderr)
         return 2
-    if set(rest) & {"-h", "--help"}:
-        sys.stdout.write(help_text(spec))
-        return 0
     if rest:
         print(f"{spec.name}: error: unrecognized arguments: {' '.join(rest)} (node parameters "
               f"go after --ros-args as -p NAME:=VALUE; see --help)", file=sys.stderr)
         return 2
     return None
+
+
+def node_main(spec: NodeSpec, node: str, args=None, node_args: tuple = (),
+              **run_options) -> int:
+    """The body of a node executable's ``main``: ``-h``/``--help`` and refused arguments are
+    answered from ``spec`` before ROS, numpy or the node's module are imported (a node module
+    keeps its table in a module of its own for this: docs/performance.md, the start-up
+    budget); otherwise the node ``"module:Class"`` (built with ``node_args`` first) runs
+    (:func:`dva_ros_common.node_tools.run_node` with ``args`` and ``run_options``)."""
+    code = command_line(spec, sys.argv if args is None else args)
+    if code is not None:
+        return code
+    import functools
+    import importlib
+
+    from dva_ros_common.node_tools import run_node
+
+    module, _, name = node.partition(":")
+    node_class = getattr(importlib.import_module(module), name)
+    return run_node(functools.partial(node_class, *node_args), spec, args, **run_options)
 
 
 def _descriptor(p: Param):

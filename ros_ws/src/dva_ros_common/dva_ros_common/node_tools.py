@@ -37,8 +37,8 @@ from aero_dva.bag.channels import DIAGNOSTICS
 from aero_dva.text_input import loggable
 from dva_ros_common.conversions import ERROR, WARN, diagnostic_array, diagnostic_status
 from dva_ros_common.node_params import (
+    INPUT_HEALTH_PARAMS,
     NodeSpec,
-    Param,
     command_line,
     declare_parameters,
 )
@@ -56,13 +56,6 @@ ERROR_CHARS = 600
 #: 1000 blocks last 5 s at 10x, about 2 MB per topic.
 DATA_DEPTH = 1000
 
-#: The rows of :class:`InputHealth` for a node's parameter table.
-INPUT_HEALTH_PARAMS = (
-    Param("stale_timeout", 1.0, "ROS time without input after which the status turns WARN", "s",
-          1.0e-3, 3600.0),
-    Param("diagnostic_period", 1.0, "ROS time between status reports on /diagnostics", "s",
-          1.0e-2, 3600.0),
-)
 
 #: A node's own status: level, message and extra key/values for ``/diagnostics``.
 Status = tuple[int, str, Mapping[str, object]]
