@@ -192,8 +192,8 @@ def test_a_stopped_recorder_takes_what_the_simulator_counted(
     assert recorder.stop() == 0, recorder.output()
     closing = next(line for line in recorder.output().splitlines() if "closed" in line)
     if claimed_extra:
-        assert f"; {claimed_extra} of the {sent + claimed_extra} the simulator published " \
+        assert f"; {claimed_extra} of the {sent + claimed_extra} its flight report counts " \
                "missing" in closing, closing
     else:
-        assert f"; all {sent} the simulator published" in closing, closing
+        assert f"; all {sent} its flight report counts" in closing, closing
     assert bag_topics(bag)["/flight/condition"].message_count == sent

@@ -5,8 +5,9 @@ Topics are discovered while the node runs and recorded as serialized CDR, untouc
 recorder first takes what is still queued (it can lag its publishers under load), then closes
 the bag cleanly: everything received is in the MCAP file, and ``metadata.yaml`` is written.
 Once it has recorded the simulator's end-of-flight report, which counts what the simulator
-published on each topic, it takes queued messages until it holds every one of them (at most
-``DRAIN_LIMIT`` s), and says on closing whether it does.
+published on each topic and the commands it received (the answer to the last block's input
+included), it takes queued messages until it holds every one of them (at most
+``dva_ros_common.node_tools.DRAIN_LIMIT`` s), and says on closing whether it does.
 
 Its parameters (units, defaults, ranges) are the table ``SPEC`` of
 :mod:`aero_dva_sim.mcap_recorder_spec`, which the node declares them from and
@@ -35,7 +36,9 @@ from dva_ros_common.conversions import message_class
 from dva_ros_common.node_params import declare_parameters
 from dva_ros_common.node_tools import RCLError
 
-PUBLISHED = "published:"  # the simulator's count of a topic in its flight reports
+#: The simulator's counts of a topic in its flight reports: what it published, and what it
+#: received (the commands, the answer to its last input included).
+COUNTED = ("published:", "received:")
 
 
 def offered_qos_yaml(profiles) -> str:
@@ -73,8 +76,9 @@ class McapRecorder(Node):
         self.received = 0
         self.received_by_topic: Counter[str] = Counter()
         self.lost_by_topic: Counter[str] = Counter()  # samples DDS reports lost to us
-        # topic -> messages the simulator published, from its last flight report (None: none)
-        self.simulator_published: dict[str, int] | None = None
+        # topic -> messages the simulator published (or received: the commands), from its last
+        # flight report (None: none)
+        self.simulator_counted: dict[str, int] | None = None
         self._diagnostics = self.resolve_topic_name(ch.DIAGNOSTICS.name)
         self._diagnostic_type = message_class(ch.DIAGNOSTICS.type_name)
         try:
@@ -153,25 +157,26 @@ class McapRecorder(Node):
             self._read_flight_report(data)
 
     def _read_flight_report(self, data: bytes) -> None:
-        """Keep the simulator's counts of what it published, from its flight reports."""
+        """Keep the simulator's counts of what it published and received, from its flight
+        reports: the messages on those topics the bag must hold."""
         from rclpy.serialization import deserialize_message
 
         for status in deserialize_message(data, self._diagnostic_type).status:
             if status.name != ch.FLIGHT_DIAGNOSTIC_NAME:
                 continue
-            counts = {self.resolve_topic_name(kv.key[len(PUBLISHED):]): int(kv.value)
-                      for kv in status.values if kv.key.startswith(PUBLISHED)}
+            counts = {self.resolve_topic_name(kv.key.partition(":")[2]): int(kv.value)
+                      for kv in status.values if kv.key.startswith(COUNTED)}
             if counts:
-                self.simulator_published = counts
+                self.simulator_counted = counts
 
     def complete(self) -> bool | None:
-        """Whether every message the simulator says it published is in the bag or known lost
-        (its reader's lost-sample events; it cannot come any more), None before a report of
-        its counts has come."""
-        if self.simulator_published is None:
+        """Whether every message the simulator's flight report counts (published, or received:
+        the commands) is in the bag or known lost (its reader's lost-sample events; it cannot
+        come any more), None before such a report has come."""
+        if self.simulator_counted is None:
             return None
         return all(self.received_by_topic[t] + self.lost_by_topic[t] >= n
-                   for t, n in self.simulator_published.items())
+                   for t, n in self.simulator_counted.items())
 
     def _lost(self, topic: str, info) -> None:
         # A sample this reader's transport dropped (its process starved) after the writer had
@@ -202,13 +207,13 @@ class McapRecorder(Node):
                   f"{self._completeness()}", file=sys.stderr)
 
     def _completeness(self) -> str:
-        if self.simulator_published is None:
+        if self.simulator_counted is None:
             return ""
-        wanted = sum(self.simulator_published.values())
+        wanted = sum(self.simulator_counted.values())
         missing = sum(max(0, n - self.received_by_topic[t])
-                      for t, n in self.simulator_published.items())
-        return (f"; all {wanted} the simulator published" if not missing else
-                f"; {missing} of the {wanted} the simulator published missing")
+                      for t, n in self.simulator_counted.items())
+        return (f"; all {wanted} its flight report counts" if not missing else
+                f"; {missing} of the {wanted} its flight report counts missing")
 
 
 if __name__ == "__main__":

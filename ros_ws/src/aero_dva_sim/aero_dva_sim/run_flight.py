@@ -27,7 +27,7 @@ from pathlib import Path
 
 from aero_dva.bag import channels as ch
 from aero_dva.control import controllers as table
-from aero_dva.control.controllers import BLOCK, NONE, SAMPLE, SPECTRUM, TICK
+from aero_dva.control.controllers import BLOCK, CONDITION, NONE, SAMPLE, SPECTRUM, TICK
 from aero_dva.flight.flight_limits import DEFAULT_STALE_TIMEOUT
 
 RECORDER = "mcap_recorder"
@@ -116,6 +116,9 @@ def simulator_command(args, others: list[str]) -> list[str]:
                  first_input_time=first_input_time(args),
                  first_command_timeout=args.wait_timeout,
                  command_wait_timeout=args.command_wait_timeout,
+                 # a law of flight conditions answers the last block too: the flight's report
+                 # counts that answer, and the recorder waits for it (no margin at the stop)
+                 wait_for_last_answer=entry is not None and entry.inputs[0] == CONDITION,
                  damper_timeout=1e9 if entry is None else args.damper_timeout,
                  controller=args.controller,
                  strict_commands=getattr(args, "strict_commands", True),

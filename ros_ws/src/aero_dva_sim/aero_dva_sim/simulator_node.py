@@ -99,6 +99,9 @@ class Simulator(Node):
         self._first_hold_since: float | None = None
         self.exit_code = 0  # run_node's exit code: 1 when the flight failed
         self.commands_received = 0
+        self.commands_after_end = 0  # answers to the last block's input, after the flight
+        self._wait_last_answer = bool(self.get_parameter("wait_for_last_answer").value)
+        self._ending: tuple[str, str, str] | None = None  # (outcome, level, text) once over
         self._exit_on_end = bool(self.get_parameter("exit_on_end").value)
         # run_node spins until ``done``: the end of the flight, or shutdown without exit_on_end
         self.done = self.finished if self._exit_on_end else None
@@ -172,6 +175,12 @@ class Simulator(Node):
 
     # ------------------------------------------------------------------ callbacks
     def _on_command(self, msg: DamperCommand) -> None:
+        if self._ending is not None:  # the flight is over: an answer to its last input
+            self.commands_after_end += 1
+            stamp = time_to_seconds(msg.header.stamp)
+            self._last_command_stamp = max(stamp, self._last_command_stamp or 0.0)
+            self._step()
+            return
         self.commands_received += 1
         stamp = time_to_seconds(msg.header.stamp)
         if stamp > self.runtime.time + self.runtime.block_duration * (1 + 1e-9):
@@ -305,6 +314,9 @@ class Simulator(Node):
     def _step(self) -> None:
         if self.finished.done():
             return
+        if self._ending is not None:
+            self._end(*self._ending)
+            return
         if self._started_wall is None:
             if not self._ready():
                 return
@@ -332,14 +344,11 @@ class Simulator(Node):
             self.timing["publishing"] += time.perf_counter() - published
             self._check_damper_status()
             if block.diverged:
-                self._diagnose("error", stop_message(float(block.airspeed[-1]),
-                                                     self.runtime.critical_airspeed, block.t0),
-                               self._summary())
-                self._finish("diverged")
+                self._end("diverged", "error", stop_message(
+                    float(block.airspeed[-1]), self.runtime.critical_airspeed, block.t0))
                 return
             if self.runtime.done:
-                self._diagnose("ok", "flight completed", self._summary())
-                self._finish("completed")
+                self._end("completed", "ok", "flight completed")
                 return
             # A paced flight that fell behind its wall-clock schedule (it waited for the
             # controller, or a tick came late) catches up, so the real-time factor holds on
@@ -439,6 +448,10 @@ class Simulator(Node):
                   **self.runtime.applied.values()}
         values.update(self.commanders.values())
         values.update({f"published:{t}": n for t, n in self.published.items()})
+        # every command heard, the answer to the last block's input included: what a recorder
+        # of the flight must hold too (dva_controller's publishers wait for both to match)
+        values[f"received:{ch.DAMPER_COMMAND.name}"] = \
+            self.commands_received + self.commands_after_end
         values.update({f"rejected:{reason}": n for reason, n in self.rejected.items()})
         if self._latencies:
             latency = np.array(self._latencies)
@@ -458,6 +471,17 @@ class Simulator(Node):
         self._diag_pub.publish(conversions.diagnostics(
             self.runtime.time, ch.FLIGHT_DIAGNOSTIC_NAME, ch.SIMULATOR_HARDWARE_ID,
             [(level, text, values)]))
+
+    def _end(self, outcome: str, level: str, text: str) -> None:
+        """End the flight with its report, with ``wait_for_last_answer`` once the controller
+        has answered the last block's input (in lockstep, as for one more block)."""
+        self._ending = (outcome, level, text)
+        if self._wait_last_answer and self._waiting_for_controller():
+            if not self.finished.done():
+                self._set_stepping(False)  # the poll and the answer call this again
+            return
+        self._diagnose(level, text, self._summary())
+        self._finish(outcome)
 
     def _fail(self, text: str) -> None:
         if self.finished.done():

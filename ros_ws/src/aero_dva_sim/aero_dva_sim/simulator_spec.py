@@ -98,6 +98,11 @@ SPEC = NodeSpec(
         Param("strict_commands", False, "refuse commands of another source than the "
               "controller's, and every command while another node publishes on "
               "dva/damper_command (the damper then falls back when stale)"),
+        Param("wait_for_last_answer", False, "with max_command_lag: after the last block, wait "
+              "(at most command_wait_timeout) for the command that answers its input before "
+              "the end-of-flight report, which then counts it (received:dva/damper_command), "
+              "so a recorder stopped after the flight can wait for it too; for a law that "
+              "answers every block (a law of flight conditions)"),
         Param("first_command_timeout", 30.0, "wall time the flight holds for the first command "
               "before it fails (exit code 1): the controller never acted", "s", 0.0, 1.0e6),
     ),
