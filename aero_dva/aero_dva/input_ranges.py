@@ -13,13 +13,16 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 __all__ = ["AIR_DENSITY", "ABSORBER", "AIRSPEED", "GAINS", "GAIN_ROWS", "MAX_AIRSPEED",
-           "NETWORK", "PLAN", "Range", "SAMPLE_RATE", "SCHEDULE", "SECTION", "WING",
+           "MAX_DAMPING", "NETWORK", "PLAN", "Range", "SAMPLE_RATE", "SCHEDULE", "SECTION", "WING",
            "check_fields", "check_number", "check_numbers"]
 
 
 #: [m/s] a subsonic wing: an airspeed above this, in a file, a scenario or measured in flight,
 #: is a unit or sensor error (the airspeed controller ignores it).
 MAX_AIRSPEED = 400.0
+#: [N s/m] far above any damper of this size class: a larger c2, in a file or a parameter, is a
+#: unit error.
+MAX_DAMPING = 1.0e6
 
 
 @dataclass(frozen=True)
@@ -97,7 +100,7 @@ ABSORBER = {
     "mass": Range(1e-6, 1e6, "kg"),
     "stiffness": Range(0.0, 1e12, "N/m"),
     "series_stiffness": Range(1.0, 1e12, "N/m"),
-    "damping": Range(0.0, 1e6, "N s/m", inf_means="a locked damper"),
+    "damping": Range(0.0, MAX_DAMPING, "N s/m", inf_means="a locked damper"),
     "position": Range(-100.0, 100.0, "m"),
 }
 

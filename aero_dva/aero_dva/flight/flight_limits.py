@@ -1,10 +1,14 @@
 """The limits every flight, scenario and training plan is held to, and the damper's defaults
-(pure constants, no imports, so that ``dva --help``, a node's ``--help`` and the controller table
-can state them without loading the numerics; the modules that use them re-export them).
+(pure constants, no imports but the package root's ranges, so that ``dva --help``, a node's
+``--help`` and the controller table can state them without loading the numerics; the modules
+that use them re-export them).
 
 Past them a scenario or plan is refused at the door, in one line (exit code 2); the memory a
 flight takes per sample on each route is in docs/reliability.md.
 """
+
+# [N s/m] the largest c2 a parameter or a file may hold: its home is the ranges of every input
+from aero_dva.input_ranges import MAX_DAMPING as MAX_DAMPING
 
 #: [samples] most a flight may have (duration x sample rate): 20,000,000, 5.6 h at 1 kHz (the
 #: study's training sweep has 6.84 million, the default training plan 10.26 million).
@@ -23,8 +27,6 @@ DENSITY_RANGE = (1e-3, 2.0)
 
 #: [N s/m] the damper's default range of c2 (the simulator's, and the controllers' clamp).
 DAMPER_RANGE = (0.0, 2500.0)
-#: [N s/m] far above any damper of this size class: a larger c2 parameter is a unit error.
-MAX_DAMPING = 1.0e6
 #: [s] sim time without an accepted command before the damper falls back (the simulator's
 #: default).
 DEFAULT_STALE_TIMEOUT = 0.5

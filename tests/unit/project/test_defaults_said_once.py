@@ -1,9 +1,10 @@
 """Defaults said once: the node YAML examples (which cannot import) hold the values of the
 defaults' homes, and the nodes' parameters and the CLIs take them from there.
 
-The homes: the damper's range, MAX_DAMPING and the stale-command timeout in
+The homes: the damper's range and the stale-command timeout in
 ``aero_dva.flight.flight_limits`` (re-exported by ``aero_dva.flight.damper``, which uses them);
-the airspeed limit in ``aero_dva.input_ranges``; the spectrum band in
+MAX_DAMPING and the airspeed limit in ``aero_dva.input_ranges`` (flight_limits gives MAX_DAMPING
+on); the spectrum band in
 ``aero_dva.control.law_defaults`` (``aero_dva.control.spectrum`` holds it as an array); the
 controllers' parameters in the controller table. The homes import no numerics, so that a node's
 ``--help`` states them without loading numpy (docs/performance.md).
@@ -17,7 +18,7 @@ import yaml
 
 from aero_dva.control.spectrum import DEFAULT_FREQUENCIES
 from aero_dva.flight.damper import DAMPER_RANGE, DEFAULT_STALE_TIMEOUT, MAX_DAMPING, DamperConfig
-from aero_dva.input_ranges import MAX_AIRSPEED
+from aero_dva.input_ranges import ABSORBER, MAX_AIRSPEED
 
 SRC = Path(__file__).resolve().parents[3] / "ros_ws" / "src"
 
@@ -62,3 +63,5 @@ def test_the_homes_are_what_the_damper_and_the_laws_default_to():
     assert rbf["frequencies"] == DEFAULT_FREQUENCIES.tolist()
     assert all(p.high == MAX_DAMPING for e in table.controllers() for p in e.params
                if p.unit == "N s/m" and p.low == 0.0)
+    # a wing file's c2 is refused where a parameter is: one bound for both
+    assert ABSORBER["damping"].high == MAX_DAMPING
