@@ -45,6 +45,7 @@ def _seeds(n: int, first: int = 0) -> list[int]:
 
 def register(subparsers) -> None:
     from aero_dva.flight.damper import DAMPER_RANGE
+    from aero_dva.flight.per_sample.switching_law import DESIGNS
 
     low, high = DAMPER_RANGE
     p = subparsers.add_parser("switching", help="per-sample switching c2 law: design, evaluate",
@@ -56,7 +57,7 @@ def register(subparsers) -> None:
     d.add_argument("--out", required=True, metavar="FILE", help="gains file to write (JSON)")
     d.add_argument("--wing", metavar="FILE", help="wing YAML with a Maxwell absorber "
                    "(default: the chapter-6 wing)")
-    d.add_argument("--design", choices=("lyapunov", "clipped", "clipped_optimal"),
+    d.add_argument("--design", choices=DESIGNS,
                    default="lyapunov",
                    help="h from the Riccati solution of the Maxwell-rate input (lyapunov), "
                         "Dyke's clipped-optimal force at the design airspeed (clipped), or "
