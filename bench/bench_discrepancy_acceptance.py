@@ -28,6 +28,7 @@ import time
 from collections import Counter
 
 import numpy as np
+from tqdm import tqdm
 
 from dva_offline.discrepancy import loop, synthetic
 from dva_offline.discrepancy.frf_domain import FrfDomain
@@ -103,7 +104,8 @@ def main(argv=None) -> int:
         for effect in effects:
             hidden = None if effect == "none" else effect
             verdicts, ratios, ok, wrong, total_s = Counter(), [], 0, 0, 0.0
-            for i, seed in enumerate(range(args.seed0, args.seed0 + args.cases)):
+            for i, seed in enumerate(tqdm(range(args.seed0, args.seed0 + args.cases),
+                                          desc=effect, file=sys.stderr, leave=False)):
                 cov = CLEAN_COVARIATES[i % 4] if hidden is None else None
                 start = time.perf_counter()
                 case, domain, res = run_case(hidden, seed, cov, args.max_steps)

@@ -26,6 +26,7 @@ import sys
 import time
 
 import numpy as np
+from tqdm import tqdm
 
 from dva_offline.discrepancy import loop, structure_synthetic
 from dva_offline.discrepancy.frf_domain import FrfDomain
@@ -95,7 +96,8 @@ def main(argv=None) -> int:
         for kind, effects in rows:
             ok = explained = extra = 0
             total = 0.0
-            for seed in seeds:
+            for seed in tqdm(seeds, desc=f"{kind} {'+'.join(map(str, effects))}",
+                             file=sys.stderr, leave=False):
                 start = time.perf_counter()
                 if kind == "structure":
                     case, res = structure_case(effects[0], seed)

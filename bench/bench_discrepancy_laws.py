@@ -30,6 +30,7 @@ import time
 from collections import Counter
 
 import numpy as np
+from tqdm import tqdm
 
 from dva_offline.discrepancy import loop, synthetic_laws
 from dva_offline.discrepancy.frf_domain import FrfDomain
@@ -128,7 +129,7 @@ def main(argv=None) -> int:
         for case in cases:
             ok, rec, de, total = 0, [], [], 0.0
             verdicts, chosen = Counter(), Counter()
-            for seed in seeds:
+            for seed in tqdm(seeds, desc=case, file=sys.stderr, leave=False):
                 start = time.perf_counter()
                 c, dom, res = run_case(case, seed, not args.no_laws, args.max_steps)
                 dt = time.perf_counter() - start

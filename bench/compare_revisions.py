@@ -52,6 +52,8 @@ BENCHMARKS = {
     "bench_bag_player": [],
     "bench_flight_log_read": ["--blocks", "4000"],
     "bench_discrepancy_combined": ["--cases", "1", "--only", "pairs"],
+    "bench_discrepancy_laws": ["--cases", "1", "--only", "power_level,structure_clean"],
+    "bench_discrepancy_real": ["--only", "pi88k"],
     "bench_faults": ["--trials", "1", "--only", "burst"],
     "bench_evaluate_workers": ["--runs", "1", "--seeds", "2", "--cases", "rho0",
                                "--controllers", "fixed,oracle"],
