@@ -20,6 +20,7 @@ from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
 
 from aero_dva.control.airspeed_schedule import AirspeedSchedule
+from aero_dva.control.controllers import controller
 from aero_dva.control.rbf_io import save_rbf_network
 from aero_dva.control.rbf_network import spectrum_input_names, train_rbf_ols
 from aero_dva.control.schedule_io import save_schedule
@@ -235,7 +236,7 @@ def test_airspeed_controller_commands_clamped_schedule(executor, spin, ros_conte
     conditions.publish(_condition(10.1, 120.0))  # 1630 -> clamped to 1500
     assert spin(executor, lambda: len(commands) == 2, 5.0)
     assert [c.damping for c in commands] == [1000.0, 1500.0]
-    assert all(c.source == DamperCommand.SOURCE_AIRSPEED_SCHEDULE for c in commands)
+    assert all(c.source == controller("schedule").source for c in commands)
     # Sim time without /clock yet: the command is stamped with its input's time.
     assert stamp_ns(commands[0].header.stamp) == 10_000_000_000
 
@@ -342,7 +343,7 @@ def test_rbf_controller_commands_network_output(executor, spin, ros_context, tra
     assert [c.damping for c in commands] == pytest.approx(
         [min(y_free, top), min(y_clamped, top)], rel=1e-12)
     assert max(c.damping for c in commands) == pytest.approx(top)
-    assert all(c.source == DamperCommand.SOURCE_RBF_NETWORK for c in commands)
+    assert all(c.source == controller("rbf").source for c in commands)
     assert all(stamp_ns(c.header.stamp) >= T0_NS for c in commands)
 
     # 15 frequencies (5..19 Hz): not what the network was trained on -> no command, a diagnostic.

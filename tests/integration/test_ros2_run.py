@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 from rclpy.node import Node
 
+from aero_dva.control.controllers import controller
 from dva_msgs.msg import DamperCommand
 
 from .conftest import ros2_run_path
@@ -38,7 +39,7 @@ def test_fixed_controller_subprocess_publishes(executor, spin, ros_context, star
     msg = _first_command(executor, spin, ros_context, "/plant/dva/damper_command")
     assert msg is not None, proc.output()
     assert msg.damping == 750.0
-    assert msg.source == DamperCommand.SOURCE_FIXED
+    assert msg.source == controller("fixed").source
     assert proc.stop() == 0, proc.output()
 
 

@@ -10,6 +10,6 @@ STUDY_BAND = tuple(float(f) for f in range(5, 21))
 #: Window functions understood by :func:`aero_dva.control.spectrum.scaled_spectrum` (names as
 #: in dva_msgs/ScaledSpectrum).
 WINDOW_FUNCTIONS = ("rectangular", "hann")
-#: ``DamperCommand.source`` of the switching supervisor's safe c2
-#: (``DamperCommand.SOURCE_SWITCHING_FALLBACK``).
+#: ``DamperCommand.source`` of the switching supervisor's safe c2 (the switching law's table
+#: entry's second source).
 FALLBACK_SOURCE = "switching_fallback"

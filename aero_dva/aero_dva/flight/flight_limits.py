@@ -30,6 +30,6 @@ DAMPER_RANGE = (0.0, 2500.0)
 #: [s] sim time without an accepted command before the damper falls back (the simulator's
 #: default).
 DEFAULT_STALE_TIMEOUT = 0.5
-#: ``DamperCommand.source`` that asks for the per-sample switching law
-#: (``DamperCommand.SOURCE_SWITCHING``).
+#: ``DamperCommand.source`` that asks for the per-sample switching law (its table entry's
+#: source).
 SWITCHING_SOURCE = "switching"
