@@ -439,7 +439,11 @@ def _format(summary: dict) -> str:
         f"{summary['blocks']} blocks, start-up {summary['blocks_startup']}, fallback "
         f"{summary['blocks_fallback']}",
         f"commands             {summary['commands_received']} received of "
-        f"{summary['commands_expected']} expected, {summary['commands_recorded']} recorded",
+        + (f"at most {summary['commands_expected']} (a timer on sim time fires once per clock "
+           "step it sees: fewer when the node lags)"
+           if summary["controller"] != NONE and entry_of(summary["controller"]).inputs[0] == TICK
+           else f"{summary['commands_expected']} expected")
+        + f", {summary['commands_recorded']} recorded",
         "commanders           " + (
             f"{summary['commands_foreign']} commands from unexpected commanders ("
             + "; ".join(p for p in (summary.get("foreign_nodes") and
