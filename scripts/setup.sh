@@ -5,6 +5,12 @@
 #
 # Idempotent: each step records a stamp (a hash of its inputs) and is skipped when the stamp
 # matches. Safe to interrupt: a step's stamp is written only after the step succeeded.
+# Safe to start twice (./run.sh and ./test.sh at once on a fresh clone): the second waits for
+# the first under a lock (flock on <repo>/.dva-setup.lock), says so, then finds every step done.
+#
+# Exit codes (every executable's, aero_dva/aero_dva/exits.py): 0 ready; 2 a prerequisite is
+# missing (Python 3.11, cmake, g++, make, a sourced ROS 2 other than Jazzy); 3 a step failed
+# (an install, the colcon build); 130 interrupted.
 #
 # Environment:
 #   DVA_PYTHON   Python 3.11 interpreter to build the venv from (default: python3.11 on PATH)
@@ -18,12 +24,17 @@ WS="$REPO/ros_ws"
 SCRIPTS="$REPO/scripts"
 
 say() { [[ "${DVA_QUIET:-0}" == 1 ]] || echo "[setup] $*" >&2; }
-die() {
+fail() {  # CODE TEXT [HINT ...]: the error, its hints, the exit code
+  local code=$1
+  shift
   echo "[setup] error: $1" >&2
   shift
   for line in "$@"; do echo "[setup]   $line" >&2; done
-  exit 1
+  exit "$code"
 }
+die() { fail 2 "$@"; }  # a missing prerequisite: bad input
+trap 'exit 3' ERR  # a step that failed (set -e would exit with the step's own code)
+trap 'exit 130' INT TERM
 hash_of() { cat "$@" | sha256sum | cut -c1-16; }
 
 # ---------------------------------------------------------------- which ROS 2, which Python
@@ -55,6 +66,22 @@ for tool in cmake g++ make; do
   command -v "$tool" >/dev/null || die "'$tool' is needed to build the dva_msgs interface package." \
     "On Debian/Ubuntu: apt-get install cmake g++ make"
 done
+
+# ---------------------------------------------------------------- one setup at a time
+# Two setups of one checkout at once would build one venv and one colcon workspace twice over
+# each other (a half-installed package, a build tree written by two colcons). The lock is
+# released by the kernel when this process ends, however it ends.
+if command -v flock >/dev/null; then
+  exec 9<>"$REPO/.dva-setup.lock"
+  if ! flock -n 9; then
+    echo "[setup] another setup of this checkout is running (pid $(head -n 1 "$REPO/.dva-setup.lock" 2>/dev/null || echo '?')); waiting for it to finish" >&2
+    flock 9
+    echo "[setup] the other setup finished; checking what is left to do" >&2
+  fi
+  echo "$$" > "$REPO/.dva-setup.lock"
+else
+  say "warning: no flock on this machine: do not start two setups of this checkout at once"
+fi
 
 # ---------------------------------------------------------------- 1. virtual environment
 venv_stamp="$MODE:$(hash_of "$SCRIPTS/requirements-python.txt" "$SCRIPTS/requirements-ros-jazzy-wheels.txt" "$SCRIPTS/requirements-installer.txt" "$REPO/aero_dva/pyproject.toml" "$REPO/offline/pyproject.toml" "$SCRIPTS/setup.sh")"
@@ -111,7 +138,7 @@ else
   editable=(-e "$REPO/aero_dva" -e "$REPO/offline")
   { [[ ${#uv[@]} -gt 0 ]] && "${uv[@]}" --no-deps "${editable[@]}" > "$VENV/editable-install.log" 2>&1; } \
     || "${pip[@]}" install --no-deps "${editable[@]}" > "$VENV/editable-install.log" 2>&1 \
-    || { cat "$VENV/editable-install.log" >&2; die "installing aero_dva/ and offline/ failed (output above)"; }
+    || { cat "$VENV/editable-install.log" >&2; fail 3 "installing aero_dva/ and offline/ failed (output above)"; }
   echo "$venv_stamp" > "$VENV/.dva-venv-stamp"
   say "virtual environment ready in $((SECONDS - start)) s"
 fi
@@ -167,7 +194,7 @@ else
     [[ -d "$WS/build" ]] && find "$WS/build" -xtype l -delete
     if ! "$VPY" -m colcon "${colcon_args[@]}" > "$WS/log/colcon-build.txt" 2>&1; then
       tail -n 40 "$WS/log/colcon-build.txt" >&2
-      die "colcon build failed; the full output is in $WS/log/colcon-build.txt"
+      fail 3 "colcon build failed; the full output is in $WS/log/colcon-build.txt"
     fi
   )
   echo "$build_stamp" > "$WS/install/.dva-build-stamp"
