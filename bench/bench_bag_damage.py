@@ -57,8 +57,8 @@ def trial(bag: Path, mcap: Path, lay, flips, work: Path) -> dict:
     code_info, out_info, wall_info = _dva("bag", "info", str(copy), "--json")
     info = json.loads(out_info) if code_info == 0 else {}
     code, out, wall = _dva("bag", "recover", str(copy), "--out", str(work / "new"), "--json")
-    result = json.loads(out) if code in (0, 3) else {}
-    kept = read_checked(work / "new") if code in (0, 3) else []
+    result = json.loads(out) if code in (0, 1) else {}  # 1: written, messages lost
+    kept = read_checked(work / "new") if code in (0, 1) else []
     times = [m[1] for m in kept]
     kept_count = Counter(kept)
     intact = Counter(read_checked(bag))

@@ -62,7 +62,7 @@ def recover(bag: Path, work: Path) -> Recovered:
         result = subprocess.run([sys.executable, "-m", "dva_offline.cli", "bag", "recover",
                                  str(bag), "--out", str(copy)], capture_output=True, text=True,
                                 timeout=300)
-        if result.returncode not in (0, 3):  # 3: written, messages lost (a killed recorder)
+        if result.returncode not in (0, 1):  # 1: written, messages lost (a killed recorder)
             if "nothing to recover" in result.stderr:  # killed before its first flush
                 return Recovered([], "dva bag recover (nothing written yet)")
             raise RuntimeError(f"dva bag recover {bag} failed: {result.stderr.strip()}")

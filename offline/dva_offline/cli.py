@@ -12,10 +12,11 @@ import os
 import sys
 import warnings
 
+from aero_dva import exits
 from dva_offline import __version__, info
 from dva_offline.bag import cli as bag_cli
-from dva_offline.cli_failures import INTERNAL_ERROR_EXIT, internal_error_line, is_input_error
-from dva_offline.cli_tools import CliError, interrupt_on_sigterm
+from dva_offline.cli_failures import internal_error_line, is_input_error
+from dva_offline.cli_tools import CliError, exit_code_in_json, outputs_held
 from dva_offline.control import cli as control_cli
 from dva_offline.discrepancy import cli as discrepancy_cli
 from dva_offline.evaluation import cli as evaluation_cli
@@ -44,9 +45,8 @@ COMMANDS = {
 }
 
 
-#: Exit code when the reader of stdout went away (``dva bag info BAG | head -1``): 128 +
-#: SIGPIPE, what a shell reports for a Unix tool that SIGPIPE ended.
-CLOSED_PIPE_EXIT = 141
+#: Exit code when the reader of stdout went away (``dva bag info BAG | head -1``), in the table.
+CLOSED_PIPE_EXIT = exits.CLOSED_PIPE
 
 
 def input_limits() -> str:
@@ -61,9 +61,11 @@ def input_limits() -> str:
             f"most {MAX_CHUNK_BYTES // 2**20} MiB decompressed, each file of a bag listed "
             f"once; flights, scenarios and training plans at most {MAX_FLIGHT_SAMPLES:,} "
             f"samples (duration x sample rate, {SAMPLE_RATE_RANGE[0]:g}.."
-            f"{SAMPLE_RATE_RANGE[1]:g} Hz; docs/reliability.md). Exit codes: 0 done, 2 bad "
-            f"input, {INTERNAL_ERROR_EXIT} internal error, 130 interrupted, "
-            f"{CLOSED_PIPE_EXIT} stdout closed by its reader (as `| head`).")
+            f"{SAMPLE_RATE_RANGE[1]:g} Hz; docs/reliability.md). Two runs never write into "
+            "one output: a second run into an output another is writing is refused. "
+            + exits.help_text().replace(
+                "Exit codes: ", "Exit codes, of every command (also exit_code in --json): ",
+                1))
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -83,40 +85,62 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    if argv is None:  # the command itself (a caller in its own process keeps its handlers)
-        interrupt_on_sigterm()  # SIGTERM ends a command as Ctrl-C does: outputs cleaned
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()
-        return 2
+        return exits.BAD_INPUT
+    result: dict = {}
+    try:
+        with exit_code_in_json(args, result):
+            result["code"] = _run(args, result)
+        sys.stdout.flush()  # here, so that a closed pipe is met inside the try
+    except BrokenPipeError:
+        return _closed_pipe()
+    return result["code"]
+
+
+def _run(args, result: dict) -> int:
+    """The command's exit code; its one-line error (if any) said and left in ``result``."""
     # Runtime warnings (e.g. reading a cut bag with --allow-truncated) are said once each, in
-    # one line, before the command's result or error.
+    # one line, before the command's result or error. SIGTERM stops a command as SIGINT does.
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", RuntimeWarning)
         try:
-            code = int(args.func(args) or 0)
-            sys.stdout.flush()  # here, so that a closed pipe is met inside the try
+            with exits.signals_interrupt(), outputs_held(args):
+                code = int(args.func(args) or 0)
+                sys.stdout.flush()  # here, so that a closed pipe is met inside the try
         except BrokenPipeError:
-            return _closed_pipe()
-        except KeyboardInterrupt:
-            print(f"dva {args.command}: interrupted", file=sys.stderr)
-            return 130
+            raise  # (main stops quietly)
+        except KeyboardInterrupt as exc:
+            _say_warnings(args.command, caught)
+            line = str(exc) if isinstance(exc, exits.Interrupted) else "interrupted"
+            return _said(args, result, line, exits.INTERRUPTED)
         except Exception as exc:
             # Input problems are reported in one line naming the bad input (exit 2), a fault
             # of the tools as an internal error (exit 3), never as a traceback (DVA_DEBUG=1
-            # shows it when hunting a bug).
+            # shows it when hunting a bug); a failure that names its own code keeps it.
             _say_warnings(args.command, caught)
-            if not is_input_error(exc, (CliError,)):
-                print(internal_error_line(args.command, exc), file=sys.stderr)
-                if os.environ.get("DVA_DEBUG"):
-                    raise
-                return INTERNAL_ERROR_EXIT
-            if os.environ.get("DVA_DEBUG"):
+            if exits.debug():
                 raise
-            print(f"dva {args.command}: error: {exc}", file=sys.stderr)
-            return 2
+            if isinstance(exc, exits.Failure):
+                return _said(args, result, f"error: {exc}", exc.exit_code)
+            if isinstance(exc, OSError) and exc.errno is not None and exc.strerror:
+                # from the system: an output that cannot be written (bad input), no space
+                # left or an I/O error (failed), not a fault of the tools
+                return _said(args, result, f"error: {exits.os_error_line(exc)}",
+                             exits.os_error_code(exc))
+            if not is_input_error(exc, (CliError,)):
+                line = internal_error_line(args.command, exc).split(": ", 1)[1]
+                return _said(args, result, line, exits.FAILED)
+            return _said(args, result, f"error: {exc}", exits.BAD_INPUT)
     _say_warnings(args.command, caught)
+    return code
+
+
+def _said(args, result: dict, line: str, code: int) -> int:
+    print(f"dva {args.command}: {line}", file=sys.stderr)
+    result["error"] = line.removeprefix("error: ")
     return code
 
 

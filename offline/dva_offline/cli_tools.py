@@ -6,22 +6,19 @@ the parser stays fast.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
 import json
 import math
+from collections.abc import Iterator
+from pathlib import Path
 
-__all__ = ["CliError", "command_family", "emit", "finite", "given", "json_safe", "not_with",
-           "range2", "range3", "show_help"]
+__all__ = ["OUTPUT_OPTIONS", "CliError", "command_family", "emit", "exit_code_in_json",
+           "finite", "given", "json_safe", "not_with", "outputs_held", "range2", "range3",
+           "show_help"]
 
-
-def interrupt_on_sigterm() -> None:
-    """SIGTERM handled as SIGINT is: a KeyboardInterrupt where the program is, so every
-    ``finally`` and ``except`` on the way out removes or marks its partial outputs, and the
-    command ends on its "interrupted" line (exit code 130) instead of dying at once (143, no
-    word, partial files left). For ``dva``, ``run_flight`` and ``replay_flight``; the nodes
-    have their own handler (``dva_ros_common.node_tools.run_node``)."""
-    import signal
-
-    signal.signal(signal.SIGTERM, signal.default_int_handler)
+#: The attributes of a command's parsed arguments that name what it writes, and their options.
+OUTPUT_OPTIONS = {"out": "--out", "plot": "--plot", "plot_dir": "--plot-dir"}
 
 
 class CliError(Exception):
@@ -40,6 +37,49 @@ def not_with(args, why: str, *options: str) -> None:
     for option in options:
         if given(args, option):
             raise CliError(f"{option} {why}")
+
+
+@contextlib.contextmanager
+def outputs_held(args) -> Iterator[None]:
+    """Hold every output the command's arguments name (:data:`OUTPUT_OPTIONS`) for the
+    command's run: a second ``dva`` run into one of them meanwhile is refused in one line
+    before it does anything (:func:`aero_dva.atomic_io.output_lock`)."""
+    from aero_dva.atomic_io import output_lock
+
+    with contextlib.ExitStack() as stack:
+        for attribute, option in OUTPUT_OPTIONS.items():
+            value = getattr(args, attribute, None)
+            if isinstance(value, str) and value:
+                stack.enter_context(output_lock(Path(value), option))
+        yield
+
+
+@contextlib.contextmanager
+def exit_code_in_json(args, result: dict) -> Iterator[None]:
+    """With ``--json``: what the command prints on stdout is held back, and one JSON object
+    printed gets the field ``exit_code`` (``result["code"]``, set by the caller before the
+    block ends); a command that ends in an error prints ``{"exit_code": N, "error": line}``
+    (``result["error"]``). Without ``--json`` the output passes as it is."""
+    if not getattr(args, "json", False) or not isinstance(args.json, bool):
+        yield
+        return
+    held = io.StringIO()
+    try:
+        with contextlib.redirect_stdout(held):
+            yield
+    finally:
+        text = held.getvalue()
+        payload = None
+        with contextlib.suppress(ValueError):
+            payload = json.loads(text) if text.strip() else None
+        code = result.get("code")
+        if isinstance(payload, dict) and code is not None:
+            payload.setdefault("exit_code", code)
+            print(json.dumps(payload))
+        else:
+            print(text, end="")
+            if not text.strip() and result.get("error") is not None:
+                print(json.dumps({"exit_code": code, "error": result["error"]}))
 
 
 def show_help(parser) -> int:

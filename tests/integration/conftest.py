@@ -1,8 +1,8 @@
 """Launch-free ROS 2 integration harness.
 
 Each test gets its own rclpy Context initialised with a ROS_DOMAIN_ID reserved for this process
-(domain_coordinator), so tests never see each other's traffic, and executors are spun until a
-condition holds or a timeout passes: no sleeps as synchronisation.
+(dva_ros_common.ros_domain), so tests never see each other's traffic, and executors are spun
+until a condition holds or a timeout passes: no sleeps as synchronisation.
 """
 from __future__ import annotations
 
@@ -17,12 +17,12 @@ import pytest
 
 try:
     import rclpy
-    from domain_coordinator import domain_id
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
 
     from aero_dva_sim.run_flight import die_with_parent
     from dva_ros_common.node_tools import close_executor
+    from dva_ros_common.ros_domain import reserved_domain
     from dva_ros_common.shared_memory import remove_unsized_ports
 except ImportError as exc:  # pragma: no cover - environment problem, reported clearly
     raise pytest.UsageError(
@@ -43,7 +43,7 @@ def broken_shared_memory_ports_removed() -> None:
 @pytest.fixture
 def ros_domain() -> Iterator[int]:
     """A ROS_DOMAIN_ID no other test process uses while the test runs."""
-    with domain_id() as reserved:
+    with reserved_domain() as reserved:
         yield reserved
 
 

@@ -215,11 +215,11 @@ def test_a_damaged_bag_plays_up_to_its_damage_with_a_warning(flight, executor, s
     assert player.source.damage
 
 
-def test_a_chunk_failing_its_crc_is_skipped_and_the_player_exits_3(
+def test_a_chunk_failing_its_crc_is_skipped_and_the_player_exits_1(
         flight, executor, spin, ros_context, start_process, tmp_path):
     """One flipped bit in the first chunk of a closed bag: the player plays every other chunk
     (the messages mcap's own reader finds in the chunks that pass their CRC), says how many it
-    skipped, and the executable exits 3 (PLAYED_LESS)."""
+    skipped, and the executable exits 1 (PLAYED_LESS: completed, partial)."""
     flipped = tmp_path / "flipped"
     shutil.copytree(flight["bag"], flipped)
     (mcap,) = flipped.glob("*.mcap")
@@ -235,12 +235,12 @@ def test_a_chunk_failing_its_crc_is_skipped_and_the_player_exits_3(
     promised = sum(t.message_count for n, t in bag_topics(flight["bag"]).items()
                    if n in played_topics)
     assert sum(player.counts.values()) == want < promised
-    assert player.summary["skipped"] == promised - want and player.exit_code == 3
+    assert player.summary["skipped"] == promised - want and player.exit_code == 1
     # (a flipped bit in a zstd chunk fails its CRC or its decompression, whichever reads first)
     assert mcap.name in player.summary["damage"], player.summary["damage"]
     proc = start_process([ros2_run_path("aero_dva_sim", "bag_player"), "--ros-args",
                           "-p", f"bag:={flipped}", "-p", "rate:=0.0"])
-    assert proc.proc.wait(timeout=60) == 3, proc.output()
+    assert proc.proc.wait(timeout=60) == 1, proc.output()
     assert f"({promised - want} skipped)" in proc.output()
 
 

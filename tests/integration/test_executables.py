@@ -47,7 +47,9 @@ def test_node_starts_joins_the_graph_and_stops_cleanly(stop_signal, node, execut
     joined = spin(executor, lambda: "under_test" in observer.get_node_names(), timeout=30.0)
     assert joined, proc.output()
     # The nodes spin on the events executor, which only notices a shutdown between its slices.
-    assert proc.stop(signal_number=stop_signal) == 0, proc.output()
+    # A node that runs until stopped ends 0; the simulator, stopped before its flight, 130.
+    expected = 130 if executable == "simulator" else 0
+    assert proc.stop(signal_number=stop_signal) == expected, proc.output()
 
 
 @pytest.mark.parametrize("kind", ["single_threaded", "events"])
@@ -119,8 +121,17 @@ def test_run_flight_refuses_bad_arguments(tmp_path):
     assert result.returncode == 2 and "--network FILE" in result.stderr
     existing = tmp_path / "exists"
     existing.mkdir()
-    result = subprocess.run([run_flight, "--output", str(existing)], capture_output=True,
-                            text=True, timeout=60)
-    assert result.returncode == 1 and "exists" in result.stderr
+    (tmp_path / "other_logs").mkdir()  # the logs folder of --output other
+    (tmp_path / "a_file").write_text("")
+    for output, said in ((existing, "exists; choose another name"),
+                         (tmp_path / "other", "other_logs' exists; choose another name"),
+                         (tmp_path / "a_file" / "bag", "is not a directory")):
+        result = subprocess.run([run_flight, "--output", str(output), "--json"],
+                                capture_output=True, text=True, timeout=60)
+        assert result.returncode == 2, result.stderr
+        (line,) = result.stderr.strip().splitlines()  # one line, no traceback
+        assert line.startswith("run_flight: error: --output ") and said in line, line
+        assert json.loads(result.stdout)["exit_code"] == 2
+    assert not (tmp_path / "other").exists()  # refused before any work: nothing made
 
 

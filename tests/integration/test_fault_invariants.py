@@ -78,7 +78,7 @@ def test_run_flight_fails_at_once_when_the_controller_cannot_start(tmp_path, cap
     bad.write_text('{"format": "something else"}')
     code = run_flight_main(["--controller", "schedule", "--schedule", str(bad), "--output",
                             str(tmp_path / "bag"), "--real-time-factor", "0"])
-    assert code == 1
+    assert code == 2  # the controller refused its input: the run's input is bad
     # The cause is the controller's exit (not a wait for it that ran out), and no summary.
     out, err = capsys.readouterr()
     assert "airspeed_controller exited with 2 before the flight ended" in err, err

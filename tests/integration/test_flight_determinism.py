@@ -1,5 +1,5 @@
-"""run_flight gives the same record idle and beside busy loops, and never reports a flight its
-controller did not fly as controlled.
+"""run_flight gives the same record idle, beside busy loops and with four flights started at
+once, and never reports a flight its controller did not fly as controlled.
 
 The record (divergence, leading-edge RMS, mean applied c2, commands) is compared digit for digit:
 the flights run the same code with the same seed on one machine, and in lockstep the simulator
@@ -13,6 +13,7 @@ import json
 import subprocess
 import sys
 from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
 
 import numpy as np
 
@@ -29,6 +30,7 @@ RECORD = ("divergence_ratio", "leading_edge_rms", "mean_damping", "commands_reco
           "commands_received", "blocks_startup", "blocks_fallback", "data_published",
           "data_missing", "end_report_recorded")
 BUSY_LOOP = "while True:\n    pass\n"
+AT_ONCE = 4  # flights started together
 
 
 def _files(tmp_path):
@@ -42,10 +44,12 @@ def _files(tmp_path):
     return scenario, schedule
 
 
-def _fly(tmp_path, name: str, *args: str) -> subprocess.CompletedProcess:
+def _fly(tmp_path, name: str | None, *args: str, cwd=None) -> subprocess.CompletedProcess:
+    """run_flight into ``tmp_path / name`` (None: its default name, in ``cwd``)."""
+    output = [] if name is None else ["--output", str(tmp_path / name)]
     return subprocess.run(
-        [str(ros2_run_path("aero_dva_sim", "run_flight")), "--output", str(tmp_path / name),
-         "--json", *args], capture_output=True, text=True, timeout=600)
+        [str(ros2_run_path("aero_dva_sim", "run_flight")), *output, "--json", *args],
+        capture_output=True, text=True, timeout=600, cwd=cwd)
 
 
 def _record(result: subprocess.CompletedProcess) -> tuple:
@@ -60,15 +64,23 @@ def test_same_record_idle_and_beside_busy_loops(tmp_path):
     idle = [_record(_fly(tmp_path, "idle", *args))]
     busy = [subprocess.Popen([sys.executable, "-c", BUSY_LOOP]) for _ in range(2)]
     try:
-        with ThreadPoolExecutor(max_workers=2) as pool:
-            loaded = [_record(r) for r in pool.map(
-                lambda i: _fly(tmp_path, f"loaded{i}", *args), range(2))]
+        # AT_ONCE flights started together in one folder with the default bag name, which
+        # holds the UTC second: each gets a bag (and logs) of its own and flies the idle
+        # record (docs/reliability.md: runs side by side)
+        runs = tmp_path / "together"
+        runs.mkdir()
+        with ThreadPoolExecutor(max_workers=AT_ONCE) as pool:
+            results = list(pool.map(lambda _: _fly(None, None, *args, cwd=runs),
+                                    range(AT_ONCE)))
     finally:
         for process in busy:
             process.kill()
             process.wait()
-    # two loaded flights at once, each the idle one's record
-    assert loaded == [idle[0], idle[0]], (idle, loaded)
+    loaded = [_record(r) for r in results]
+    assert loaded == [idle[0]] * AT_ONCE, (idle, loaded)
+    bags = {json.loads(r.stdout)["bag"] for r in results}
+    assert len(bags) == AT_ONCE and all(Path(b).parent == runs / "runs" for b in bags)
+    assert len(list((runs / "runs").glob("*_logs"))) == AT_ONCE
     record = dict(zip(RECORD, idle[0]))
     # 60 blocks: the first on the start-up c2, every other one on a command; one command per
     # flight condition in the bag, every one but the last block's received in time
@@ -115,6 +127,7 @@ def test_a_flight_mostly_on_the_fallback_fails_and_says_why(tmp_path):
                   "--damping", "900", "--damper-timeout", "0.01")
     assert result.returncode == 1, result.stdout + result.stderr
     summary = json.loads(result.stdout)  # the summary is still printed, with the counts
+    assert summary["exit_code"] == 1
     assert summary["blocks"] == 150 and summary["blocks_startup"] == 3
     assert 0 < summary["blocks_controlled"] <= summary["commands_accepted"]
     assert summary["blocks_fallback"] > 0.02 * summary["blocks"]

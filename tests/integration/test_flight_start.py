@@ -111,7 +111,7 @@ def test_flight_fails_when_the_controller_never_acts(executor, spin, ros_context
     executor.add_node(controller.node)
     executor.add_node(sim)
     assert spin(executor, sim.finished.done, timeout=60.0)
-    assert sim.finished.result() == "failed" and sim.exit_code == 1
+    assert sim.finished.result() == "failed" and sim.exit_code == 3  # could not fly: failed
     assert spin(executor, controller.errors, timeout=10.0)
     assert "the controller never acted" in controller.errors()[0]
     assert [kind for kind, _ in controller.events] == ["block"]  # held after the first block
@@ -126,7 +126,7 @@ def test_flight_fails_when_the_graph_stays_incomplete(executor, spin, ros_contex
     executor.add_node(controller.node)
     executor.add_node(sim)
     assert spin(executor, sim.finished.done, timeout=60.0)
-    assert sim.finished.result() == "failed" and sim.exit_code == 1
+    assert sim.finished.result() == "failed" and sim.exit_code == 3  # could not fly: failed
     assert spin(executor, controller.errors, timeout=10.0)
     error = controller.errors()[0]
     assert "not complete" in error and "2 subscribers on flight/condition (1)" in error

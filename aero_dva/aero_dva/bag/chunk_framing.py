@@ -49,6 +49,7 @@ from aero_dva.bag.writer import (
     bag_metadata,
     create_bag_directory,
     default_ros_distro,
+    open_new_bag_file,
     qos_profile_yaml,
     summary_of,
     write_metadata_yaml,
@@ -132,7 +133,7 @@ class ChunkedMcapFile:
             self.directory, self.mcap_path = create_bag_directory(directory)
         self._chunk_size = chunk_size
         self._ros_distro = default_ros_distro(ros_distro)
-        self._stream = open(self.mcap_path, "wb")
+        self._stream = open_new_bag_file(self.mcap_path)
         self._closed = False
         self._summary: BagSummary | None = None
         self._sync = _BackgroundSync(self._stream.fileno(), _SYNC_EVERY) if background_sync \

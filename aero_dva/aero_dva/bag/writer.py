@@ -44,6 +44,7 @@ __all__ = [
     "TopicInfo",
     "bag_metadata",
     "create_bag_directory",
+    "open_new_bag_file",
     "message_from_dict",
     "qos_profile_yaml",
     "INTERRUPTED_KEY",
@@ -159,6 +160,16 @@ def create_bag_directory(directory) -> tuple[Path, Path]:
         raise FileExistsError(f"bag directory {str(directory)!r} exists and is not empty")
     directory.mkdir(parents=True, exist_ok=True)
     return directory, directory / f"{directory.name}_0.mcap"
+
+
+def open_new_bag_file(path: Path):
+    """Open the MCAP file ``path`` for writing, only if it does not exist yet: of two writers
+    started into one empty bag directory, the second is refused here, never mixed in."""
+    try:
+        return open(path, "xb")  # noqa: SIM115 - the writer closes it
+    except FileExistsError:
+        raise FileExistsError(f"bag file {str(path)!r} exists: another writer has this bag "
+                              "directory (a bag is never overwritten)") from None
 
 
 def bag_metadata(mcap_name: str, topics: Sequence[tuple[str, str, str, int]],
@@ -373,7 +384,7 @@ class BagWriter:
         self.directory, self.mcap_path = create_bag_directory(directory)
         self._msg_dirs = tuple(msg_dirs)
         self._ros_distro = default_ros_distro(ros_distro)
-        self._stream = open(self.mcap_path, "wb")
+        self._stream = open_new_bag_file(self.mcap_path)
         self._closed = False
         self._summary: BagSummary | None = None
         try:

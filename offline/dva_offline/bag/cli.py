@@ -12,9 +12,9 @@ holding every message of every chunk of BAG whose CRC holds, in log-time order (
 killed mid-run, a file cut by a full disk or a copy, flipped bits), and lists the damaged
 ranges; BAG is not changed. BAG is a bag directory or an .mcap file.
 
-Exit codes of ``recover``: 0 the copy holds every message BAG's index promises; 3 the copy was
+Exit codes of ``recover``: 0 the copy holds every message BAG's index promises; 1 the copy was
 written but messages were lost (or may have been: a cut file has no index to tell); 2 bad
-input (nothing written).
+input (nothing written); 3 it failed (no space left, say); 130 interrupted.
 """
 from __future__ import annotations
 
@@ -22,11 +22,13 @@ import argparse
 import json
 from pathlib import Path
 
+from aero_dva import exits
+
 __all__ = ["RECOVERED_WITH_LOSSES", "register"]
 
 #: Exit code of ``dva bag recover`` when the copy was written but messages were (or may have
-#: been) lost.
-RECOVERED_WITH_LOSSES = 3
+#: been) lost: completed, partial.
+RECOVERED_WITH_LOSSES = exits.PARTIAL
 
 
 def register(subparsers) -> None:

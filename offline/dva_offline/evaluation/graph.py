@@ -22,6 +22,8 @@ import sys
 import time
 from pathlib import Path
 
+from aero_dva import exits
+
 __all__ = ["bag_problem", "evaluate_graph"]
 
 RATIO_KEY = "divergence_ratio"  # run_flight's, the project's one detector
@@ -31,10 +33,7 @@ def _flight_argv(case, scenario: Path, bag: Path, made: dict, args) -> list[str]
     from aero_dva.control.controllers import NONE, controller
     from aero_dva_sim.run_flight import executable
 
-    try:
-        exe = executable("aero_dva_sim", "run_flight")
-    except SystemExit as exc:  # not sourced: say how to fix it, in one line
-        raise ValueError(str(exc).replace("run_flight: error: ", "")) from None
+    exe = executable("aero_dva_sim", "run_flight")  # not sourced: exits.Failure says how
     argv = [exe, "--scenario", str(scenario), "--output", str(bag), "--json",
             "--real-time-factor", str(args.real_time_factor), "--timeout", str(args.timeout)]
     argv += ["--controller", case.controller]
@@ -64,7 +63,8 @@ def bag_problem(summary: dict) -> str | None:
 
 
 def _fly(case, scenario: Path, out: Path, made: dict, args) -> dict:
-    """One flight through run_flight; the record (never raises for a failed flight)."""
+    """One flight through run_flight; the record (a failed flight is one; a flight refused as
+    bad input, which every flight would be, raises ValueError)."""
     from dva_offline.evaluation.graph_io import flight_bag
 
     bag = flight_bag(out, case)
@@ -77,10 +77,14 @@ def _fly(case, scenario: Path, out: Path, made: dict, args) -> dict:
               "scenario": str(scenario), "scenario_name": scenario.stem, "bag": str(bag),
               "absorber": "none" if case.controller == "none" else "maxwell"}
     started = time.monotonic()
+    argv = _flight_argv(case, scenario, bag, made, args)
     try:
-        result = subprocess.run(_flight_argv(case, scenario, bag, made, args),
-                                capture_output=True, text=True, timeout=args.timeout + 120)
-        if result.returncode == 0:
+        result = subprocess.run(argv, capture_output=True, text=True,
+                                timeout=args.timeout + 120)
+        if result.returncode == exits.BAD_INPUT:  # every flight would refuse it: stop
+            lines = result.stderr.strip().splitlines()
+            refused = (lines[-1] if lines else "no output").removeprefix("run_flight: error: ")
+        elif result.returncode == 0:
             record.update(json.loads(result.stdout))
             incomplete = bag_problem(record)
             if incomplete:
@@ -97,6 +101,9 @@ def _fly(case, scenario: Path, out: Path, made: dict, args) -> dict:
         record.update(ok=False, error=f"run_flight printed no JSON summary ({exc})")
     except (ValueError, OSError) as exc:  # the bag does not read back
         record.update(ok=False, error=f"the recorded bag does not read back: {exc}")
+    else:
+        if result.returncode == exits.BAD_INPUT:
+            raise ValueError(f"flight {case.key}: {refused}")
     record["runner_wall_time"] = time.monotonic() - started
     return record
 

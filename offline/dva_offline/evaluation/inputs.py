@@ -19,6 +19,8 @@ import sys
 import time
 from pathlib import Path
 
+from aero_dva.atomic_io import unique_directory
+
 __all__ = ["best_fixed_damping_of", "check_given_inputs", "evaluation_directory", "inputs",
            "log", "resumable_or_removed", "saved_flights"]
 
@@ -52,9 +54,13 @@ def evaluation_directory(args, controllers) -> tuple[Path, dict, dict, bool]:
     fails, so nothing is left that looks like an evaluation."""
     given = check_given_inputs(args, controllers)
     stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
-    out = Path(args.out or f"runs/evaluation_{stamp}").resolve()
-    created = not out.exists()
-    out.mkdir(parents=True, exist_ok=True)
+    if args.out:  # a given directory resumes (held by this run alone: cli_tools.outputs_held)
+        out = Path(args.out).resolve()
+        created = not out.exists()
+        out.mkdir(parents=True, exist_ok=True)
+    else:  # a default name another run took in the same second moves on to <name>_2, ...
+        out = unique_directory(Path(f"runs/evaluation_{stamp}").resolve(), "evaluation")
+        created = True
     try:
         return out, inputs(args, controllers, out / "inputs", log), given, created
     except BaseException:

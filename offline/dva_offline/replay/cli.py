@@ -28,6 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
+from aero_dva import exits
+
 __all__ = ["register"]
 
 HOP = 0.1  # [s] the spectrum node's default hop
@@ -157,10 +159,7 @@ def _ros(args, expected: list[int]) -> dict:
     except ImportError:
         raise ValueError("the ROS path needs the ROS environment: source scripts/env.sh "
                          "(or use --offline)") from None
-    try:
-        exe = executable("aero_dva_sim", "replay_flight")
-    except SystemExit as exc:
-        raise ValueError(str(exc).replace("run_flight: error: ", "")) from None
+    exe = executable("aero_dva_sim", "replay_flight")  # not sourced: exits.Failure says how
     argv = [exe, str(args.bag), "--controller", args.controller, "--out", str(args.out),
             "--json"]
     from aero_dva.control.controllers import controller
@@ -172,9 +171,14 @@ def _ros(args, expected: list[int]) -> dict:
     if not _timed(args):  # the graph must give what the nodes' code says
         argv += ["--expect-spectra", str(expected[0]), "--expect-commands", str(expected[1])]
     result = subprocess.run(argv, capture_output=True, text=True)
-    if result.returncode != 0:
-        lines = (result.stderr or result.stdout).strip().splitlines()
-        raise ValueError(lines[-1] if lines else f"replay_flight exited {result.returncode}")
+    if result.returncode not in (exits.DONE, exits.PARTIAL):  # PARTIAL: counted below
+        lines = result.stderr.strip().splitlines()
+        line = (lines[-1] if lines else f"replay_flight exited {result.returncode}")
+        line = line.removeprefix("replay_flight: ").removeprefix("error: ")
+        if result.returncode == exits.BAD_INPUT:
+            raise ValueError(line)
+        code = result.returncode if result.returncode in exits.TABLE else exits.FAILED
+        raise exits.Failure(f"replay_flight: {line}", code)
     return json.loads(result.stdout)
 
 

@@ -7,6 +7,7 @@ divergence airspeed, leading-edge RMS, c2 range and message counts, and links th
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import shutil
 from pathlib import Path
@@ -32,6 +33,7 @@ def register(subparsers) -> None:
 
 
 def _report(args) -> int:
+    from aero_dva.atomic_io import output_lock
     from dva_offline.report.files import write_report
 
     run = Path(args.run)
@@ -39,13 +41,17 @@ def _report(args) -> int:
         raise FileNotFoundError(f"RUN: no bag directory or .mcap file {run}")
     base = run if run.is_dir() else run.with_suffix("")
     out = Path(args.out) if args.out else base.with_name(base.name + "_report")
-    created = not out.exists()
-    try:
-        files = write_report(run, out, rrd=not args.no_rrd, allow_truncated=args.allow_truncated)
-    except BaseException:
-        if created:  # a failed report leaves no directory that looks like one
-            shutil.rmtree(out, ignore_errors=True)
-        raise
+    with contextlib.ExitStack() as held:
+        if not args.out:  # (a given --out is held by cli_tools.outputs_held)
+            held.enter_context(output_lock(out, "report directory"))
+        created = not out.exists()
+        try:
+            files = write_report(run, out, rrd=not args.no_rrd,
+                                 allow_truncated=args.allow_truncated)
+        except BaseException:
+            if created:  # a failed report leaves no directory that looks like one
+                shutil.rmtree(out, ignore_errors=True)
+            raise
     if args.json:
         print(json.dumps(json.loads(files.json.read_text())))
         return 0

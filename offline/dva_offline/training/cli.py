@@ -275,8 +275,12 @@ def _plan(args) -> int:
 # -- sweep ------------------------------------------------------------------------------------
 
 def _out_dir(args) -> Path:
-    stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
-    out = Path(args.out or f"runs/train_sweep_{stamp}").resolve()
+    if not args.out:  # a default name another run took in the same second moves on
+        from aero_dva.atomic_io import unique_directory
+
+        stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
+        return unique_directory(Path(f"runs/train_sweep_{stamp}").resolve(), "sweep bag")
+    out = Path(args.out).resolve()  # held by this run alone (cli_tools.outputs_held)
     if out.exists() and any(out.iterdir()):
         raise ValueError(f"--out {out} exists; choose a new bag directory")
     return out

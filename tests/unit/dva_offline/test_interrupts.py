@@ -129,7 +129,7 @@ def test_a_signalled_evaluate_ends_in_one_line_and_leaves_no_inputs(tmp_path, st
     process.send_signal(stop)
     _, err = process.communicate(timeout=WAIT)
     assert process.returncode == 130, err
-    assert err.strip().splitlines()[-1] == "dva evaluate: interrupted"
+    assert err.strip().splitlines()[-1] == f"dva evaluate: interrupted by {stop.name}"
     assert not out.exists()
 
 
@@ -142,7 +142,7 @@ def test_a_sigtermed_sweep_is_kept_marked_interrupted(tmp_path):
     _, err = process.communicate(timeout=WAIT)
     assert process.returncode == 130, err
     lines = err.strip().splitlines()
-    assert lines[-1] == "dva train: interrupted"
+    assert lines[-1] == "dva train: interrupted by SIGTERM"
     assert any("marked interrupted" in line for line in lines[:-1])
     assert "interrupted" in bag_interruption(bag)
 

@@ -14,6 +14,7 @@ pytest.importorskip("dva_msgs.msg", reason="needs the built workspace (source sc
 
 from ament_index_python.packages import get_package_prefix, get_package_share_directory  # noqa: E402
 
+from aero_dva import exits  # noqa: E402
 from dva_ros_common.node_params import NodeSpec, Param, check_value, help_text  # noqa: E402
 
 PACKAGES = ("aero_dva_sim", "dva_controller")
@@ -65,6 +66,9 @@ def test_help_lists_every_parameter_and_exits_0(package, executable, module, fla
     result = _run(package, executable, flag)
     assert result.returncode == 0, result.stderr
     assert result.stdout.startswith("usage:") and not result.stderr.strip(), result.stderr
+    said = " ".join(result.stdout.split())  # every executable says the one exit-code table
+    for code, meaning in exits.TABLE.items():
+        assert f"{code} {' '.join(meaning.split())}" in said, (executable, code)
     spec = node_spec(executable, module)
     if spec is None:  # a plain command (run_flight, the generic controller): its own help
         return

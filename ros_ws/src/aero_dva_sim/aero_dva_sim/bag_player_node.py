@@ -16,7 +16,9 @@ executor only serves the graph. When the bag ends the player publishes one statu
 ``/diagnostics`` (counts per topic, wall time, lateness, damage) and exits, unless ``loop``.
 A damaged bag (crashed recorder, cut file, a chunk failing its CRC) plays every chunk whose
 CRC holds, with a warning there and in the status saying how much was skipped; the process
-then exits with ``PLAYED_LESS`` (3) unless it played all that the bag's index promises.
+then exits with ``PLAYED_LESS`` (1: completed, partial) unless it played all that the bag's
+index promises. A graph that never came up (``wait_timeout_fails``) exits 3 with nothing
+played; the other exit codes are every executable's (aero_dva.exits).
 
 Its parameters (units, defaults, ranges) are the table ``SPEC`` of
 :mod:`aero_dva_sim.bag_player_spec`, which the node declares them from and ``bag_player --help``
@@ -41,6 +43,7 @@ from rclpy.qos import (
 from rclpy.task import Future
 from rosgraph_msgs.msg import Clock
 
+from aero_dva import exits
 from aero_dva.bag import channels as ch
 from aero_dva_sim.bag_player_spec import SPEC, main
 from aero_dva_sim.bag_source import BagSource, BagTopic
@@ -52,8 +55,8 @@ POLL = 0.01  # [s] wall time between looks at the graph while waiting for subscr
 SLICE = 0.1  # [s] longest sleep, so a stop request is noticed quickly
 ACK_TIMEOUT = 4.0  # [s] at the end: longest wait for the subscribers' acknowledgements
 #: Exit code when the bag is damaged and less was played than its index promises (or an
-#: unclosed bag, which has no index to tell).
-PLAYED_LESS = 3
+#: unclosed bag, which has no index to tell): completed, partial.
+PLAYED_LESS = exits.PARTIAL
 
 
 def qos_profile(topic: BagTopic, default_depth: int) -> QoSProfile:
@@ -92,7 +95,7 @@ class BagPlayer(Node):
         self._wait_topics = [self._topic_count(t) for t in values["wait_for_topics"] if t]
         self._wait_timeout = float(values["wait_timeout"])
         self._wait_fails = bool(values["wait_timeout_fails"])
-        self.exit_code = 0  # run_node's exit code: 1 when the graph never came up
+        self.exit_code = 0  # run_node's exit code: FAILED when the graph never came up
         self._delay = float(values["delay"])
         self.played = self._select(values["topics"])
 
@@ -186,7 +189,7 @@ class BagPlayer(Node):
                     self.get_logger().error(f"the node graph was not complete after "
                                             f"{self._wait_timeout:g} s (missing: {missing}): "
                                             "nothing played")
-                    self.exit_code = 1
+                    self.exit_code = exits.FAILED
                     return False
                 self.get_logger().warning(f"starting without {missing} after "
                                           f"{self._wait_timeout:g} s")

@@ -14,7 +14,7 @@ SPEC = NodeSpec(
             "the recorded CDR bytes in log-time order, with the recorded timing scaled by "
             "rate, each topic with the QoS recorded in metadata.yaml, /clock from the log "
             "times. Remap topics with --ros-args -r /bag/topic:=/new/topic. A damaged bag "
-            "plays every chunk whose CRC holds, with a warning, and exits 3. Reports on "
+            "plays every chunk whose CRC holds, with a warning, and exits 1. Reports on "
             "/diagnostics when it ends.",
     params=(
         Param("bag", "", "bag directory (or one .mcap file) to play; required",
@@ -40,7 +40,7 @@ SPEC = NodeSpec(
               "between the nodes the bag is replayed into"),
         Param("wait_timeout", 30.0, "wall time after which playing starts anyway (with a "
               "warning), or fails (wait_timeout_fails)", "s", 0.0, 1.0e6),
-        Param("wait_timeout_fails", False, "fail (exit code 1, nothing played) when the graph "
+        Param("wait_timeout_fails", False, "fail (exit code 3, nothing played) when the graph "
               "is not complete after wait_timeout, instead of playing anyway"),
         Param("delay", 0.5, "wall time from the end of the wait to the first message: DDS "
               "matches the two ends of a topic separately, and a subscriber that has not yet "

@@ -27,6 +27,7 @@ from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile, QoSReliabilityPolicy
 
+from aero_dva.atomic_io import unique_directory
 from aero_dva.bag import channels as ch
 from aero_dva.bag.schemas import MessageDefinitionNotFound
 from aero_dva.bag.writer import BagWriter, qos_profile_yaml
@@ -69,7 +70,9 @@ class McapRecorder(Node):
         stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
         self._only = {self._resolve(t, "topics") for t in self._strings("topics")}
         self._exclude = {self._resolve(t, "exclude") for t in self._strings("exclude")}
-        self.output = Path(values["output"] or f"bags/run_{stamp}")
+        # a default name another recorder took in the same second moves on to <name>_2, ...
+        self.output = Path(values["output"]) if values["output"] else \
+            unique_directory(Path(f"bags/run_{stamp}"), "bag")
         self._writer = BagWriter(self.output)
         self._recorded: dict[str, object] = {}
         self._skipped: set[str] = set()

@@ -16,7 +16,7 @@ SPEC = NodeSpec(
             "SIGTERM the bag is closed cleanly (MCAP footer and metadata.yaml).",
     params=(
         Param("output", "", "bag directory to create; it must not exist or be empty (nothing "
-              "is overwritten)", default_text="bags/run_<UTC time>"),
+              "is overwritten)", default_text="bags/run_<UTC time>, or the first free _N"),
         Param("topics", [""], "record only these topics (resolved in the node's namespace)",
               default_text="[] (every topic)"),
         Param("exclude", [""], "never record these topics"),

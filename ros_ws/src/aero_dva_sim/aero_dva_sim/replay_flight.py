@@ -9,31 +9,40 @@ been played, this process waits until the graph's outputs (spectra, commands) ha
 :data:`QUIET` seconds), then stops the recorder (it closes its bag) and the others with SIGINT.
 ``dva replay`` runs this and compares the new spectra and commands with the recorded ones.
 
-Unless ``--domain-id`` is given, the graph runs on a ROS_DOMAIN_ID reserved for this run.
+Unless ``--domain-id`` is given, the graph runs on a ROS_DOMAIN_ID reserved for this run, on
+this host only (``--discovery``); every way it can fail ends in one line and an exit code
+(``graph_run``).
 """
 from __future__ import annotations
 
 import argparse
 import json
-import os
 import subprocess
 import sys
 import time
-from pathlib import Path
 
+from aero_dva import exits
 from aero_dva.bag import channels as ch
 from aero_dva.control import controllers as table
 from aero_dva.control.controllers import BLOCK, CONDITION, SPECTRUM
+from aero_dva_sim.graph_run import (
+    RunFailed,
+    claim_outputs,
+    die_with_parent,
+    environment,
+    node_failure,
+    remove_if_empty,
+    run_on_domain,
+)
 from aero_dva_sim.run_flight import (
     controller_commands,
     controller_files_given,
     damping_in_range,
-    die_with_parent,
     executable,
     ros_params,
-    run_on_domain,
     stop_process,
 )
+from dva_ros_common.ros_domain import DISCOVERY_CHOICES, DISCOVERY_HELP
 from dva_ros_common.shared_memory import clear_dead_ports
 
 INPUTS = tuple(c.absolute() for c in (ch.ACCELERATION, ch.DAMPER_STATE, ch.FLIGHT_CONDITION))
@@ -149,25 +158,27 @@ def run(args) -> dict:
     present = bag_topics(args.bag)
     inputs = [t for t in INPUTS if t in present]
     if not inputs:
-        raise SystemExit(f"replay_flight: error: bag {args.bag} holds none of {list(INPUTS)}")
-    out = Path(args.out).resolve()
-    if out.exists():
-        raise SystemExit(f"replay_flight: error: {out} exists; choose another --out")
+        raise RunFailed(f"bag {args.bag} holds none of {list(INPUTS)}", exits.BAD_INPUT)
+    out, logs = claim_outputs(args.out, "", option="--out")
     args.out = str(out)
-    logs = out.with_name(out.name + "_logs")
-    logs.mkdir(parents=True, exist_ok=True)
-    env = dict(os.environ, ROS_DOMAIN_ID=str(args.domain_id), PYTHONUNBUFFERED="1")
+    args.run_name = out
+    env = environment(args.domain_id)
     # Its watch is a DDS participant of its own (the nodes clear such files in run_node).
     clear_dead_ports("replay_flight:")
     processes: dict[str, subprocess.Popen] = {}
     started = time.monotonic()
-    watch = OutputWatch(args.domain_id, watched_channels(args.controller))
+    try:
+        commands = build_commands(args, inputs)
+        watch = OutputWatch(args.domain_id, watched_channels(args.controller))
+    except BaseException:
+        remove_if_empty(logs, out)  # nothing was started: leave nothing behind
+        raise
     expected = {t: n for t, n in ((ch.SPECTRUM.absolute(), args.expect_spectra),
                                   (ch.DAMPER_COMMAND.absolute(), args.expect_commands))
                 if n is not None and t in watch.counts}
     complete = True
     try:
-        for name, argv in build_commands(args, inputs).items():
+        for name, argv in commands.items():
             with open(logs / f"{name}.log", "wb") as log:
                 processes[name] = subprocess.Popen(argv, env=env, stdout=log,
                                                    stderr=subprocess.STDOUT,
@@ -175,8 +186,12 @@ def run(args) -> dict:
         deadline = time.monotonic() + args.timeout
         while processes["bag_player"].poll() is None:
             if time.monotonic() > deadline:
-                raise SystemExit(f"replay_flight: error: playing took longer than "
-                                 f"{args.timeout} s; node logs in {logs}")
+                raise RunFailed(f"playing took longer than {args.timeout} s (--timeout); node "
+                                f"logs in {logs}")
+            for name, process in processes.items():
+                if name != "bag_player" and process.poll() is not None:
+                    raise node_failure(name, process.returncode, logs / f"{name}.log",
+                                       "before the bag was played")
             watch.spin(0.05)
         if processes["bag_player"].returncode == 0:
             complete = watch.wait_for_outputs(expected, QUIET, OUTPUT_WAIT)
@@ -186,15 +201,17 @@ def run(args) -> dict:
         codes = {name: stop_process(processes[name], timeout=15.0)
                  for name in order if name in processes}
         watch.close()
-    if codes.get("bag_player") != 0:
-        lines = (logs / "bag_player.log").read_text(errors="replace").strip().splitlines()
-        why = next((line for line in reversed(lines) if "ERROR" in line), "")
-        raise SystemExit(f"replay_flight: error: bag_player failed ({codes['bag_player']})"
-                         f"{': ' + why.strip() if why else ''}; see {logs / 'bag_player.log'}")
-    counts = {name: info.message_count for name, info in bag_topics(out).items()}
+    player = codes.get("bag_player")
+    if player not in (exits.DONE, exits.PARTIAL):  # PARTIAL: a damaged bag, played in part
+        raise node_failure("bag_player", player, logs / "bag_player.log", "")
+    try:
+        counts = {name: info.message_count for name, info in bag_topics(out).items()}
+    except (OSError, ValueError) as exc:  # the bag this run recorded: not the user's input
+        raise RunFailed(f"the recorded bag does not read back: {exc}") from None
     return {"bag": str(out), "node_logs": str(logs), "played": inputs, "rate": args.rate,
             "wall_time": time.monotonic() - started, "exit_codes": codes, "counts": counts,
-            "outputs_seen": dict(watch.counts), "outputs_complete": complete}
+            "outputs_seen": dict(watch.counts), "outputs_complete": complete,
+            "played_all": player == exits.DONE}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -203,18 +220,25 @@ def build_parser() -> argparse.ArgumentParser:
         description="Re-run a controller on a recorded flight through the ROS 2 node graph "
                     "(bag_player -> [spectrum ->] controller -> mcap_recorder, open loop) and "
                     "record its spectra and commands as a new bag. `dva replay` compares them "
-                    "with the recorded ones.")
+                    "with the recorded ones.",
+        epilog=exits.help_text().replace("Exit codes: ", "Exit codes (also exit_code in "
+                                         "--json): ", 1) + " 1 here: the bag was damaged and "
+               "played in part, or the graph's outputs did not all come.")
     parser.add_argument("bag", help="recorded flight (bag directory or .mcap file)")
     laws = table.controllers((BLOCK,))
     parser.add_argument("--controller", choices=[c.name for c in laws], required=True,
                         help="the block-rate law to re-run: "
                              + "; ".join(f"{c.name}: {c.label}" for c in laws))
     table.add_options(parser, laws)
-    parser.add_argument("--out", required=True, help="bag directory to create")
+    parser.add_argument("--out", required=True,
+                        help="bag directory to create, with the node logs in <out>_logs; "
+                             "refused if either exists")
     parser.add_argument("--rate", type=float, default=DEFAULT_RATE,
                         help=f"playing speed, x recorded (default {DEFAULT_RATE:g})")
     parser.add_argument("--domain-id", type=int, default=None,
                         help="ROS_DOMAIN_ID (default: one reserved for this run)")
+    parser.add_argument("--discovery", choices=tuple(DISCOVERY_CHOICES), default=None,
+                        help=DISCOVERY_HELP)
     parser.add_argument("--timeout", type=float, default=600.0,
                         help="[s] wall time allowed for playing (default 600)")
     parser.add_argument("--expect-spectra", type=int, default=None, metavar="N",
@@ -237,12 +261,23 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     summary, code = run_on_domain("replay_flight", run, args)
     if summary is None:
+        if args.json:
+            print(json.dumps({"exit_code": code, "error": args.failure,
+                              "bag": None if args.run_name is None else str(args.run_name)}))
         return code
+    complete = summary["played_all"] and summary["outputs_complete"]
+    code = exits.DONE if complete else exits.PARTIAL
+    summary["exit_code"] = code
     if args.json:
         print(json.dumps(summary, indent=2))
     else:
         print("\n".join(f"{k:12s} {v}" for k, v in summary.items()))
-    return 0
+    if not complete:
+        print("replay_flight: " + ("the bag was damaged and played in part" if not
+                                   summary["played_all"] else "the graph's outputs did not "
+                                   f"all come within {OUTPUT_WAIT:g} s")
+              + f"; see {summary['node_logs']} (run {summary['bag']})", file=sys.stderr)
+    return code
 
 
 if __name__ == "__main__":

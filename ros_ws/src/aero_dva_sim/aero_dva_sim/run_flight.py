@@ -9,12 +9,13 @@ holds all the simulator counted and closes its bag), then reads the bag back and
 summary. Every node uses sim time from the simulator's /clock.
 
 Unless ``--domain-id`` is given, the graph runs on a ROS_DOMAIN_ID reserved for this run, so
-several runs (or tests) on one machine do not hear each other.
+several runs (or tests) on one machine do not hear each other, and its nodes discover each
+other on this host only (``--discovery``). Its outputs (the bag and ``<bag>_logs``) are this
+run's alone; every way it can fail ends in one line and an exit code (``graph_run``).
 """
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
 import math
 import os
@@ -25,10 +26,21 @@ import sys
 import time
 from pathlib import Path
 
+from aero_dva import exits
 from aero_dva.bag import channels as ch
 from aero_dva.control import controllers as table
 from aero_dva.control.controllers import BLOCK, CONDITION, NONE, SAMPLE, SPECTRUM, TICK
 from aero_dva.flight.flight_limits import DEFAULT_STALE_TIMEOUT
+from aero_dva_sim.graph_run import (  # noqa: F401 - die_with_parent: shared
+    RunFailed,
+    claim_outputs,
+    die_with_parent,
+    environment,
+    node_failure,
+    remove_if_empty,
+    run_on_domain,
+)
+from dva_ros_common.ros_domain import DISCOVERY_CHOICES, DISCOVERY_HELP
 
 RECORDER = "mcap_recorder"
 
@@ -50,10 +62,10 @@ def executable(package: str, name: str) -> str:
     try:
         path = Path(get_package_prefix(package)) / "lib" / package / name
     except PackageNotFoundError:
-        raise SystemExit(f"run_flight: error: package '{package}' not found; "
-                         "source scripts/env.sh (or run ./run.sh)") from None
+        raise RunFailed(f"package '{package}' not found; source scripts/env.sh (or run "
+                        "./run.sh)") from None
     if not os.access(path, os.X_OK):
-        raise SystemExit(f"run_flight: error: no executable {path}")
+        raise RunFailed(f"no executable {path}")
     return str(path)
 
 
@@ -173,17 +185,6 @@ def option_value(args, option: table.Option):
     return value
 
 
-def die_with_parent() -> None:
-    """In a child before exec: on Linux, get SIGTERM when the runner dies (even by SIGKILL), so
-    no node outlives its run and talks on a ROS_DOMAIN_ID that is no longer reserved."""
-    try:
-        import ctypes
-
-        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
-    except (OSError, AttributeError):
-        pass  # not Linux: the runner's finally-block still stops the nodes
-
-
 def recorder_child() -> None:
     """In the recorder's child before exec: :func:`die_with_parent`, and the batch scheduling
     class (``SCHED_BATCH``, no privilege needed): the recorder is woken by every message of
@@ -258,30 +259,31 @@ def _wait_for_flight(processes: dict[str, subprocess.Popen], timeout: float,
     while simulator.poll() is None:
         for name, process in processes.items():
             if name != "simulator" and process.poll() is not None:
-                lines = (logs / f"{name}.log").read_text(errors="replace").strip().splitlines()
-                raise SystemExit(f"run_flight: error: {name} exited with {process.returncode} "
-                                 f"before the flight ended ({lines[-1] if lines else 'no output'}"
-                                 f"); see {logs / (name + '.log')}")
+                raise node_failure(name, process.returncode, logs / f"{name}.log",
+                                   "before the flight ended")
         if time.monotonic() > deadline:
-            raise SystemExit(f"run_flight: error: the flight took longer than {timeout} s; "
-                             f"node logs in {logs}")
+            raise RunFailed(f"the flight took longer than {timeout} s (--timeout); node logs "
+                            f"in {logs}")
         wait_for_exit(list(processes.values()), min(1.0, max(0.0, deadline - time.monotonic())))
 
 
 def run(args) -> dict:
-    """Run the graph; return the summary as a dict (raises SystemExit on failure)."""
+    """Run the graph; return the summary as a dict (raises RunFailed, OSError or ValueError on
+    failure, said by run_on_domain)."""
     from aero_dva.bag.flight_log_io import load_flight_log
     from aero_dva.bag.flight_summary import summarize
 
     stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
     scenario_name = Path(args.scenario).stem if args.scenario else "ramp"
-    bag = Path(args.output or f"runs/{scenario_name}_{args.controller}_{stamp}").resolve()
-    if bag.exists():
-        raise SystemExit(f"run_flight: error: {bag} exists; choose another --output")
-    logs = bag.with_name(bag.name + "_logs")
-    logs.mkdir(parents=True)
-    commands = build_commands(args, bag)
-    env = dict(os.environ, ROS_DOMAIN_ID=str(args.domain_id), PYTHONUNBUFFERED="1")
+    name = getattr(args, "name", None) or f"{scenario_name}_{args.controller}"
+    bag, logs = claim_outputs(args.output, f"runs/{name}_{stamp}")
+    args.run_name = bag
+    try:
+        commands = build_commands(args, bag)
+    except BaseException:
+        remove_if_empty(logs, bag)  # nothing was started: leave nothing behind
+        raise
+    env = environment(args.domain_id)
     processes: dict[str, subprocess.Popen] = {}
     started = time.monotonic()
     ended = False
@@ -298,9 +300,12 @@ def run(args) -> dict:
         mark_unfinished(bag, ended, codes.get("simulator"), *sys.exc_info()[:2])
     wall = time.monotonic() - started
     if codes.get("simulator") not in (0, None):
-        raise SystemExit(f"run_flight: error: simulator failed ({codes['simulator']}): "
-                         f"{_last_error(logs / 'simulator.log')}; see {logs / 'simulator.log'}")
-    log = load_flight_log(bag)
+        raise node_failure("simulator", codes["simulator"], logs / "simulator.log",
+                           "before the flight ended")
+    try:
+        log = load_flight_log(bag)
+    except (OSError, ValueError) as exc:  # the bag this run recorded: not the user's input
+        raise RunFailed(f"the recorded bag does not read back: {exc}") from None
     summary = summarize(log).to_dict()
     final = next((d["values"] for d in reversed(log.diagnostics)
                   if d["name"] == "simulator: flight" and "wall_time_s" in d["values"]), {})
@@ -328,13 +333,6 @@ def mark_unfinished(bag: Path, ended: bool, simulator_code, exc_type, exc) -> No
     else:
         reason = f"stopped before its end: the simulator exited with {simulator_code}"
     mark_interrupted(bag, reason)
-
-
-def _last_error(path: Path) -> str:
-    """The simulator's last error line (why it failed), or its last line."""
-    lines = path.read_text(errors="replace").strip().splitlines() if path.exists() else []
-    errors = [line for line in lines if "ERROR" in line or "error:" in line]
-    return (errors or lines or ["no output"])[-1].strip()
 
 
 def applied_control(args, final: dict, bag: Path) -> dict:
@@ -468,7 +466,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="run_flight",
         description="Fly a scenario through the ROS 2 node graph (simulator, controller, "
-                    "recorder as separate processes), record it to MCAP and print a summary.")
+                    "recorder as separate processes), record it to MCAP and print a summary.",
+        epilog=exits.help_text().replace("Exit codes: ", "Exit codes (also exit_code in "
+                                         "--json): ", 1))
     parser.add_argument("--scenario", default="",
                         help="scenario YAML (default: the package's scenario_ramp.yaml, "
                              "0.8 -> 1.2 U_cr in 30 s); at most 20,000,000 samples "
@@ -519,10 +519,16 @@ def build_parser() -> argparse.ArgumentParser:
                         help="[s] wall time the flight waits for a late command before flying "
                              "on with the damper's fallback (default 10)")
     parser.add_argument("--output", default=None,
-                        help="bag directory to create (default runs/<scenario>_<controller>_"
-                             "<UTC time>)")
+                        help="bag directory to create, with the node logs in <output>_logs; "
+                             "refused if either exists (default runs/<scenario>_<controller>_"
+                             "<UTC time>, or the first free <that>_N)")
+    parser.add_argument("--name", default=None,
+                        help="the default bag's name before its UTC time: runs/<name>_<UTC "
+                             "time> (default <scenario>_<controller>; not with --output)")
     parser.add_argument("--domain-id", type=int, default=None,
                         help="ROS_DOMAIN_ID (default: one reserved for this run)")
+    parser.add_argument("--discovery", choices=tuple(DISCOVERY_CHOICES), default=None,
+                        help=DISCOVERY_HELP)
     parser.add_argument("--timeout", type=float, default=600.0,
                         help="[s] wall time allowed for the flight (default 600)")
     parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
@@ -530,13 +536,15 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def controller_commands(args, command_readers: int = 0, spectrum_readers: int = 2,
-                        **params) -> dict[str, list[str]]:
+                        damper_states: bool = True, **params) -> dict[str, list[str]]:
     """Node name -> command line of the controller nodes ``args.controller`` needs (its
     helpers, such as the spectrum node for a law of spectra, then its own; none: no node),
     each with the ROS parameters ``params``. Its options in ``args`` set its parameters. With
     ``command_readers``, the controller holds its first commands until that many subscribers
     have matched them (the spectrum node its spectra until ``spectrum_readers`` have: the law
-    and the recorder)."""
+    and the recorder). ``damper_states``: the graph's damper states are sure to come (the
+    simulator's, or a bag's played), so the spectrum node waits for each block's however late
+    it is, and its spectra do not depend on the load."""
     entry = entry_of(args.controller)
     if entry is None:
         return {}
@@ -546,7 +554,9 @@ def controller_commands(args, command_readers: int = 0, spectrum_readers: int = 
                 *ros_params(**own, **params)]
 
     out = {helper: node(helper, **({"hold_until_subscribers": spectrum_readers}
-                                   if command_readers else {}))
+                                   if command_readers else {}),
+                        **({"damper_state_required": damper_states}
+                           if helper == "spectrum" else {}))
            for helper in entry.helpers}
     own = {o.param: getattr(args, o.name, None) for o in entry.options}
     own.update(entry.flight_values)
@@ -603,24 +613,6 @@ def damping_in_range(prog: str, args) -> bool:
     return True
 
 
-def run_on_domain(prog: str, run, args) -> tuple[dict | None, int]:
-    """``(run(args), 0)`` on ``args.domain_id``, or on a ROS domain reserved for this run
-    (released after); ``(None, exit code)`` with the error said when it fails."""
-    with contextlib.ExitStack() as stack:
-        if args.domain_id is None:
-            from domain_coordinator import domain_id
-
-            args.domain_id = stack.enter_context(domain_id())
-        try:
-            return run(args), 0
-        except SystemExit as exc:  # a node failed or timed out: run() says which
-            print(exc, file=sys.stderr)
-            return None, 1
-        except ValueError as exc:  # bad input (an unreadable file, say)
-            print(f"{prog}: error: {exc}", file=sys.stderr)
-            return None, 2
-
-
 def sensor_noise_usable(prog: str, args) -> bool:
     """--sensor-noise: a fraction in [0, 10], for a per-sample law only; False (and the error
     said) otherwise."""
@@ -646,15 +638,28 @@ def main(argv: list[str] | None = None) -> int:
             not sensor_noise_usable("run_flight", args) or \
             not damping_in_range("run_flight", args):
         return 2
+    if args.name and (args.output or Path(args.name).name != args.name):
+        print("run_flight: error: --name is a plain name (no folder) and goes without "
+              "--output", file=sys.stderr)
+        return 2
     summary, code = run_on_domain("run_flight", run, args)
     if summary is None:
+        if args.json:
+            print(json.dumps({"exit_code": code, "error": args.failure,
+                              "bag": _text(args.run_name)}))
         return code
+    code = exits.PARTIAL if summary.get("control_problem") else exits.DONE
+    summary["exit_code"] = code
     print(json.dumps(summary, indent=2) if args.json else _format(summary))
     if summary.get("control_problem"):
         print(f"run_flight: error: flight not counted as controlled by "
-              f"'{args.controller}': {summary['control_problem']}", file=sys.stderr)
-        return 1
-    return 0
+              f"'{args.controller}': {summary['control_problem']} (run {summary['bag']})",
+              file=sys.stderr)
+    return code
+
+
+def _text(value) -> str | None:
+    return None if value is None else str(value)
 
 
 if __name__ == "__main__":

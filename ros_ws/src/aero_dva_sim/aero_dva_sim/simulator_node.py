@@ -37,6 +37,7 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.task import Future
 
+from aero_dva import exits
 from aero_dva.bag import channels as ch
 from aero_dva.control import controllers as table
 from aero_dva.control.switching_io import with_per_sample
@@ -97,7 +98,7 @@ class Simulator(Node):
         self._first_input = float(self.get_parameter("first_input_time").value)
         self._first_timeout = float(self.get_parameter("first_command_timeout").value)
         self._first_hold_since: float | None = None
-        self.exit_code = 0  # run_node's exit code: 1 when the flight failed
+        self.exit_code = 0  # run_node's exit code: FAILED when the flight could not fly
         self.commands_received = 0
         self.commands_after_end = 0  # answers to the last block's input, after the flight
         self._wait_last_answer = bool(self.get_parameter("wait_for_last_answer").value)
@@ -487,7 +488,7 @@ class Simulator(Node):
         if self.finished.done():
             return
         self._diagnose("error", text, self._summary())
-        self.exit_code = 1
+        self.exit_code = exits.FAILED
         self._finish("failed")
 
     def _finish(self, outcome: str) -> None:

@@ -79,7 +79,7 @@ SPEC = NodeSpec(
               "publishers have matched the simulator", "", 0, 1000),
         Param("wait_timeout", 30.0, "wall time after which the flight starts anyway (with a "
               "warning), or fails (wait_timeout_fails)", "s", 0.0, 1.0e6),
-        Param("wait_timeout_fails", False, "fail the flight (exit code 1) when the graph is "
+        Param("wait_timeout_fails", False, "fail the flight (exit code 3) when the graph is "
               "not complete after wait_timeout, instead of starting anyway"),
         Param("exit_on_end", True, "stop the node when the flight ends"),
         Param("max_command_lag", 0.0, "sim time the flight may run ahead of the newest accepted "
@@ -104,7 +104,7 @@ SPEC = NodeSpec(
               "so a recorder stopped after the flight can wait for it too; for a law that "
               "answers every block (a law of flight conditions)"),
         Param("first_command_timeout", 30.0, "wall time the flight holds for the first command "
-              "before it fails (exit code 1): the controller never acted", "s", 0.0, 1.0e6),
+              "before it fails (exit code 3): the controller never acted", "s", 0.0, 1.0e6),
     ),
     topics="""
 publishes wing/acceleration, wing/displacement, wing/excitation, flight/condition,

@@ -18,6 +18,8 @@ import textwrap
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 
+from aero_dva import exits
+
 HELP_WIDTH = 99
 #: Parameters every rclpy node has; listed in the help, declared by rclpy itself.
 ROS_STANDARD = (
@@ -213,8 +215,17 @@ def help_text(spec: NodeSpec) -> str:
         "options:",
         "  -h, --help    print this help and exit (the node does not start)",
         "  Other arguments outside --ros-args are refused (exit code 2).",
+        "",
+        *_wrap(f"{exits.help_text()} {NODE_STOP}", ""),
     ]
     return "\n".join(lines) + "\n"
+
+
+#: How a node's stop maps to the exit-code table.
+NODE_STOP = ("SIGINT and SIGTERM stop a node cleanly: one that runs until it is stopped (the "
+             "recorder, the controllers) then exits 0; one with a job of its own (the "
+             "simulator's flight, the player's bag) exits 130 when stopped before the job is "
+             "done.")
 
 
 def command_line(spec: NodeSpec, argv: Sequence[str]) -> int | None:

@@ -33,6 +33,7 @@ from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.task import Future
 
+from aero_dva import exits
 from aero_dva.bag.channels import DIAGNOSTICS
 from aero_dva.text_input import loggable
 from dva_ros_common.conversions import ERROR, WARN, diagnostic_array, diagnostic_status
@@ -242,10 +243,13 @@ def run_node(node_class: Callable[[], Node], spec: NodeSpec, args=None, *,
     stays up until the node has stopped). A node with a ``close()`` method has it called
     once at the end, with SIGINT and SIGTERM ignored so that a second Ctrl-C cannot cut it
     short (the recorder closes its bag there). A node's ``exit_code`` attribute, if it has one,
-    is the exit code after a normal end (the simulator's 1 for a failed flight). Errors while
-    spinning are left to raise, so they keep their traceback. ``args`` is the whole command
-    line (default ``sys.argv``). ``own_process`` (default: ``args`` is None, the process's
-    own command line): the process ends here once its node has run (:func:`end_process`).
+    is the exit code after a normal end (the simulator's 3 for a flight that could not fly).
+    A signal ends a node that runs until stopped with 0, and one whose ``done`` future was
+    not done yet with 130 (interrupted: aero_dva.exits). An error while spinning or closing
+    is one line and exit code 3 (``DVA_DEBUG=1``: the traceback). ``args`` is the whole
+    command line (default ``sys.argv``). ``own_process`` (default: ``args`` is None, the
+    process's own command line): the process ends here once its node has run
+    (:func:`end_process`).
 
     ``drain(node)``, a count of messages the node has taken: after a signal the node takes
     what is still queued (until the count stops growing, :func:`_drain`) before ``close()``.
@@ -262,18 +266,32 @@ def run_node(node_class: Callable[[], Node], spec: NodeSpec, args=None, *,
     node_name = spec.name
     signalled = _Signals()  # first: a signal while rclpy starts is noted too
     clear_dead_ports(f"[{node_name}]")  # else the node could hang before its first line
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    try:
+        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    except RCLError as exc:  # e.g. ROS_SECURITY_* set without a usable keystore
+        return _failed(node_name, exc, "ROS 2 could not start")
     node = None
+    code = None
     try:
         try:
             executor = make_executor()  # first: a bad choice must not leave files behind
             node = node_class()
+        except RCLError as exc:  # e.g. security asked of a DDS built without it
+            return _failed(node_name, exc, "ROS 2 could not create the node")
         except (ValueError, OSError, ParameterException) as exc:  # file errors included
+            if exits.debug():
+                raise
             # one line, whatever the text it quotes holds (escape codes, newlines, megabytes)
-            print(f"{node_name}: error: {loggable(exc, ERROR_CHARS)}", file=sys.stderr)
-            return 2
+            line = exits.os_error_line(exc) if isinstance(exc, OSError) and exc.strerror \
+                else loggable(exc, ERROR_CHARS)
+            print(f"{node_name}: error: {line}", file=sys.stderr)
+            return exits.os_error_code(exc) if isinstance(exc, OSError) and exc.errno \
+                else exits.BAD_INPUT
         executor.add_node(node)
-        spin(executor, getattr(node, "done", None), stop_when=signalled)
+        done = getattr(node, "done", None)
+        spin(executor, done, stop_when=signalled)
+        if signalled() and done is not None and not done.done():
+            code = exits.INTERRUPTED  # its job was cut short
         if drain is not None and signalled():
             taken, took = _drain(executor, lambda: drain(node),
                                  None if complete is None else lambda: complete(node))
@@ -282,24 +300,47 @@ def run_node(node_class: Callable[[], Node], spec: NodeSpec, args=None, *,
                   f"queued messages in {took:.3f} s", file=sys.stderr)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass  # a shutdown from outside the node's own handlers: a clean exit
-    except RuntimeError:  # RCLError is one
+    except RuntimeError as exc:  # RCLError is one
         # The events executor could not hand a message to Python mid-stop (pybind11 "Unable
         # to convert call argument", about 1 in 20 SIGINTs of a busy recorder under rclpy's
         # handlers, bench/bench_faults.py): a clean exit when a stop was asked for.
         if not signalled() and rclpy.ok():
-            raise
+            code = _failed(node_name, exc)
+    except Exception as exc:  # a fault while spinning: one line, not a traceback
+        code = _failed(node_name, exc)
     finally:
         if node is not None:
             signal.signal(signal.SIGINT, signal.SIG_IGN)
             signal.signal(signal.SIGTERM, signal.SIG_IGN)
-            if hasattr(node, "close"):
-                node.close()
-            close_executor(executor, node)
+            try:
+                if hasattr(node, "close"):
+                    node.close()
+                close_executor(executor, node)
+            except Exception as exc:  # the recorder's bag cannot be closed (no space left)
+                code = _failed(node_name, exc)
         rclpy.try_shutdown()
-    code = int(getattr(node, "exit_code", 0) or 0)  # a node may end in a failure it reports
+    if code is None:  # a node may end in a failure it reports
+        code = int(getattr(node, "exit_code", 0) or 0)
     if (args is None if own_process is None else own_process) and node is not None:
         end_process(code)
     return code
+
+
+def _failed(node_name: str, exc: Exception, what: str | None = None) -> int:
+    """Say a node's fault in one line (raise it with ``DVA_DEBUG=1``); its exit code.
+    ``what`` failed, if known (else it is an internal error)."""
+    if exits.debug():
+        raise exc
+    if isinstance(exc, OSError):
+        line = exits.os_error_line(exc)
+    elif what is not None:
+        line = f"{what}: {' '.join(str(exc).split())[:300]}"
+    else:
+        detail = " ".join(str(exc).split())[:200]
+        line = (f"internal error ({type(exc).__name__}: {detail}); rerun with DVA_DEBUG=1 for "
+                "the traceback")
+    print(f"{node_name}: error: {line}", file=sys.stderr)
+    return exits.FAILED
 
 
 def end_process(code: int) -> None:

@@ -46,13 +46,14 @@ def test_info_and_recover_of_a_cut_bag(cut, tmp_path, capsys):
     assert "closed     no: no metadata.yaml" in out and "damage     cut_0.mcap bytes" in out
     assert "the file ends inside a chunk record" in out
     assert f"run `dva bag recover {cut} --out NEW_BAG`" in out
-    # A cut file has no index to say what was lost: recovered, possibly with losses (3).
+    # A cut file has no index to say what was lost: recovered, possibly with losses (1).
     assert cli.main(["bag", "recover", str(cut), "--out", str(tmp_path / "new"),
                      "--json"]) == RECOVERED_WITH_LOSSES
     result = json.loads(capsys.readouterr().out)
+    assert result["exit_code"] == RECOVERED_WITH_LOSSES == 1  # the code, said in the JSON too
     assert result["damage"]["offset"] > 0 and result["lost"] is None and result["kept"] == sum(
         t.message_count for t in bag_topics(tmp_path / "new").values())
-    assert cli.main(["bag", "recover", str(cut), "--out", str(tmp_path / "new2")]) == 3
+    assert cli.main(["bag", "recover", str(cut), "--out", str(tmp_path / "new2")]) == 1
     out = capsys.readouterr().out
     assert f"kept       {result['kept']} messages" in out and "new bag" in out
     assert "lost       unknown" in out
@@ -106,7 +107,7 @@ def test_a_flipped_bit_is_reported_damaged_and_recovered_with_losses(bag, tmp_pa
     assert damaged["start_ns"] <= damaged["end_ns"] and sum(damaged["topics"].values()) == \
         damaged["lost"]
     new = tmp_path / "new"
-    assert cli.main(["bag", "recover", str(flipped), "--out", str(new)]) == 3
+    assert cli.main(["bag", "recover", str(flipped), "--out", str(new)]) == 1
     assert f"lost       {info['lost']} of 720" in capsys.readouterr().out
     assert sum(t.message_count for t in bag_topics(new).values()) == 720 - info["lost"]
     assert cli.main(["bag", "recover", str(bag), "--out", str(tmp_path / "whole")]) == 0

@@ -1,0 +1,104 @@
+"""Outputs that cannot collide (aero_dva.atomic_io): of many runs asking for one name at once,
+exactly one gets it; a default name moves on; a held output refuses a second run."""
+from __future__ import annotations
+
+import multiprocessing
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+from aero_dva.atomic_io import (
+    OutputBusyError,
+    new_directory,
+    output_lock,
+    unique_directory,
+)
+from aero_dva.bag.writer import BagWriter, open_new_bag_file
+
+N = 8  # processes racing for one name
+
+
+def _claim_default(args) -> str:
+    stem, barrier = args
+    barrier.wait()  # all start their claim together
+    return str(unique_directory(stem, siblings=("_logs",)))
+
+
+def test_runs_started_together_get_distinct_default_names(tmp_path):
+    context = multiprocessing.get_context("fork")
+    barrier = context.Manager().Barrier(N)
+    stem = tmp_path / "runs" / "ramp_fixed_20261128T120000Z"
+    with context.Pool(N) as pool:
+        names = pool.map(_claim_default, [(stem, barrier)] * N)
+    assert len(set(names)) == N
+    assert sorted(names) == sorted([str(stem)] + [f"{stem}_{n}" for n in range(2, N + 1)])
+    for name in names:  # each with its own logs folder, both empty
+        assert not any((tmp_path / "runs" / name).iterdir())
+        assert not any((tmp_path / "runs" / f"{name}_logs").iterdir())
+
+
+def _claim_given(args) -> str:
+    path, barrier = args
+    barrier.wait()
+    try:
+        new_directory(path, "--output", siblings=("_logs",))
+    except FileExistsError as exc:
+        return f"refused: {exc}"
+    return "created"
+
+
+def test_of_runs_given_one_name_at_once_exactly_one_gets_it(tmp_path):
+    context = multiprocessing.get_context("fork")
+    barrier = context.Manager().Barrier(N)
+    with context.Pool(N) as pool:
+        results = pool.map(_claim_given, [(tmp_path / "bag", barrier)] * N)
+    assert results.count("created") == 1
+    assert all("choose another name" in r for r in results if r != "created")
+
+
+def test_a_taken_name_or_logs_folder_is_refused_and_nothing_is_left(tmp_path):
+    (tmp_path / "x_logs").mkdir()
+    with pytest.raises(FileExistsError, match="x_logs' exists; choose another name"):
+        new_directory(tmp_path / "x", "--output", siblings=("_logs",))
+    assert not (tmp_path / "x").exists()  # the half it had made is gone again
+    (tmp_path / "a_file").write_text("")
+    with pytest.raises(NotADirectoryError, match="is not a directory"):
+        new_directory(tmp_path / "a_file" / "bag", "--output")
+    # a default name whose logs folder is taken moves on as well
+    assert unique_directory(tmp_path / "x", siblings=("_logs",)) == tmp_path / "x_2"
+
+
+def test_a_held_output_refuses_a_second_run_until_it_is_released(tmp_path):
+    out = tmp_path / "schedule.json"
+    held = textwrap.dedent(f"""
+        import sys
+        from aero_dva.atomic_io import output_lock
+        with output_lock({str(out)!r}, "--out"):
+            print("held", flush=True)
+            sys.stdin.readline()
+    """)
+    other = subprocess.Popen([sys.executable, "-c", held], stdin=subprocess.PIPE,
+                             stdout=subprocess.PIPE, text=True)
+    try:
+        assert other.stdout.readline().strip() == "held"
+        with pytest.raises(OutputBusyError, match="being written by another run"), \
+                output_lock(out, "--out"):
+            pass
+    finally:
+        other.communicate("\n", timeout=60)
+    with output_lock(out, "--out"):  # released: free again, and once more after
+        pass
+    with output_lock(out, "--out"):
+        pass
+
+
+def test_two_bag_writers_never_share_one_bag_directory(tmp_path):
+    bag = tmp_path / "bag"
+    bag.mkdir()  # empty: a writer takes it
+    with BagWriter(bag) as first:
+        # a second writer that checked the directory empty before the first's file appeared
+        # is refused when it creates the file, never mixed in
+        with pytest.raises(FileExistsError, match="another writer has this bag"):
+            open_new_bag_file(first.mcap_path)
