@@ -175,7 +175,8 @@ def test_evaluate_graph_with_a_node_killed_completes_with_the_flight_failed(tmp_
     while killed is None and process.poll() is None and time.monotonic() < deadline:
         for runner in _children(process.pid):  # run_flight, then its nodes
             for pid, command in _children(runner).items():
-                if "mcap_recorder" in command and str(out) in command:
+                # (the recorder's executable: the simulator's command line names the node)
+                if "/mcap_recorder " in command and str(out) in command:
                     os.kill(pid, signal.SIGKILL)
                     killed = pid
         time.sleep(0.05)  # polling the process table, not a wait for the flight
