@@ -30,7 +30,6 @@ import time
 from pathlib import Path
 
 import rclpy
-from domain_coordinator import domain_id
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
@@ -41,6 +40,7 @@ from aero_dva_sim.bag_source import BagSource
 from aero_dva_sim.run_flight import die_with_parent, executable
 from aero_dva_sim.run_flight import main as run_flight
 from dva_ros_common.node_tools import close_executor
+from dva_ros_common.ros_domain import reserved_domain, use_discovery
 
 TOPICS = ["/wing/acceleration", "/wing/displacement", "/wing/excitation", "/flight/condition",
           "/dva/damper_state", "/dva/damper_command"]
@@ -118,7 +118,8 @@ def main() -> int:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--timing", action="store_true", help="also play once at rate 1.0")
     args = parser.parse_args()
-    with tempfile.TemporaryDirectory() as tmp, domain_id() as domain:
+    use_discovery()  # this host only, as the project's runs
+    with tempfile.TemporaryDirectory() as tmp, reserved_domain() as domain:
         root = Path(tmp)
         bag = Path(args.bag) if args.bag else fly(root)
         present = bag_topics(bag)

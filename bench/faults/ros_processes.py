@@ -20,7 +20,6 @@ from pathlib import Path
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
-from domain_coordinator import domain_id
 from rcl_interfaces.msg import Log
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
@@ -36,6 +35,7 @@ from dva_msgs.msg import (
     ForceBlock,
 )
 from dva_ros_common.node_tools import close_executor
+from dva_ros_common.ros_domain import reserved_domain, use_discovery
 
 DATA_TOPICS = {"wing/acceleration": AccelerationBlock, "wing/displacement": DisplacementBlock,
                "wing/excitation": ForceBlock, "flight/condition": FlightCondition,
@@ -245,9 +245,11 @@ class RosSession:
 
 @contextlib.contextmanager
 def ros_session(log_dir: Path) -> Iterator[RosSession]:
-    """A :class:`RosSession` on a ROS_DOMAIN_ID reserved for it."""
+    """A :class:`RosSession` on a ROS_DOMAIN_ID reserved for it, discovering on this host only
+    (as the project's runs do; the environment's range is kept)."""
     log_dir.mkdir(parents=True, exist_ok=True)
-    with domain_id() as domain:
+    use_discovery()
+    with reserved_domain() as domain:
         context = Context()
         rclpy.init(context=context, domain_id=domain)
         session = RosSession(domain, context, log_dir)
