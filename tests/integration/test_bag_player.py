@@ -3,8 +3,11 @@ QoS, offsets, a damaged bag, remapping (launch-free; nodes in-process unless the
 the executable)."""
 from __future__ import annotations
 
+import os
 import shutil
+import signal
 import subprocess
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -20,6 +23,7 @@ from aero_dva_sim.bag_player_node import BagPlayer
 from aero_dva_sim.mcap_recorder_node import McapRecorder
 from bench.faults.bit_flips import expected_messages, flip_copy, layout
 from dva_controller.spectrum_node import SpectrumNode
+from dva_msgs.msg import AccelerationBlock
 from dva_offline.replay.bag_io import read_outputs, read_recording
 from dva_offline.replay.rerun import compare
 from tests.unit.dva_offline.small_networks import small_spectrum_network
@@ -290,3 +294,58 @@ def test_dva_replay_through_the_graph_equals_offline_and_the_recording(flight, t
     assert outputs["a", "ros"][0]["commands"]["identical"]
     assert outputs["a", "ros"][0]["spectra"]["identical"]
     assert not outputs["b", "ros"][0]["commands"]["identical"]
+
+
+def _child(parent: int, executable: str) -> int | None:
+    """The pid of ``parent``'s child process running ``executable`` (None: none yet)."""
+    for entry in Path("/proc").iterdir():
+        try:
+            stat = (entry / "stat").read_text()
+            command = (entry / "cmdline").read_bytes().split(b"\0")
+        except (OSError, ValueError):
+            continue
+        # (a Python entry point runs as "python <prefix>/lib/<package>/<executable> ...")
+        if int(stat.rsplit(")", 1)[1].split()[1]) == parent and any(
+                part.decode(errors="replace").endswith(f"/{executable}") for part in command[:2]):
+            return int(entry.name)
+    return None
+
+
+def test_a_replay_whose_spectrum_node_is_frozen_while_the_bag_plays_loses_nothing(
+        flight, tmp_path, ros_domain, executor, ros_context, spin):
+    """The spectrum node stopped (SIGSTOP) from the first block until the player has sent the
+    whole bag: the player's writers keep what the frozen reader has not acknowledged, and the
+    player stays until it has, so once the node runs again it gets every block, and the
+    spectra and commands are --offline's. (With the recorded depth of 10 it lost 21 of the 30
+    blocks of a 3 s freeze and gave 1 spectrum of 21; docs/reliability.md.)"""
+    offline = tmp_path / "offline"
+    net = str(flight["nets"]["a"])
+    subprocess.run(["dva", "replay", str(flight["bag"]), "--controller", "rbf", "--network", net,
+                    "--out", str(offline), "--offline"], check=True, capture_output=True,
+                   timeout=300)
+    off_spectra, off_commands = read_outputs(offline)
+    probe = Node("probe", context=ros_context)
+    executor.add_node(probe)
+    blocks = []
+    probe.create_subscription(AccelerationBlock, "/wing/acceleration", blocks.append, 1000)
+    out = tmp_path / "ros"
+    runner = subprocess.Popen(
+        [str(ros2_run_path("aero_dva_sim", "replay_flight")), str(flight["bag"]),
+         "--controller", "rbf", "--network", net, "--out", str(out), "--rate", "2",
+         "--domain-id", str(ros_domain), "--expect-spectra", str(len(off_spectra)),
+         "--expect-commands", str(len(off_commands)), "--json"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert spin(executor, lambda: blocks or runner.poll() is not None, timeout=120.0)
+    spectrum = _child(runner.pid, "spectrum")
+    assert spectrum is not None and runner.poll() is None, runner.communicate()
+    os.kill(spectrum, signal.SIGSTOP)
+    try:  # until the player has published the whole bag
+        assert spin(executor, lambda: len(blocks) == 80 or runner.poll() is not None,
+                    timeout=120.0)
+    finally:
+        os.kill(spectrum, signal.SIGCONT)
+    _, err = runner.communicate(timeout=300)
+    assert runner.returncode == 0, err
+    spectra, commands = read_outputs(out)
+    assert len(spectra) == len(off_spectra) == 21
+    assert compare(off_spectra, spectra).identical and compare(off_commands, commands).identical

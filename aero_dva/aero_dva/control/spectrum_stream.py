@@ -8,12 +8,19 @@ rounding), chosen by stamp rather than by arrival: the simulator's state after b
 stamped with block k's start, so this is the c2 in force when block k began.
 
 DDS does not order two topics against each other: a replay at 10x on a busy machine can hand
-over block k before the state stamped at its start. Once damper states are flowing, a block
-that arrives before any state stamped at or after its start is therefore held (with the blocks
-behind it) until such a state arrives (:meth:`SpectrumStream.release`), or until the caller
-gives up waiting (``release(force=True)``: the node does after a second without states). So the
-choice does not depend on the interleaving, and a re-run on a recorded bag (``dva replay``, the
-bag player into a fresh node) gives the recorded spectra exactly.
+over block k before the state stamped at its start, and a state that a starved reader missed
+comes again only at the writer's next heartbeat, seconds later. A block that arrives before
+any state stamped at or after its start is therefore held (with the blocks behind it) until
+such a state arrives (:meth:`SpectrumStream.release`). With ``states_required`` (the graphs the
+project starts, whose damper states are sure to come) that is the only way out: the c2 of
+every spectrum is then the same whatever the interleaving and the load, and a re-run on a
+recorded bag (``dva replay``, the bag player into a fresh node) gives the recorded spectra
+exactly. Without it (a source that may have no states, such as a replayed measurement) the
+stream gives up waiting: before the first state after :data:`FIRST_STATE_BLOCKS` blocks (states
+count as absent), and when the caller forces it (``release(force=True)``: the node does after
+about a second of wall time); then the c2 does depend on timing (three blocks ahead of the
+first state change the first spectra's c2: ``tests/unit/aero_dva/control/
+test_spectrum_stream.py``).
 
 A spectrum is stamped with the time of its window's last sample, computed from the header
 stamp of the block that completed it; its ``damping`` is the mean c2 over the window's blocks,
@@ -33,6 +40,9 @@ __all__ = ["SpectrumStream", "StreamEvent", "StreamSpectrum"]
 
 _NS = 1_000_000_000
 MAX_HELD_BLOCKS = 200  # a stalled damper-state topic costs at most this many blocks of memory
+#: ... when the states are required: the blocks of minutes at 10x real time (about 25 MB of
+#: 50-sample blocks), far beyond a heartbeat's resend; more means the states stopped for good.
+MAX_HELD_REQUIRED = 20_000
 FIRST_STATE_BLOCKS = 2  # blocks held for the first damper state before states count as absent
 
 
@@ -87,10 +97,14 @@ class SpectrumStream:
         [Hz] frequencies to evaluate.
     window : str
         Window function ("rectangular" or "hann").
+    states_required : bool
+        Damper states are sure to come: a block waits for its state however late it arrives
+        (see the module docstring), never given up by count or by time.
     """
 
     def __init__(self, channels, window_duration: float, hop: float, frequencies,
-                 window: str) -> None:
+                 window: str, *, states_required: bool = False) -> None:
+        self.states_required = bool(states_required)
         self.channels = tuple(channels)
         self.window_duration = float(window_duration)
         self.hop = float(hop)
@@ -156,7 +170,8 @@ class SpectrumStream:
         whose damper state has not arrived yet is held and comes out of :meth:`release`."""
         self.counts["blocks"] += 1
         self._held.append((int(stamp_ns), first_index, sample_rate, samples))
-        return self.release(force=len(self._held) > MAX_HELD_BLOCKS)
+        limit = MAX_HELD_REQUIRED if self.states_required else MAX_HELD_BLOCKS
+        return self.release(force=len(self._held) > limit)
 
     def release(self, force: bool = False) -> tuple[list[StreamSpectrum], list[StreamEvent]]:
         """Process the held blocks whose damper state has arrived (all of them if ``force``:
@@ -179,7 +194,8 @@ class SpectrumStream:
             events.append(StreamEvent(
                 "damper_state_missing",
                 f"{forced} block(s) analysed without the damper state stamped at their start "
-                f"(the latest earlier state's c2 used)", values={"blocks": forced}))
+                f"(the latest earlier state's c2 used)",
+                "error" if self.states_required else "warn", values={"blocks": forced}))
         return spectra, events
 
     def _waits_for_state(self, stamp_ns: int, sample_rate: float) -> bool:
@@ -191,6 +207,8 @@ class SpectrumStream:
         if not (math.isfinite(sample_rate) and sample_rate > 0.0):
             return False
         if not self._state_stamps:
+            if self.states_required:
+                return True
             if self._states_absent or len(self._held) > FIRST_STATE_BLOCKS:
                 self._states_absent = True
                 return False

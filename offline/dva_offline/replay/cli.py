@@ -264,8 +264,8 @@ def _replay(args) -> int:
                 break
             lost = (f"the graph delivered {len(spectra)} spectra and {len(commands)} commands "
                     f"of {expected[0]} and {expected[1]} to the recorder")
-            if attempt == args.retries:
-                raise ValueError(f"{lost}; node logs in {summary['node_logs']}")
+            if attempt == args.retries:  # the graph failed, not the input
+                raise exits.Failure(f"{lost}; node logs in {summary['node_logs']}")
             print(f"dva replay: warning: {lost}; replaying again", file=sys.stderr)
             _discard(Path(args.out))
         path = f"ROS 2 graph, played at {summary['rate']:g}x recorded speed"

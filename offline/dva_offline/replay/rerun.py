@@ -77,9 +77,13 @@ class StateInput:
 def spectra_from_inputs(inputs: Iterable[BlockInput | StateInput], channels: Sequence[str],
                         window_duration: float, hop: float, frequencies,
                         window: str) -> list[SpectrumRecord]:
-    """The spectrum node's output for blocks and damper states in their recorded order."""
+    """The spectrum node's output for blocks and damper states in their recorded order (a
+    recording with damper states: as the node told that states are required, which the replay
+    through the graph does)."""
     rows = [ACCELERATION_CHANNELS.index(c) for c in channels]
-    stream = SpectrumStream(channels, window_duration, hop, frequencies, window)
+    inputs = list(inputs)
+    stream = SpectrumStream(channels, window_duration, hop, frequencies, window,
+                            states_required=any(isinstance(i, StateInput) for i in inputs))
     spectra = []
     for item in inputs:
         if isinstance(item, StateInput):

@@ -45,7 +45,7 @@ from rosgraph_msgs.msg import Clock
 
 from aero_dva import exits
 from aero_dva.bag import channels as ch
-from aero_dva_sim.bag_player_spec import SPEC, main
+from aero_dva_sim.bag_player_spec import ACK_TIMEOUT, SPEC, main
 from aero_dva_sim.bag_source import BagSource, BagTopic
 from dva_ros_common import conversions
 from dva_ros_common.conversions import message_class
@@ -53,18 +53,23 @@ from dva_ros_common.node_params import declare_parameters
 
 POLL = 0.01  # [s] wall time between looks at the graph while waiting for subscribers
 SLICE = 0.1  # [s] longest sleep, so a stop request is noticed quickly
-ACK_TIMEOUT = 4.0  # [s] at the end: longest wait for the subscribers' acknowledgements
 #: Exit code when the bag is damaged and less was played than its index promises (or an
 #: unclosed bag, which has no index to tell): completed, partial.
 PLAYED_LESS = exits.PARTIAL
 
 
 def qos_profile(topic: BagTopic, default_depth: int) -> QoSProfile:
-    """The QoS to offer ``topic`` with: its recorded reliability, durability and depth."""
+    """The QoS to offer ``topic`` with: its recorded reliability and durability, and a depth
+    of at least ``default_depth``. A reliable writer sends again only what its history still
+    holds, and the recorded depth (10 for the simulator's topics, which the graph reports for
+    a remote writer) lasted 50 ms at 10x: a subscriber starved for longer lost blocks for
+    good (a spectrum node frozen for 3 s lost 21 of 30). A transient-local topic keeps its
+    recorded depth: that is how many messages a late subscriber gets."""
     qos = topic.qos
+    latched = qos.durability == "transient_local"
     return QoSProfile(
         history=HistoryPolicy.KEEP_LAST,
-        depth=qos.depth if qos.depth > 0 else default_depth,
+        depth=qos.depth if latched and qos.depth > 0 else max(qos.depth, default_depth),
         reliability=ReliabilityPolicy.BEST_EFFORT if qos.reliability == "best_effort"
         else ReliabilityPolicy.RELIABLE,
         durability=DurabilityPolicy.TRANSIENT_LOCAL if qos.durability == "transient_local"
@@ -97,6 +102,7 @@ class BagPlayer(Node):
         self._wait_fails = bool(values["wait_timeout_fails"])
         self.exit_code = 0  # run_node's exit code: FAILED when the graph never came up
         self._delay = float(values["delay"])
+        self._ack_timeout = float(values["ack_timeout"])
         self.played = self._select(values["topics"])
 
         self._pub = {}
@@ -251,8 +257,9 @@ class BagPlayer(Node):
 
     def _linger(self) -> None:
         """Before exiting, let the subscribers acknowledge the last messages and the status
-        (reliable topics; a heartbeat period at most, ``ACK_TIMEOUT`` in all)."""
-        deadline = time.monotonic() + ACK_TIMEOUT
+        (reliable topics; ``ack_timeout`` in all: a wait that ends as soon as all is
+        acknowledged, so a long one costs nothing when the subscribers keep up)."""
+        deadline = time.monotonic() + self._ack_timeout
         for pub in [*self._pub.values(), self._diag_pub]:
             left = deadline - time.monotonic()
             if left <= 0 or self._stop.is_set():

@@ -5,7 +5,9 @@ start-up budget).
 """
 from __future__ import annotations
 
-from dva_ros_common.node_params import NodeSpec, Param, node_main
+from dva_ros_common.node_params import DATA_DEPTH, NodeSpec, Param, node_main
+
+ACK_TIMEOUT = 4.0  # [s] at the end: longest wait for the acknowledgements (ack_timeout)
 
 SPEC = NodeSpec(
     name="bag_player",
@@ -45,9 +47,14 @@ SPEC = NodeSpec(
         Param("delay", 0.5, "wall time from the end of the wait to the first message: DDS "
               "matches the two ends of a topic separately, and a subscriber that has not yet "
               "matched the player drops what it is sent", "s", 0.0, 3600.0),
-        Param("qos_depth", 100, "keep-last depth of a topic whose recorded depth is unknown",
+        Param("qos_depth", DATA_DEPTH, "keep-last depth of a played topic's writer, at least "
+              "(a transient-local topic keeps its recorded depth, what a late subscriber gets)",
               "", 1, 100000),
         Param("exit_on_end", True, "stop the node when the bag has been played"),
+        Param("ack_timeout", ACK_TIMEOUT, "at the end, wall time the player waits at most for "
+              "its subscribers to acknowledge every message (it is gone after, and a "
+              "subscriber starved until then loses what it had not acknowledged); "
+              "replay_flight sets it long", "s", 0.0, 1.0e6),
     ),
     topics="""
 publishes every played topic of the bag (remappable), /clock, /diagnostics (once, at the end)

@@ -75,7 +75,9 @@ def build_commands(args, inputs: list[str]) -> dict[str, list[str]]:
     # (the spectra until the network, the recorder and the watch have).
     watch = 1 if watched_channels(args.controller) else 0
     commands.update(controller_commands(args, command_readers=1 + watch,
-                                        spectrum_readers=2 + watch, **sim_time))
+                                        spectrum_readers=2 + watch,
+                                        damper_states=ch.DAMPER_STATE.absolute() in inputs,
+                                        **sim_time))
     others = list(commands)
     # The links between the nodes must be up before the first message, not only the nodes:
     # the spectra reach the network and the recorder, the commands the recorder (and both the
@@ -89,7 +91,10 @@ def build_commands(args, inputs: list[str]) -> dict[str, list[str]]:
                  wait_for_nodes="[" + ",".join(others) + "]",
                  wait_for_topics="[" + ",".join(f'"{t}"' for t in links) + "]", delay=1.0,
                  topics="[" + ",".join(inputs) + "]", wait_timeout=60.0,
-                 wait_timeout_fails=True),
+                 wait_timeout_fails=True,
+                 # the player's writers resend what a starved node missed only while they
+                 # exist: it stays until all is acknowledged (the outputs' own bound)
+                 ack_timeout=OUTPUT_WAIT),
     ]
     return commands
 

@@ -39,7 +39,7 @@ from dva_controller.controller_spec import main, node_spec
 from dva_msgs.msg import DamperCommand, FlightCondition, ScaledSpectrum
 from dva_ros_common import conversions
 from dva_ros_common.held_publisher import HeldPublisher
-from dva_ros_common.node_params import declare_parameters
+from dva_ros_common.node_params import DATA_DEPTH, declare_parameters
 from dva_ros_common.node_tools import InputHealth, Status
 
 
@@ -97,8 +97,9 @@ class ControllerNode(Node):
             self._health = InputHealth(self, self.entry.label.lower(),
                                        ch.LAW_INPUTS[topics[0]].name, self.counts, self._status)
         for kind in topics:
+            # DATA_DEPTH: a starved node loses none of its inputs (KEEP_LAST overwrites)
             self.create_subscription(TOPIC_INPUTS[kind].message, ch.LAW_INPUTS[kind].name,
-                                     partial(self._on_message, kind), 10)
+                                     partial(self._on_message, kind), DATA_DEPTH)
         if TICK in self.entry.inputs:
             self.create_timer(1.0 / float(values["rate"]), self._on_tick)
         if any(p.dynamic for p in self.entry.params):

@@ -19,7 +19,9 @@ Subscribes ``wing/acceleration`` (dva_msgs/AccelerationBlock) and ``dva/damper_s
 (dva_msgs/DamperState, for the c2 applied during the window: the spectrum's ``damping`` is the
 mean over the window's blocks of the applied c2 of the latest state stamped at or before each
 block's start, chosen by stamp so that a re-run on a recorded bag gives the same value; a block
-that arrives before its state waits for it, at most about ``STATE_WAIT`` s of wall time; see
+that arrives before its state waits for it: for as long as it takes with
+``damper_state_required`` (``run_flight`` and the replay set it: their states are sure to come,
+and the c2 then never depends on timing), else at most about ``STATE_WAIT`` s of wall time; see
 :mod:`aero_dva.control.spectrum_stream`, which does the node's work without ROS). Publishes
 ``dva/spectrum`` (dva_msgs/ScaledSpectrum) and ``/diagnostics``. All times honour ``use_sim_time``.
 """
@@ -37,10 +39,12 @@ from dva_controller.spectrum_spec import SPEC, main
 from dva_msgs.msg import AccelerationBlock, DamperState, ScaledSpectrum
 from dva_ros_common import conversions
 from dva_ros_common.held_publisher import HeldPublisher
-from dva_ros_common.node_params import declare_parameters
+from dva_ros_common.node_params import DATA_DEPTH, declare_parameters
 from dva_ros_common.node_tools import InputHealth, Status
 
-QOS_DEPTH = 100  # blocks of 10-50 ms: a few seconds of slack at 20x real time before a gap
+# Reader depth: a starved node must not lose blocks from its own queue (KEEP_LAST overwrites the
+# oldest): the writers' depth, 5 s of blocks at 10x real time.
+QOS_DEPTH = DATA_DEPTH
 STATE_WAIT = 1.0  # [s] wall time a block waits for its damper state (1-2 ticks) before it is
 # analysed with the last known c2: long for a busy executor, short for a stalled state topic
 
@@ -55,8 +59,9 @@ class SpectrumNode(Node):
             spectrum_shape(values)
         self.hop = float(values["hop"])
 
-        self._stream = SpectrumStream(self.channels, self.window_duration, self.hop,
-                                      self.frequencies, self.window)
+        self._stream = SpectrumStream(
+            self.channels, self.window_duration, self.hop, self.frequencies, self.window,
+            states_required=bool(values["damper_state_required"]))
         self.counts = self._stream.counts
         self._health = InputHealth(self, "window", ch.ACCELERATION.name, self.counts, self._status)
 
@@ -88,7 +93,10 @@ class SpectrumNode(Node):
         self._publish(*self._stream.release())
 
     def _release_stalled(self) -> None:
-        """Analyse blocks that waited a whole tick for their damper state."""
+        """Analyse blocks that waited a whole tick for their damper state (not when the
+        states are required: they are then sure to come)."""
+        if self._stream.states_required:
+            return
         oldest = self._stream.oldest_held_stamp
         if oldest is not None and oldest == self._held_at_last_tick:
             self._publish(*self._stream.release(force=True))

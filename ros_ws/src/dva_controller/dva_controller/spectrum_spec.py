@@ -25,6 +25,10 @@ SPEC = NodeSpec(
         *SPECTRUM_SHAPE,
         Param("hop", 0.1, "time between window starts; a whole number of samples", "s",
               1.0e-3, 3600.0),
+        Param("damper_state_required", False, "every block waits for the damper state "
+              "stamped at its start however late it comes, so its c2 never depends on "
+              "timing (run_flight and the replay set it); false: it waits about 1 s of wall "
+              "time, and without any state the blocks go out with no c2"),
         *INPUT_HEALTH_PARAMS,
         HOLD_PARAM,
     ),

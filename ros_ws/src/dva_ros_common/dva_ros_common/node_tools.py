@@ -37,7 +37,8 @@ from aero_dva import exits
 from aero_dva.bag.channels import DIAGNOSTICS
 from aero_dva.text_input import loggable
 from dva_ros_common.conversions import ERROR, WARN, diagnostic_array, diagnostic_status
-from dva_ros_common.node_params import (
+from dva_ros_common.node_params import (  # noqa: F401 - DATA_DEPTH: its users import it here
+    DATA_DEPTH,
     INPUT_HEALTH_PARAMS,
     NodeSpec,
     command_line,
@@ -47,15 +48,6 @@ from dva_ros_common.shared_memory import clear_dead_ports
 
 #: Most characters of a node's one-line start-up error.
 ERROR_CHARS = 600
-
-#: Keep-last depth of the writers of data a recorder must get whole (blocks, commands, spectra).
-#: A reader whose process is starved can overflow its transport buffers; a reliable writer then
-#: sends again only what is still in its history, and the rest is lost for good (the recorder
-#: reports such losses). The simulator's 50 lasted 0.25 s at 10x real time and a loaded
-#: recorder once missed one block on all five topics after a 0.29 s pause; the controllers'
-#: 10 commands lasted 25 ms at 20x and a loaded recorder lost two (docs/reliability.md).
-#: 1000 blocks last 5 s at 10x, about 2 MB per topic.
-DATA_DEPTH = 1000
 
 
 #: A node's own status: level, message and extra key/values for ``/diagnostics``.
