@@ -45,7 +45,7 @@ from rosgraph_msgs.msg import Clock
 
 from aero_dva import exits
 from aero_dva.bag import channels as ch
-from aero_dva_sim.bag_player_spec import ACK_TIMEOUT, SPEC, main
+from aero_dva_sim.bag_player_spec import SPEC, main
 from aero_dva_sim.bag_source import BagSource, BagTopic
 from dva_ros_common import conversions
 from dva_ros_common.conversions import message_class

@@ -9,11 +9,18 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from aero_dva import exits
 from aero_dva.bag import channels as ch
 from aero_dva.control import controllers as table
 from aero_dva.control.controllers import BLOCK, CONDITION, SPECTRUM, Controller
 from dva_controller.shared_params import param
-from dva_ros_common.node_params import HOLD_PARAM, INPUT_HEALTH_PARAMS, NodeSpec, node_main
+from dva_ros_common.node_params import (
+    HOLD_PARAM,
+    INPUT_HEALTH_PARAMS,
+    NODE_STOP,
+    NodeSpec,
+    node_main,
+)
 
 PACKAGE = "dva_controller"
 GENERIC = "controller"  # the executable that takes the law's name first
@@ -42,7 +49,7 @@ def _usage() -> str:
     return (f"usage: ros2 run {PACKAGE} {GENERIC} NAME [-h] [--ros-args ...]\n\n"
             "Run the block-rate control law NAME of the controller table in a node (its "
             "parameters: NAME --help).\n"
-            f"laws: {laws}\n")
+            f"laws: {laws}\n\n{exits.help_text()} {NODE_STOP}\n")
 
 
 def main(args=None) -> int:
