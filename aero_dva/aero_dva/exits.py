@@ -17,9 +17,8 @@ import signal
 from collections.abc import Iterator
 
 __all__ = ["BAD_INPUT", "CLOSED_PIPE", "DONE", "FAILED", "INTERRUPTED", "PARTIAL", "TABLE",
-           "Failure",
-           "Interrupted", "debug", "help_text", "meaning", "os_error_code", "os_error_line",
-           "signals_interrupt"]
+           "Failure", "Interrupted", "debug", "help_text", "interrupt_in", "meaning",
+           "os_error_code", "os_error_line", "signals_interrupt"]
 
 DONE = 0
 PARTIAL = 1
@@ -94,6 +93,19 @@ class Interrupted(KeyboardInterrupt):
         self.signum = signum
         self.signal_name = signal.Signals(signum).name
         super().__init__(f"interrupted by {self.signal_name}")
+
+
+def interrupt_in(exc: BaseException | None) -> KeyboardInterrupt | None:
+    """The interrupt ``exc`` is, or that it was raised while handling (its context chain):
+    an interrupt lands anywhere, and cleaning up after it can fail in turn (a progress bar
+    half made when the signal came); the command was still interrupted, not broken."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return exc
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return None
 
 
 def _raise(signum, _frame) -> None:

@@ -123,6 +123,11 @@ def _run(args, result: dict) -> int:
             _say_warnings(args.command, caught)
             if exits.debug():
                 raise
+            interrupt = exits.interrupt_in(exc)  # a failure while stopping on a signal
+            if interrupt is not None:
+                line = str(interrupt) if isinstance(interrupt, exits.Interrupted) \
+                    else "interrupted"
+                return _said(args, result, line, exits.INTERRUPTED)
             if isinstance(exc, exits.Failure):
                 return _said(args, result, f"error: {exc}", exc.exit_code)
             if isinstance(exc, OSError) and exc.errno is not None and exc.strerror:

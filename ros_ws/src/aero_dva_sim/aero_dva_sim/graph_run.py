@@ -87,6 +87,7 @@ def failure(exc: BaseException) -> tuple[str, int]:
     run."""
     if isinstance(exc, exits.Failure):
         return str(exc), exc.exit_code
+    exc = exits.interrupt_in(exc) or exc  # (a failure while stopping on a signal)
     if isinstance(exc, KeyboardInterrupt):
         name = getattr(exc, "signal_name", "SIGINT")
         return f"interrupted by {name}", exits.INTERRUPTED
