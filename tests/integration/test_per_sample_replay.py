@@ -45,8 +45,14 @@ def test_a_per_sample_flight_replays_to_its_recorded_accelerations(law, tmp_path
     assert np.all(np.isfinite(log.damper_force[law_samples]))
     assert np.all(log.damping[law_samples] == log.law_damping[law_samples])
     assert np.unique(log.law_damping[law_samples]).size > 10  # c2 moved sample by sample
+    # what the law commanded: its two targets, before the damper's lag
+    commanded = log.law_command[law_samples]
+    assert np.unique(commanded).size == 2
+    assert commanded.min() <= log.law_damping[law_samples].min()
+    assert commanded.max() >= log.law_damping[law_samples].max()
     decoded = load_flight_log(bag, indexed=False)  # both reading routes give the same
     np.testing.assert_array_equal(decoded.law_damping, log.law_damping)
+    np.testing.assert_array_equal(decoded.law_command, log.law_command)
     np.testing.assert_array_equal(decoded.damper_force, log.damper_force)
 
     def replay(*extra):

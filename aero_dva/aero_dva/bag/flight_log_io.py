@@ -7,6 +7,7 @@ quantities (flight condition, damper state) are held over their block's samples.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -23,7 +24,7 @@ from aero_dva.bag.reader import (
     deserialize,
     read_messages,
 )
-from aero_dva.bag.schemas import normalize_type_name
+from aero_dva.bag.schemas import normalize_type_name, schema_typestore
 from aero_dva.wing.model import ACCELERATION_NAMES, DISPLACEMENT_NAMES
 
 #: Topics a flight log reads, relative to the simulator's namespace (``/diagnostics`` global).
@@ -32,7 +33,11 @@ FLIGHT_TOPICS = (ch.DISPLACEMENT, ch.ACCELERATION, ch.EXCITATION, ch.FLIGHT_COND
 REQUIRED = (ch.DISPLACEMENT, ch.FLIGHT_CONDITION)
 # Sample topics -> the message fields that make the rows of their FlightLog array.
 SAMPLE_ROWS = {ch.DISPLACEMENT: DISPLACEMENT_NAMES, ch.ACCELERATION: ACCELERATION_NAMES,
-               ch.EXCITATION: ("aileron_force",), ch.DAMPER_BLOCK: ("damping", "force")}
+               ch.EXCITATION: ("aileron_force",),
+               ch.DAMPER_BLOCK: ("damping", "force", "commanded_damping")}
+# Rows a bag written before their field existed lacks (NaN then): the commanded c2 of a
+# per-sample law (dva_msgs/DamperBlock.commanded_damping).
+OPTIONAL_ROWS = frozenset({(ch.DAMPER_BLOCK, "commanded_damping")})
 
 
 @dataclass(frozen=True)
@@ -51,8 +56,11 @@ class FlightLog:
     applied_damping : (n,) [N s/m] c2 held over each block (NaN if the damper state was not
         recorded; at a block a per-sample law flew, the c2 at its start)
     law_damping, damper_force : (n,) [N s/m], [N] a per-sample law's c2 acting over each
-        sample and the damper force k2 delta at each (``dva/damper_block``; NaN where no law
-        flew the block)
+        sample (the damper's lag followed) and the damper force k2 delta at each
+        (``dva/damper_block``; NaN where no law flew the block)
+    law_command : (n,) [N s/m] the c2 a per-sample law commanded for each sample (its target,
+        before the damper's lag: what the damper's controller logs; NaN where no law flew the
+        block, and everywhere in a bag recorded before ``DamperBlock.commanded_damping``)
     missing_samples : int
         Samples of the flight with no displacement block in the log.
     diagnostics : tuple of dict
@@ -72,6 +80,7 @@ class FlightLog:
     diagnostics: tuple[dict, ...]
     law_damping: np.ndarray | None = None
     damper_force: np.ndarray | None = None
+    law_command: np.ndarray | None = None
 
     @property
     def damping(self) -> np.ndarray:
@@ -122,8 +131,9 @@ def load_flight_log(bag: str | Path, namespace: str = "", *,
             accelerations=_stack(rows, ch.ACCELERATION, n),
             force=_stack(rows, ch.EXCITATION, n)[0], applied_damping=rows.applied_damping,
             missing_samples=int(np.isnan(displacements[0]).sum()),
-            diagnostics=diagnostics, **dict(zip(("law_damping", "damper_force"),
-                                                _stack(rows, ch.DAMPER_BLOCK, n))))
+            diagnostics=diagnostics,
+            **dict(zip(("law_damping", "damper_force", "law_command"),
+                       _stack(rows, ch.DAMPER_BLOCK, n))))
     blocks: dict = {c: [] for c in SAMPLE_ROWS}  # sample topic -> [(first index, rows)]
     rates = set()
     conditions, damper = [], []
@@ -132,7 +142,10 @@ def load_flight_log(bag: str | Path, namespace: str = "", *,
                                 expected_types={t: c.type_name for t, c in wanted.items()}):
         channel, msg = wanted[record.topic], record.message
         if channel in SAMPLE_ROWS:
-            rows = [getattr(msg, field) for field in SAMPLE_ROWS[channel]]
+            rows = [getattr(msg, field, None) for field in SAMPLE_ROWS[channel]]
+            size = next(row.size for row in rows if row is not None)
+            rows = [np.full(size, np.nan) if row is None and (channel, field) in OPTIONAL_ROWS
+                    else row for row, field in zip(rows, SAMPLE_ROWS[channel])]
             if len({row.size for row in rows}) > 1:
                 raise BagReadError(f"{bag}: a message on {record.topic} has arrays of "
                                    f"different lengths {[row.size for row in rows]}")
@@ -163,8 +176,21 @@ def load_flight_log(bag: str | Path, namespace: str = "", *,
         force=arrays[ch.EXCITATION][0], applied_damping=applied,
         missing_samples=int(np.isnan(displacements[0]).sum()),
         diagnostics=diagnostics, law_damping=arrays[ch.DAMPER_BLOCK][0],
-        damper_force=arrays[ch.DAMPER_BLOCK][1],
+        damper_force=arrays[ch.DAMPER_BLOCK][1], law_command=arrays[ch.DAMPER_BLOCK][2],
     )
+
+
+def law_sources(bag, namespace: str = "", allow_truncated: bool = False) -> tuple[str, ...]:
+    """The per-sample laws that flew blocks of ``bag``: the distinct ``source`` of its
+    ``dva/damper_block`` messages, in order of first appearance (none: no such topic)."""
+    topic = ch.DAMPER_BLOCK.absolute(namespace)
+    if topic not in bag_topics(bag, allow_truncated=allow_truncated):
+        return ()
+    seen: dict[str, None] = {}
+    for record in read_messages(bag, [topic], allow_truncated=allow_truncated,
+                                expected_types={topic: ch.DAMPER_BLOCK.type_name}):
+        seen.setdefault(str(record.message.source))
+    return tuple(seen)
 
 
 def flight_topics(bag, namespace: str, allow_truncated: bool) -> tuple[dict, dict]:
@@ -257,8 +283,9 @@ def read_flight_rows(bag, wanted: dict, rows: dict) -> FlightRows | None:
             for m in it:
                 channel = wanted[m.topic]
                 if channel in SAMPLE_ROWS:  # at least one row: the blocks' lengths
+                    chosen = _present(channel, rows.get(channel, ()), m)
                     fields = ("sample_rate", "first_sample_index",
-                              *(rows.get(channel) or SAMPLE_ROWS[channel][:1]))
+                              *(chosen or SAMPLE_ROWS[channel][:1]))
                 else:
                     fields = _SCALARS.get(channel)
                     if fields is None:
@@ -269,7 +296,7 @@ def read_flight_rows(bag, wanted: dict, rows: dict) -> FlightRows | None:
                 if channel in SAMPLE_ROWS:
                     out["_end"] = out["first_sample_index"] + _width(out, bag, m.topic)
                     index = out["first_sample_index"].astype(np.int64)
-                    for name in rows.get(channel, ()):  # into the rows now: no copy held
+                    for name in chosen:  # into the rows now: no copy held
                         _put(growing[channel][name], index, out.pop(name))
                     for name in set(out) - {"sample_rate", "first_sample_index", "_end"}:
                         del out[name]  # read for the blocks' lengths only
@@ -297,6 +324,23 @@ def read_flight_rows(bag, wanted: dict, rows: dict) -> FlightRows | None:
     (applied,) = _held_columns(n, rate, parts.pop(ch.DAMPER_STATE, []), ("applied_damping",))
     return FlightRows(sample_rate=rate, samples=n, airspeed=airspeed, density=density,
                       applied_damping=applied, rows=filled)
+
+
+def _present(channel, names, m) -> tuple:
+    """``names`` without the optional rows (:data:`OPTIONAL_ROWS`) that the bag's schema of
+    the message batch ``m`` lacks."""
+    optional = [n for n in names if (channel, n) in OPTIONAL_ROWS]
+    if not optional:
+        return tuple(names)
+    fields = _schema_fields(m.type_name, m.schema_text)
+    return tuple(n for n in names if n in fields or (channel, n) not in OPTIONAL_ROWS)
+
+
+@lru_cache(maxsize=32)
+def _schema_fields(type_name: str, schema_text: str) -> frozenset:
+    """The field names of ``type_name`` as a bag's schema text defines it."""
+    full = normalize_type_name(type_name)
+    return frozenset(name for name, _ in schema_typestore(full, schema_text).fielddefs[full][1])
 
 
 def _grow(holder: list, size: int) -> None:

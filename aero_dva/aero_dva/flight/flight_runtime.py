@@ -185,6 +185,7 @@ class FlightRuntime:
         self._index = 0
         self._sweep = self.scenario.airspeed.kind == "steps"
         self._laws: dict = {}  # source -> its per-sample law's damper path, built when armed
+        self._flown_law = (-1, None)  # (first sample, law) of the last block a law flew
         self._noise_rng = np.random.default_rng([self.scenario.seed, 1])  # the sensors'
         self._noise_scale: dict = {}  # source -> sensor noise std (4,)
         self.applied = AppliedControl()  # blocks by the source of the c2 they were flown with
@@ -289,6 +290,7 @@ class FlightRuntime:
             mode, rate, law_c2 = DamperMode.SWITCHING, law.switches * self.sample_rate / n, \
                 law.damping
             law_out = out
+            self._flown_law = (self._index, law.law)
         else:
             if source in self._laws:
                 self._laws[source].disarm()
@@ -310,6 +312,17 @@ class FlightRuntime:
         self._damper.record_mode(mode, rate, law_c2)
         self._flown = replace(start, mode=DamperMode(mode), switching_rate=float(rate))
         return block
+
+    def commanded_damping(self, block: FlightSamples) -> np.ndarray | None:
+        """[N s/m] (n,) the c2 the per-sample law commanded for each sample of ``block`` (the
+        last block :meth:`step` returned): its target, the law's c_hi or c_lo, before the
+        damper's lag; None for a block no law flew."""
+        if block.target is None:
+            return None
+        first, law = self._flown_law
+        if first != block.first_index:
+            raise ValueError("commanded_damping needs the last block step returned")
+        return np.where(block.target, law.c_hi, law.c_lo)
 
     def law_problem(self, source: str = SWITCHING_SOURCE) -> str | None:
         """Why the per-sample law of commands from ``source`` cannot run in this flight, or

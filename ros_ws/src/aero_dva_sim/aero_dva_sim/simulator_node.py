@@ -12,8 +12,9 @@ controller table (``"switching"``, ``"clipped_optimal"``) arms that law in the d
 from its file, ``switching_gains``, ``clipped_optimal_gains``, checked on load): every sample of
 the block then runs the law (:mod:`aero_dva.flight.per_sample.stream`), its observer reading the
 measurements with ``damper_sensor_noise``; dva/damper_state reports the mode and switching rate,
-dva/damper_block the c2 and the damper force at each sample of the block (for an exact replay,
-``dva replay --offline``), and /diagnostics each change of mode with its reason. A stepped-sweep
+dva/damper_block the c2 the law commanded, the c2 that acted and the damper force at each sample
+of the block (the acting c2 for an exact replay, ``dva replay --offline``; the commanded one for
+``dva discrepancy flight``), and /diagnostics each change of mode with its reason. A stepped-sweep
 scenario applies its own c2 values and ignores commands.
 
 Its parameters (units, defaults, ranges) are the table ``SPEC`` of
@@ -428,8 +429,8 @@ class Simulator(Node):
             self.published[channel.name] += 1
         if block.damper_force is not None:  # a per-sample law flew the block
             self._pub[ch.DAMPER_BLOCK.name].publish(conversions.damper_block(
-                t0, fs, i0, self.runtime.flown_damper.source, block.damping,
-                block.damper_force))
+                t0, fs, i0, self.runtime.flown_damper.source,
+                self.runtime.commanded_damping(block), block.damping, block.damper_force))
             self.published[ch.DAMPER_BLOCK.name] += 1
 
     def _summary(self) -> dict:

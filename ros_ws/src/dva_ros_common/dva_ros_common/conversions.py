@@ -135,12 +135,14 @@ def force_block(stamp: Time | float, sample_rate: float, first_index: int,
 
 
 def damper_block(stamp: Time | float, sample_rate: float, first_index: int, source: str,
-                 damping, force) -> DamperBlock:
-    """A per-sample law's damper over a block: ``damping`` (n,) [N s/m] the c2 acting over each
-    sample, ``force`` (n,) [N] the damper force at each."""
-    msg = _sample_block(DamperBlock(), stamp, sample_rate, first_index,
-                        np.stack([np.asarray(damping, float), np.asarray(force, float)]),
-                        ("damping", "force"), WING_FRAME)
+                 commanded, damping, force) -> DamperBlock:
+    """A per-sample law's damper over a block: ``commanded`` (n,) [N s/m] the c2 the law
+    commanded for each sample, ``damping`` (n,) [N s/m] the c2 acting over each sample (the
+    damper's lag followed), ``force`` (n,) [N] the damper force at each."""
+    rows = np.stack([np.asarray(commanded, float), np.asarray(damping, float),
+                     np.asarray(force, float)])
+    msg = _sample_block(DamperBlock(), stamp, sample_rate, first_index, rows,
+                        ("commanded_damping", "damping", "force"), WING_FRAME)
     msg.source = str(source)
     return msg
 

@@ -136,3 +136,22 @@ def test_airspeeds_that_are_no_ramp_keep_their_blocks_values(tmp_path):
     log = load_flight_log(tmp_path / "bag")
     assert np.array_equal(sample_airspeed(log), log.airspeed)
     assert np.array_equal(log.airspeed, steps)
+
+
+def test_a_damper_block_schema_without_the_commanded_c2_reads_the_other_rows():
+    """A bag recorded before DamperBlock.commanded_damping: its rows are read, the commanded
+    c2 is left out (NaN in the log; the flight analysis then refuses the law's flight)."""
+    from types import SimpleNamespace
+
+    from aero_dva.bag import channels as ch
+    from aero_dva.bag.flight_log_io import _present
+    from aero_dva.bag.schemas import message_definition
+
+    rows = ("damping", "force", "commanded_damping")
+    now = message_definition(ch.DAMPER_BLOCK.type_name)
+    old = "\n".join(line for line in now.splitlines()
+                    if not line.startswith(("float64[] commanded_damping", "  ")))
+    assert "commanded_damping" in now and "commanded_damping" not in old.split("===")[0]
+    for text, want in ((now, rows), (old, rows[:2])):
+        batch = SimpleNamespace(type_name=ch.DAMPER_BLOCK.type_name, schema_text=text)
+        assert _present(ch.DAMPER_BLOCK, rows, batch) == want
