@@ -78,7 +78,7 @@ EXAMPLES = [
             commands_from="dva discrepancy frf tests/data/discrepancy/dma_shear_eplexor.csv"),
     Example("docs/discrepancy.md", "read 360 points", subset=True,
             commands_from="dva discrepancy frf offline/dva_offline/discrepancy/examples/"),
-    Example("docs/discrepancy.md", "baseline wing+maxwell(quasi-steady): held-out error 0.0544",
+    Example("docs/discrepancy.md", "route segments (12 segments of constant airspeed, density",
             subset=True,
             commands_from="dva discrepancy synth-flight --effect actuator_lag --seed 7"),
     # docs/evaluation.md

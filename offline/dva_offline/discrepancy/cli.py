@@ -394,8 +394,19 @@ def _cmd_synth(args) -> int:
 
 
 def _flight_summary(result, domain) -> list[str]:
-    return _summary_lines(result, f"; {len(domain.segments)} segments, "
-                                  f"{result.split.held.sum()} held-out points")
+    fs = domain.data.sample_rate
+    a, b = domain.span
+    lines = [f"route {domain.route} ({domain.route_reason})"]
+    if domain.route == "whole-flight":
+        lines[0] += (f": {len(domain.segments)} segments in {a / fs:.1f}-{b / fs:.1f} s, "
+                     f"ending at {domain.span_reason}")
+    if domain.data.per_sample:
+        lag = (f"through the declared lag {1e3 * domain.declared_lag:g} ms"
+               if domain.declared_lag > 0 else "with no damper lag declared")
+        lines.append(f"damper: the c2 {', '.join(domain.data.law_sources)} commanded, {lag} "
+                     f"({domain.lag_reason})")
+    return lines + _summary_lines(result, f"; {len(domain.segments)} segments, "
+                                          f"{result.split.held.sum()} held-out points")
 
 
 def _trend_lines(result) -> list[str]:
@@ -468,7 +479,7 @@ def _summary_lines(result, baseline_detail: str = "") -> list[str]:
 
 
 def _cmd_flight(args) -> int:
-    from aero_dva.bag.flight_log_io import load_flight_log
+    from aero_dva.bag.flight_log_io import law_sources, load_flight_log
     from aero_dva.wing.wing_io import load_wing
     from dva_offline.discrepancy import loop
     from dva_offline.discrepancy.flight_domain import (
@@ -488,11 +499,17 @@ def _cmd_flight(args) -> int:
     if len(band) != 2:
         raise ValueError(f"--band must be LOW,HIGH in Hz, got {args.band!r}")
     settings = FlightSettings(band=band, window_s=args.window,
-                              segment_windows=args.segment_windows, settle_s=args.settle)
+                              segment_windows=args.segment_windows, settle_s=args.settle,
+                              route=args.route)
+    sources = law_sources(path, args.namespace, args.allow_truncated)
+    if args.damper_lag is not None and not sources:
+        raise ValueError("--damper-lag declares a lag for a per-sample law's commands, and no "
+                         "per-sample law flew this log (no dva/damper_block): leave it out")
     print(f"reading {path} ...", file=sys.stderr, flush=True)
     log = load_flight_log(path, namespace=args.namespace, allow_truncated=args.allow_truncated)
     wing = load_wing(args.wing)
-    domain = FlightDomain(arrays_from_log(log), wing, settings)
+    domain = FlightDomain(arrays_from_log(log, sources), wing, settings,
+                          damper_lag=args.damper_lag)
     rng = None if args.holdout_seed is None else np.random.default_rng(args.holdout_seed)
     split = loop.holdout_split(domain.observations.groups, args.holdout_every, rng)
     bar, step = _progress()
@@ -511,6 +528,15 @@ def _cmd_flight(args) -> int:
             "window": f"Hann, {domain.n_window} samples, 50 % overlap",
             "channels": ["plunge", "pitch"],
         },
+        "route": {"name": domain.route, "why": domain.route_reason,
+                  "span_s": [domain.span[0] / fs, domain.span[1] / fs],
+                  "span_ends": domain.span_reason},
+        "damper": {"per_sample_laws": list(domain.data.law_sources),
+                   "c2_read": ("commanded by the per-sample law (dva/damper_block "
+                               "commanded_damping), reported where c2 was held"
+                               if domain.data.per_sample else
+                               "reported per block (dva/damper_state applied_damping)"),
+                   "declared_lag_s": domain.declared_lag, "declared_lag_why": domain.lag_reason},
         "segments": [
             {"start_s": s.start / fs, "stop_s": s.stop / fs, "windows": len(s.windows),
              "airspeed_mps": float(np.mean(domain.data.airspeed[s.start:s.stop])),
@@ -705,11 +731,20 @@ def register(subparsers) -> None:
     p.add_argument("--band", default="2,20", help="frequency band LOW,HIGH [Hz] (default 2,20)")
     p.add_argument("--window", type=float, default=1.0,
                    help="DFT window [s] (Hann, 50 %% overlap; default 1)")
-    p.add_argument("--segment-windows", type=int, default=7,
-                   help="windows per segment of constant condition (default 7)")
+    p.add_argument("--segment-windows", type=int, default=None,
+                   help="windows per segment (default 7 on the segments route: a 4 s dwell is "
+                        "one segment; 3 on the whole-flight route)")
     p.add_argument("--settle", type=float, default=1.0,
                    help="seconds of data at the log's start not analysed: the model is "
                         "simulated from rest from there (default 1)")
+    p.add_argument("--route", choices=("auto", "segments", "whole-flight"), default="auto",
+                   help="segments of constant airspeed, density and c2, or the whole "
+                        "analysable flight sample by sample (default auto: whole-flight for a "
+                        "per-sample law's flight or a log without 2 constant segments)")
+    p.add_argument("--damper-lag", type=float, default=None, metavar="SECONDS",
+                   help="a damper lag the model declares for a per-sample law's flight: its "
+                        "commanded c2 goes through it (default none: the wing file's ideal "
+                        "damper; actuator_lag fits another in its place)")
     p.add_argument("--holdout-every", type=int, default=4,
                    help="hold out every Nth point of each segment and channel (default 4)")
     p.add_argument("--holdout-seed", type=int, default=None,

@@ -664,8 +664,9 @@ def run(domain: Domain, rule: DecisionRule | None = None, split: HoldoutSplit | 
     base = fit_model(base_spec, obs, split)
     measured = noise
     features = _features(obs, base, None if measured is None else measured.sigma)
-    noise = measured or replace(features.noise, method=f"{features.noise.method}, of the "
-                                                       f"residual of {base.name}")
+    noise = measured or with_known_noise(
+        domain, replace(features.noise, method=f"{features.noise.method}, of the residual of "
+                                               f"{base.name}"))
     # (a domain whose groups are no test conditions of a covariate says so)
     reference = None
     if getattr(domain, "per_condition_reference", True):
@@ -713,6 +714,21 @@ def run(domain: Domain, rule: DecisionRule | None = None, split: HoldoutSplit | 
                              tuple(moving_parameters(reference, rule.significance)))
 
 
+def with_known_noise(domain, floor: NoiseFloor) -> NoiseFloor:
+    """``floor`` with the noise the domain knows its residual holds beyond what second
+    differences see (``domain.known_noise``: (sigma, why), e.g. the flight domain's
+    resolution of the logged airspeed and c2 in a noise-free log) added in quadrature."""
+    known = getattr(domain, "known_noise", None)
+    if not known or not known[0] > 0:
+        return floor
+    sigma, why = known
+    part = sigma / np.sqrt(2.0)  # split evenly between the real and imaginary parts
+    return replace(floor, sigma=float(np.hypot(floor.sigma, sigma)),
+                   sigma_real=float(np.hypot(floor.sigma_real, part)),
+                   sigma_imag=float(np.hypot(floor.sigma_imag, part)),
+                   method=f"{floor.method}; with {sigma:.4g} added in quadrature: {why}")
+
+
 def _iterate(domain, obs, split, base, features, noise, scores, specs, rule, progress,
              n_variants, reference=None, measured=False, per_condition=None):
     """Add effects one at a time (:func:`choose_step`) until the residual is consistent with
@@ -748,7 +764,7 @@ def _iterate(domain, obs, split, base, features, noise, scores, specs, rule, pro
         # be inflated by model error that is not smooth at the sampling (sparse sweeps), so
         # each step keeps the lowest estimate so far.
         # (a noise measured by replicates or coherence stays as it is)
-        fresh = _features(obs, base).noise
+        fresh = with_known_noise(domain, _features(obs, base).noise)
         if fresh.sigma < noise.sigma and not measured:
             noise = replace(fresh, method=f"{fresh.method}, of the residual of {base.name} "
                                           "(the lowest estimate of the models fitted)")

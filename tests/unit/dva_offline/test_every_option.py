@@ -19,7 +19,8 @@ from dva_offline import cli
 ALL = "acts in every mode"
 
 # Command lines of the modes below (without the option under test). Paths need not exist:
-# a refusal comes before any file is read, except where {csv} (a real FRF table) is given.
+# a refusal comes before any file is read, except where {csv} (a real FRF table) or {flight} (a
+# flight log with c2 held per block) is given.
 IDENTIFY = ["f.csv", "--mass", "1", "--static-stiffness", "1e4"]
 MAXWELL = ["--absorber", "maxwell", "--k1", "1e5", "--k2", "1e5", "--c2", "600"]
 PASSIVE = ["--absorber", "passive", "--k1", "1e5", "--c1", "300"]
@@ -150,9 +151,13 @@ TABLE: dict[str, dict] = {
     "discrepancy synth": {o: ALL for o in (
         "--effect", "--seed", "--out", "--quantity", "--sigma", "--points", "--system",
         "--clean-covariate", "--json")},
-    "discrepancy flight": {o: ALL for o in (
-        "file", "--wing", "--namespace", "--band", "--window", "--segment-windows", "--settle",
-        "--holdout-every", "--holdout-seed", "--plot-dir", "--json", "--allow-truncated")},
+    "discrepancy flight": {
+        **{o: ALL for o in (
+            "file", "--wing", "--namespace", "--band", "--window", "--segment-windows",
+            "--settle", "--route", "--holdout-every", "--holdout-seed", "--plot-dir", "--json",
+            "--allow-truncated")},
+        "--damper-lag": ("with a per-sample law's flight", [
+            (["{flight}"], "no per-sample law flew this log")])},
     "discrepancy synth-flight": {o: ALL for o in ("--effect", "--seed", "--dwell", "out",
                                                   "--json")},
     "control optimal-c2": {
@@ -312,11 +317,27 @@ def frf_csv(tmp_path_factory) -> Path:
     return path
 
 
+@pytest.fixture(scope="module")
+def held_flight(tmp_path_factory) -> Path:
+    """A 2.5 s flight log whose c2 is held per block (no per-sample law flew it)."""
+    from aero_dva.bag.runtime_recording import record_runtime
+    from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
+
+    scenario = tmp_path_factory.mktemp("flight") / "hold.yaml"
+    scenario.write_text("name: hold\nduration: 2.5\nblock_size: 50\n"
+                        "airspeed: {kind: constant, value: 60.0}\n")
+    bag = scenario.parent / "bag"
+    record_runtime(bag, FlightRuntime(load_runtime_config({"scenario": str(scenario)})))
+    return bag
+
+
 @pytest.mark.parametrize("command,option,mode,words", list(_refusals()))
 def test_an_option_its_mode_has_no_use_for_is_refused_in_one_line(
-        command, option, mode, words, tmp_path, frf_csv, capsys):
+        command, option, mode, words, tmp_path, frf_csv, capsys, request):
     fill = {"{new}": str(tmp_path / "new"), "{dir}": str(tmp_path / "figs"),
             "{csv}": str(frf_csv)}
+    if "{flight}" in mode:
+        fill["{flight}"] = str(request.getfixturevalue("held_flight"))
     capsys.readouterr()
     mode = [fill.get(a, a) for a in mode]
     argv = [*command.split(), *mode, option,
