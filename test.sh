@@ -1,11 +1,13 @@
 #!/usr/bin/env bash
 # Set up if needed (idempotent), then run every test: lint, unit and ROS 2 integration tests.
-# Extra arguments go to pytest, e.g. ./test.sh tests/unit -k isolator
+# Extra arguments go to pytest, e.g. ./test.sh tests/unit -k isolator (pytest's own options:
+# .venv/bin/python -m pytest --help); ./test.sh --help prints this and the exit-code table.
 # Exit codes (every executable's, aero_dva/aero_dva/exits.py): 0 every test passed; 1 tests
 # ran and some failed; 2 bad input (pytest's usage errors, or no test selected); 3 the setup
 # or pytest itself failed; 130 interrupted (SIGINT or SIGTERM).
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")"
+if [[ "${1:-}" == -h || "${1:-}" == --help ]]; then exec bash scripts/usage.sh "$0"; fi
 bash scripts/setup.sh
 # shellcheck disable=SC1091
 source scripts/env.sh

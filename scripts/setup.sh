@@ -16,7 +16,11 @@
 #   DVA_PYTHON   Python 3.11 interpreter to build the venv from (default: python3.11 on PATH)
 #   DVA_VENV     venv location (default: <repo>/.venv)
 #   DVA_QUIET=1  less output; DVA_VERBOSE=1 shows pip's full output
+# scripts/setup.sh --help prints this and the exit-code table.
 set -euo pipefail
+if [[ "${1:-}" == -h || "${1:-}" == --help ]]; then
+  exec bash "$(dirname "${BASH_SOURCE[0]}")/usage.sh" "${BASH_SOURCE[0]}"
+fi
 
 REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 VENV="${DVA_VENV:-$REPO/.venv}"

@@ -32,7 +32,7 @@ BUSY=2
 AT_ONCE=4
 ROUNDS=2
 OUT=""
-usage() { sed -n '2,25p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; }
+usage() { bash "$REPO/scripts/usage.sh" "${BASH_SOURCE[0]}"; }
 while [[ $# -gt 0 ]]; do
   case "$1" in
     --full) FULL="$2"; shift 2 ;;

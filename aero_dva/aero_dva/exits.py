@@ -127,3 +127,7 @@ def signals_interrupt() -> Iterator[None]:
     finally:
         for signum, handler in before.items():
             signal.signal(signum, handler)
+
+
+if __name__ == "__main__":  # the table for the shell scripts' --help: python3 exits.py
+    print(help_text())
