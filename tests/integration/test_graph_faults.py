@@ -4,7 +4,8 @@
 - ``run_flight``: a node killed mid-flight (3), SIGTERM to the runner (130), a file system
   with no space left (3), an output that cannot be made (2);
 - ``dva evaluate --graph``: a node killed in a flight (the flight fails, the evaluation
-  completes with 1), an output that cannot be made (2), no space left (3).
+  completes with 1), an output that cannot be made (2), no space left (3);
+- ``replay_flight``: a node killed mid-replay (3), an output that exists or cannot be made (2).
 
 Each waits for a condition (the first block on the wire, a process in the table), never for
 a time.
@@ -200,3 +201,74 @@ def test_evaluate_graph_on_a_full_file_system_fails_in_one_line(tmp_path):
     errors = [line for line in result.stderr.splitlines() if "error" in line]
     assert errors and errors[-1].startswith("dva evaluate: error: no space left on the device")
     assert "Traceback" not in result.stderr
+
+
+# ---------------------------------------------------------------- replay_flight
+
+REPLAY_FLIGHT = str(ros2_run_path("aero_dva_sim", "replay_flight"))
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory):
+    """A 4 s schedule flight recorded by run_flight, and its schedule."""
+    root = tmp_path_factory.mktemp("replayed")
+    scenario = root / "short.yaml"
+    scenario.write_text("name: short\nduration: 4.0\nblock_size: 50\n"
+                        "airspeed: {kind: ramp, start_ratio: 0.8, end_ratio: 0.9}\n"
+                        "excitation: {force_std: 1000.0, seed: 2}\n")
+    schedule = _schedule(root)
+    bag = root / "flight"
+    result = subprocess.run([RUN_FLIGHT, "--scenario", str(scenario), "--controller",
+                             "schedule", "--schedule", str(schedule), "--output", str(bag)],
+                            capture_output=True, text=True, timeout=600 * TIMEOUT_SCALE)
+    assert result.returncode == 0, result.stderr
+    return bag, schedule
+
+
+def _replay(recorded, out, *more, **popen):
+    bag, schedule = recorded
+    argv = [REPLAY_FLIGHT, str(bag), "--controller", "schedule", "--schedule", str(schedule),
+            "--out", str(out), *more]
+    if popen:
+        return subprocess.Popen(argv, text=True, **popen)
+    return subprocess.run(argv, capture_output=True, text=True, timeout=600 * TIMEOUT_SCALE)
+
+
+def test_replay_flight_refuses_outputs_it_cannot_make_in_one_line(recorded, tmp_path):
+    (tmp_path / "taken").mkdir()
+    (tmp_path / "other_logs").mkdir()
+    (tmp_path / "a_file").write_text("")
+    for out, said in ((tmp_path / "taken", "exists; choose another name"),
+                      (tmp_path / "other", "other_logs' exists; choose another name"),
+                      (tmp_path / "a_file" / "out", "is not a directory")):
+        result = _replay(recorded, out, "--json")
+        assert result.returncode == exits.BAD_INPUT, result.stderr
+        line = _one_line(result.stderr)
+        assert line.startswith("replay_flight: error: --out ") and said in line, line
+        assert json.loads(result.stdout)["exit_code"] == exits.BAD_INPUT
+    assert not (tmp_path / "other").exists()  # refused before any work: nothing made
+
+
+def test_a_node_killed_mid_replay_ends_it_in_one_line(recorded, tmp_path):
+    out = tmp_path / "replayed"
+    process = _replay(recorded, out, "--rate", "0.25", stdout=subprocess.PIPE,
+                      stderr=subprocess.PIPE)
+    deadline = time.monotonic() + 300 * TIMEOUT_SCALE
+    nodes: dict[str, int] = {}
+    while len(nodes) < 3 and process.poll() is None and time.monotonic() < deadline:
+        for pid, command in _children(process.pid).items():
+            for node in ("bag_player", "airspeed_controller", "mcap_recorder"):
+                if f"/{node} " in command:
+                    nodes[node] = pid
+        time.sleep(0.05)  # polling the process table, not a wait for the replay
+    assert len(nodes) == 3, process.communicate()
+    # the player plays the 4 s bag in 16 s only once the controller is in the graph: this
+    # kill comes before the bag was played
+    os.kill(nodes["airspeed_controller"], signal.SIGKILL)
+    _, err = process.communicate(timeout=120 * TIMEOUT_SCALE)
+    assert process.returncode == exits.FAILED, err
+    line = _one_line(err)
+    assert line.startswith("replay_flight: error: airspeed_controller was killed by signal 9 "
+                           "before the bag was played"), line
+    assert f"{out}_logs" in line
+    assert not any(_alive(pid) for pid in nodes.values())
