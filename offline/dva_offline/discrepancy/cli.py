@@ -97,11 +97,12 @@ def _check_averages(args, coherence) -> None:
                        f"{Path(args.file).name} has not (map one with --columns coherence=COL)")
 
 
-def _replicates(args, conditions, columns):
+def _replicates(args, conditions, columns, notes=None):
     """Replicate sets of the sweeps (:func:`.noise_sources.sweep_replicates`: by the measured
-    scatter of the covariates, or the user's ``--replicates COLUMN``), how they were found,
-    and the covariates to analyse: none when every sweep is a replicate of one condition (their
-    covariates differ only by their scatter), never the replicate column itself."""
+    scatter of the covariates and a difference that is noise, or the user's ``--replicates
+    COLUMN``), how they were found, and the covariates to analyse: none when every sweep is a
+    replicate of one condition (their covariates differ only by their scatter), never the
+    replicate column itself. ``notes`` (a list) gets the sets turned down."""
     from dva_offline.discrepancy.noise_sources import sweep_replicates
 
     declared, how = None, "covariate means within their measured scatter in a sweep"
@@ -117,7 +118,8 @@ def _replicates(args, conditions, columns):
         how = f"declared by --replicates {col}"
     names = [n for n in (columns or []) if n != col]  # the set column is no covariate
     sets = sweep_replicates([{n: c.covariates[n] for n in names} for c in conditions],
-                            [c.frequency_hz for c in conditions], declared=declared)
+                            [c.frequency_hz for c in conditions], declared=declared,
+                            values=[c.values for c in conditions], notes=notes)
     if columns is not None and col is not None:
         columns = [n for n in columns if n != col]
     if len(conditions) > 1 and sets and len(sets[0]) == len(conditions):
@@ -125,14 +127,15 @@ def _replicates(args, conditions, columns):
     return sets, how, columns
 
 
-def _measured_noise(args, domain, coherence, sets=(), how=""):
+def _measured_noise(args, domain, coherence, sets=(), how="", notes=()):
     """The noise the file measures itself (replicate sweeps, else coherence with --averages)
-    and what was found, for the report (:mod:`.noise_sources`)."""
+    and what was found, for the report (:mod:`.noise_sources`; ``notes``: what the replicate
+    search turned down)."""
     from dva_offline.discrepancy.noise_sources import coherence_noise, replicate_noise
 
     if args.averages is not None and args.averages < 1:
         raise ValueError(f"--averages must be an integer >= 1, got {args.averages}")
-    notes = []
+    notes = list(notes)
     rep = replicate_noise(domain.observations, sets=list(sets), how=how) if sets else None
     if args.replicates is not None and rep is None:  # an option that would do nothing
         raise CliError(f"--replicates {args.replicates}: no two sweeps with one value of it "
@@ -186,11 +189,12 @@ def _cmd_frf(args) -> int:
     conditions, columns, grouping, info = _conditions(args)
     conditions, columns, coherence = _take_coherence(conditions, columns)
     _check_averages(args, coherence)
-    sets, how, columns = _replicates(args, conditions, columns)
+    turned_down: list[str] = []  # sets whose difference is no noise
+    sets, how, columns = _replicates(args, conditions, columns, turned_down)
     domain = FrfDomain(conditions, mass=args.mass, static_stiffness=args.static_stiffness,
                        elements=elements, max_elements=max_elements, covariates=columns,
                        modulus=args.quantity == "modulus")
-    noise, noise_info = _measured_noise(args, domain, coherence, sets, how)
+    noise, noise_info = _measured_noise(args, domain, coherence, sets, how, turned_down)
     result = _run_loop(args, domain, noise)
     sel = domain.order_selection
     extra = {
@@ -294,10 +298,11 @@ def _cmd_modal(args) -> int:
         columns = [n for n in conditions[0].covariates if n not in skip]
     conditions, columns, coherence = _take_coherence(conditions, columns)
     _check_averages(args, coherence)
-    sets, how, columns = _replicates(args, conditions, columns)
+    turned_down: list[str] = []  # sets whose difference is no noise
+    sets, how, columns = _replicates(args, conditions, columns, turned_down)
     domain = ModalDomain(conditions, modes=modes, max_modes=max_modes, covariates=columns,
                          quantity=args.quantity, constants=args.modal_constants)
-    noise, noise_info = _measured_noise(args, domain, coherence, sets, how)
+    noise, noise_info = _measured_noise(args, domain, coherence, sets, how, turned_down)
     result = _run_loop(args, domain, noise)
     extra = {
         "file": str(args.file), "quantity": args.quantity, "model_quantity": "receptance",

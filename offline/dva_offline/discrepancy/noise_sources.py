@@ -9,7 +9,13 @@ points like the held-out error it is compared with:
   no more than that covariate's measured scatter within a sweep (its range there: the drift
   of a temperature or strain the instrument shows while it holds the condition) or 1 % of
   its spread over the file, or the user says which (``--replicates COLUMN``: sweeps with one
-  value of COLUMN). On the frequency lines they share (at least 5), the relative scatter
+  value of COLUMN). Sweeps found by their covariates must also differ by noise: the
+  relative differences to the first sweep, in frequency order on the lines they share, white
+  by the von Neumann ratio (a permutation test at p = 0.001, :func:`white_difference`); a
+  smooth difference (a resonance that moved between two levels of a force-controlled shaker
+  whose force swings within each sweep by more than the levels differ) is an effect, not
+  noise, and those sweeps are no replicates. On the frequency lines they share (at least 5),
+  the relative scatter
   ``|y_ij - mean_j|^2 / |mean_j|^2`` summed over the m replicates and divided by m - 1
   estimates the variance of one sweep's relative noise at each line. Sweeps at different
   levels are never pooled: their difference is the effect the loop looks for.
@@ -25,13 +31,44 @@ import numpy as np
 from dva_offline.discrepancy.residual import NoiseFloor
 
 __all__ = ["MIN_COMMON_LINES", "coherence_noise", "common_lines", "replicate_noise",
-           "replicate_sets", "sweep_replicates"]
+           "replicate_sets", "sweep_replicates", "white_difference"]
 
 MIN_COMMON_LINES = 5  # lines replicates must share for their scatter to count
+WHITE_SIGNIFICANCE = 0.001  # the loop's significance: a difference this unlikely as noise
+N_PERMUTATIONS = 1999
+
+
+def white_difference(values: list, frequencies: list) -> tuple[float, float]:
+    """(von Neumann ratio, p-value) of the sweeps' relative differences to the first one on
+    the lines they share, in frequency order, real and imaginary parts as sequences of their
+    own: sum (d_j+1 - d_j)^2 / sum d_j^2, about 2 for replicates (zero-mean white noise),
+    small for a smooth difference (or an offset). The p-value is that of a permutation test
+    (the same values in random orders, a fixed seed): no assumption on the noise's law or on
+    how its level varies along the band."""
+    lines = np.sort(common_lines(frequencies))
+    ys = []
+    for f, v in zip(frequencies, values):
+        f, v = np.asarray(f, float), np.asarray(v)
+        ys.append(np.array([v[np.flatnonzero(np.isclose(f, x, rtol=1e-6, atol=0.0))[0]]
+                            for x in lines]))
+    y = np.array(ys)
+    mean = np.abs(y.mean(axis=0))
+    seqs = [part for d in (y[1:] - y[0]) / mean for part in (d.real, d.imag)]
+    den = sum(float(np.sum(q**2)) for q in seqs)
+    if not den > 0:
+        return 2.0, 1.0
+    num = sum(float(np.sum(np.diff(q) ** 2)) for q in seqs)
+    rng = np.random.default_rng(0)
+    perm = np.zeros(N_PERMUTATIONS)
+    for q in seqs:
+        perm += np.sum(np.diff(rng.permuted(np.tile(q, (N_PERMUTATIONS, 1)), axis=1),
+                               axis=1) ** 2, axis=1)
+    p = (1 + int(np.sum(perm <= num))) / (1 + N_PERMUTATIONS)
+    return num / den, p
 
 
 def sweep_replicates(covariates: list[dict], frequencies: list, tolerance: float = 0.01,
-                     declared=None) -> list[list[int]]:
+                     declared=None, values=None, notes=None) -> list[list[int]]:
     """Groups of sweeps (indices) that are replicates of one condition; only sets of two or
     more, sharing at least :data:`MIN_COMMON_LINES` frequency lines.
 
@@ -41,7 +78,9 @@ def sweep_replicates(covariates: list[dict], frequencies: list, tolerance: float
     larger of the two sweeps' ranges: a drift the instrument shows while it holds the
     condition) and (b) ``tolerance`` x its spread over the file. ``declared``: per sweep, the
     value of the user's replicate column (``--replicates COLUMN``): sweeps sharing a value are
-    replicates, whatever their covariates."""
+    replicates, whatever their covariates. ``values``: per sweep, the measured values; a set
+    found by the covariates whose differences are not white (:func:`white_difference`,
+    p < 0.001) is dropped and ``notes`` (a list) says why."""
     n = len(covariates)
     names = sorted(set.intersection(*(set(c) for c in covariates))) if n else []
     means = {k: [float(np.mean(c[k])) for c in covariates] for k in names}
@@ -65,8 +104,20 @@ def sweep_replicates(covariates: list[dict], frequencies: list, tolerance: float
                 break
         else:
             sets.append([g])
-    return [st for st in sets if len(st) >= 2
+    sets = [st for st in sets if len(st) >= 2
             and len(common_lines([frequencies[g] for g in st])) >= MIN_COMMON_LINES]
+    if declared is not None or values is None:
+        return sets
+    kept = []
+    for st in sets:
+        eta, p = white_difference([values[g] for g in st], [frequencies[g] for g in st])
+        if p >= WHITE_SIGNIFICANCE:
+            kept.append(st)
+        elif notes is not None:
+            notes.append(f"sweeps {', '.join(map(str, st))}: covariates within their scatter in "
+                         f"a sweep, but their difference is no noise (von Neumann ratio "
+                         f"{eta:.2f}, about 2 for noise; permutation p = {p:.2g}): no replicates")
+    return kept
 
 
 def common_lines(frequencies: list) -> np.ndarray:
@@ -79,12 +130,15 @@ def common_lines(frequencies: list) -> np.ndarray:
 
 
 def replicate_sets(obs, tolerance: float = 0.01, declared=None) -> list[list[int]]:
-    """:func:`sweep_replicates` of the conditions (group labels) of ``obs``."""
+    """:func:`sweep_replicates` of the conditions (group labels) of ``obs``, their values
+    checked for a difference that is noise."""
     labels = list(np.unique(obs.groups))
     covs = [{k: np.asarray(c, float)[obs.groups == g] for k, c in obs.covariates.items()}
             for g in labels]
     freqs = [obs.axis[obs.groups == g] for g in labels]
-    return [[labels[i] for i in st] for st in sweep_replicates(covs, freqs, tolerance, declared)]
+    values = [obs.values[obs.groups == g] for g in labels]
+    return [[labels[i] for i in st]
+            for st in sweep_replicates(covs, freqs, tolerance, declared, values)]
 
 
 def replicate_noise(obs, tolerance: float = 0.01, sets=None,

@@ -176,3 +176,36 @@ def test_cli_repeated_sweeps_with_drifting_covariates(tmp_path, capsys):
     assert cli.main(["discrepancy", "modal", str(path), "--quantity", "receptance",
                      "--group-by", "sweep", "--replicates", "nope"]) == 2
     assert "--replicates column 'nope' not found" in capsys.readouterr().err
+
+
+def test_sweeps_whose_difference_is_smooth_are_no_replicates():
+    """Two force-controlled sweeps whose force swings through the resonance by more than the
+    levels differ (the jointed beam's force control: 0.80-1.17 N and 1.08-1.72 N): the
+    covariate test alone takes them for replicates; their difference is a resonance that
+    moved, smooth along the band, not noise, so they are not, and the note says why."""
+    from dva_offline.discrepancy.noise_sources import sweep_replicates, white_difference
+
+    rng = np.random.default_rng(5)
+    f = np.linspace(79.2, 81.2, 41)
+
+    def sweep(fr, force):
+        h = 1.0 / (fr**2 - f**2 + 2j * 0.002 * fr * f)
+        v = h * (1 + 0.005 / np.sqrt(2) * (rng.standard_normal(f.size)
+                                           + 1j * rng.standard_normal(f.size)))
+        return v, {"force_n": force * (1 - 0.35 * np.abs(h) / np.abs(h).max())}
+
+    (v1, c1), (v2, c2) = sweep(80.3, 1.15), sweep(80.2, 1.7)
+    assert abs(np.mean(c1["force_n"]) - np.mean(c2["force_n"])) < np.ptp(c2["force_n"])
+    assert sweep_replicates([c1, c2], [f, f]) == [[0, 1]]  # the covariates alone
+    notes = []
+    assert sweep_replicates([c1, c2], [f, f], values=[v1, v2], notes=notes) == []
+    assert "difference is no noise" in notes[0]
+    eta, p = white_difference([v1, v2], [f, f])
+    assert eta < 0.5 and p < 0.001
+    # two true replicates of the same sweep: white, kept
+    (w1, d1), (w2, d2) = sweep(80.3, 1.15), sweep(80.3, 1.15)
+    eta, p = white_difference([w1, w2], [f, f])
+    assert 1.4 < eta < 2.6 and p > 0.01
+    assert sweep_replicates([d1, d2], [f, f], values=[w1, w2]) == [[0, 1]]
+    # the user's word stands
+    assert sweep_replicates([c1, c2], [f, f], declared=[1.0, 1.0], values=[v1, v2]) == [[0, 1]]
