@@ -11,12 +11,17 @@ from pathlib import Path
 
 @contextlib.contextmanager
 def atomic_output(path, mode: str = "w", *, fsync: bool = False) -> Iterator:
-    """Open a temporary file beside ``path``; on success it replaces ``path`` (mode 0644),
-    on failure it is removed and ``path`` is untouched. ``fsync`` puts the data on the disk
-    before the rename (for a file that marks something else complete, like a bag's
-    metadata.yaml)."""
+    """Open a temporary file beside ``path`` (its folder made if missing); on success it
+    replaces ``path`` (mode 0644), on failure it is removed and ``path`` is untouched.
+    ``fsync`` puts the data on the disk before the rename (for a file that marks something
+    else complete, like a bag's metadata.yaml)."""
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)  # (an output's folder is made for it)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    except OSError as exc:  # (read-only, no permission, no such folder): name the output
+        exc.filename = str(path)
+        raise
     try:
         encoding = None if "b" in mode else "utf-8"
         with os.fdopen(fd, mode, encoding=encoding) as stream:
@@ -28,8 +33,8 @@ def atomic_output(path, mode: str = "w", *, fsync: bool = False) -> Iterator:
         os.replace(tmp, path)
     except BaseException as exc:
         Path(tmp).unlink(missing_ok=True)
-        if isinstance(exc, OSError) and exc.filename is None:
-            exc.filename = str(path)  # (a full disk names the file it could not write)
+        if isinstance(exc, OSError) and exc.filename in (None, tmp):
+            exc.filename = str(path)  # (a full disk names the output, not the temporary file)
         raise
 
 
@@ -104,6 +109,35 @@ def unique_directory(stem, what: str = "output", *, siblings: tuple[str, ...] = 
         except FileExistsError:
             continue
     raise FileExistsError(f"{what}: 10000 directories named {str(stem)!r}_N exist already")
+
+
+def check_writable(path, what: str = "output") -> None:
+    """Refuse, before any work, an output ``path`` that could not be written at the end: the
+    folder it goes into (its nearest existing one, for a path still to be made) is a file, or
+    is not writable (no permission, a read-only file system). One-line OSError naming it."""
+    import errno
+
+    path = Path(path).absolute()
+    folder = path if path.is_dir() else path.parent
+    while not folder.exists() and folder != folder.parent:
+        folder = folder.parent
+    if not folder.is_dir():
+        raise NotADirectoryError(f"{what} {str(path)!r} cannot be made: {str(folder)!r} is "
+                                 "not a directory")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        error = PermissionError(f"{what} {str(path)!r} cannot be written: {str(folder)!r} is "
+                                "read-only" if _read_only(folder) else
+                                f"{what} {str(path)!r} cannot be written: no permission to "
+                                f"write in {str(folder)!r}")
+        error.errno = errno.EROFS if _read_only(folder) else errno.EACCES
+        raise error
+
+
+def _read_only(folder: Path) -> bool:
+    try:
+        return bool(os.statvfs(folder).f_flag & os.ST_RDONLY)
+    except OSError:
+        return False
 
 
 def _lock_directory() -> Path:

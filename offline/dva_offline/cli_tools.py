@@ -42,14 +42,16 @@ def not_with(args, why: str, *options: str) -> None:
 @contextlib.contextmanager
 def outputs_held(args) -> Iterator[None]:
     """Hold every output the command's arguments name (:data:`OUTPUT_OPTIONS`) for the
-    command's run: a second ``dva`` run into one of them meanwhile is refused in one line
-    before it does anything (:func:`aero_dva.atomic_io.output_lock`)."""
-    from aero_dva.atomic_io import output_lock
+    command's run: a second ``dva`` run into one of them meanwhile, or an output that could
+    not be written (a read-only folder, a file in its path), is refused in one line before it
+    does anything (:func:`aero_dva.atomic_io.output_lock`, ``check_writable``)."""
+    from aero_dva.atomic_io import check_writable, output_lock
 
     with contextlib.ExitStack() as stack:
         for attribute, option in OUTPUT_OPTIONS.items():
             value = getattr(args, attribute, None)
             if isinstance(value, str) and value:
+                check_writable(value, option)  # refused now, not after the work
                 stack.enter_context(output_lock(Path(value), option))
         yield
 

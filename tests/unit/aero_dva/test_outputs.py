@@ -3,6 +3,7 @@ exactly one gets it; a default name moves on; a held output refuses a second run
 from __future__ import annotations
 
 import multiprocessing
+import os
 import subprocess
 import sys
 import textwrap
@@ -11,6 +12,8 @@ import pytest
 
 from aero_dva.atomic_io import (
     OutputBusyError,
+    atomic_output,
+    check_writable,
     new_directory,
     output_lock,
     unique_directory,
@@ -102,3 +105,26 @@ def test_two_bag_writers_never_share_one_bag_directory(tmp_path):
         # is refused when it creates the file, never mixed in
         with pytest.raises(FileExistsError, match="another writer has this bag"):
             open_new_bag_file(first.mcap_path)
+
+
+def test_an_output_that_could_not_be_written_is_refused_before_any_work(tmp_path):
+    (tmp_path / "a_file").write_text("")
+    with pytest.raises(NotADirectoryError, match="'.*a_file' is not a directory"):
+        check_writable(tmp_path / "a_file" / "sub" / "out.json", "--out")
+    check_writable(tmp_path / "new" / "deeper" / "out.json")  # folders still to be made: fine
+    if os.geteuid() != 0:  # (root writes anywhere a read-only file system allows)
+        locked = tmp_path / "locked"
+        locked.mkdir(mode=0o500)
+        with pytest.raises(PermissionError, match="no permission to write in"):
+            check_writable(locked / "out.json", "--out")
+
+
+def test_a_file_output_gets_its_folder_and_a_failure_names_the_output(tmp_path):
+    target = tmp_path / "made" / "for" / "it.json"
+    with atomic_output(target) as stream:
+        stream.write("{}")
+    assert target.read_text() == "{}"
+    (tmp_path / "a_file").write_text("")
+    with pytest.raises(OSError) as raised, atomic_output(tmp_path / "a_file" / "x.json"):
+        pass
+    assert raised.value.filename == str(tmp_path / "a_file" / "x.json")  # not a temporary name

@@ -73,6 +73,15 @@ def test_a_second_run_into_an_output_being_written_is_refused(command, tmp_path)
     assert not out.exists()  # refused before any work
 
 
+def test_an_output_that_cannot_be_written_is_refused_before_any_work(tmp_path):
+    (tmp_path / "a_file").write_text("")
+    result = _dva("control", "schedule", "--out", tmp_path / "a_file" / "schedule.json")
+    assert result.returncode == exits.BAD_INPUT, result.stderr
+    (line,) = result.stderr.strip().splitlines()  # no progress bar: nothing was computed
+    assert line == (f"dva control: error: --out '{tmp_path / 'a_file' / 'schedule.json'}' "
+                    f"cannot be made: '{tmp_path / 'a_file'}' is not a directory"), line
+
+
 def test_sigterm_stops_a_command_like_sigint_in_one_line(tmp_path):
     """``dva evaluate`` says a line as soon as it starts making its inputs; a SIGTERM then
     stops it with exit code 130 and one line, as Ctrl-C would."""
