@@ -14,7 +14,8 @@ stamp="$(date -u +%Y%m%dT%H%M%SZ)"
 mkdir -p runs
 schedule="$(mktemp "runs/schedule_${stamp}_XXXXXX" --suffix .json)"
 echo "[main] fitting the airspeed schedule (eq. 7.1) for the chapter-6 wing" >&2
-dva control schedule --out "$schedule" 2>/dev/null | sed 's/^/[main]   /' >&2
+# (its progress bar off; an error of it still says its one line, and its code ends the job)
+TQDM_DISABLE=1 dva control schedule --out "$schedule" 2>&1 | sed 's/^/[main]   /' >&2
 name=(--name main)
 for arg in "$@"; do [[ "$arg" == --output || "$arg" == --output=* ]] && name=(); done
 echo "[main] flying the ramp through the node graph" >&2
