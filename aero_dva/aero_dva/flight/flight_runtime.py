@@ -351,9 +351,8 @@ class FlightRuntime:
         can run, its compiled loop (numba's import and its cached code, about a second of CPU
         that would otherwise fall between two blocks when a law is first armed) and its sensor
         noise's scale (scipy's Lyapunov solver). A throwaway copy of the law flies one sample;
-        the flight's own starts afresh."""
-        from aero_dva.flight.per_sample.stream import SwitchedStream
-
+        the flight's own starts afresh. A flight no per-sample law can run in loads neither
+        (numba and scipy are imported only for a law that can run)."""
         if isinstance(self._sim, StreamingSimulator) and self._sim.compiled:
             t = sample_times(self.scenario, 0, 1)
             self._sim.prepare(float(airspeed_at(self.scenario, t)[0]),
@@ -363,6 +362,8 @@ class FlightRuntime:
         for source in self.config.per_sample:
             if self._sweep or self.law_problem(source) is not None:
                 continue
+            from aero_dva.flight.per_sample.stream import SwitchedStream
+
             law = SwitchedStream(self._sim.model, self.config.per_sample[source].law,
                                  self.sample_rate, self.config.damper.time_constant,
                                  quantum=FLIGHT_QUANTUM)

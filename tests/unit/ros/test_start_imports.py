@@ -1,5 +1,5 @@
 """What starting each executable imports (structural checks, not timings; the times are
-bench/bench_graph.py's, docs/performance.md): ``--help`` answers from the node's table before
+bench/bench_graph_speed.py's, docs/performance.md): ``--help`` answers from the node's table before
 ROS, numpy or the node's module are imported, and a node module imports neither scipy nor
 numba, which only a configuration that asks for them loads (the flutter search's U_cr is kept
 on disk, the compiled loops load for ``stepping:=compiled`` or a per-sample law)."""
@@ -46,3 +46,19 @@ def test_a_node_module_imports_neither_scipy_nor_numba(module):
     imported = _modules(f"import {module}")
     assert "rclpy" in imported  # (the check imports what a node imports)
     assert not imported & {"scipy", "numba"}
+
+
+def test_the_simulators_set_up_of_a_flight_without_per_sample_laws_loads_neither():
+    # The simulator's runtime as its node builds it for a schedule flight: every per-sample law
+    # without a gains file (the law cannot run), then prepare() before the flight and a block.
+    code = ("from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config\n"
+            "from aero_dva.control.switching_io import with_per_sample\n"
+            "from aero_dva_sim.simulator_spec import PER_SAMPLE_FILES\n"
+            "config = load_runtime_config({})\n"
+            "for entry, option in PER_SAMPLE_FILES:\n"
+            "    config = with_per_sample(config, entry.source, '', '')\n"
+            "runtime = FlightRuntime(config)\n"
+            "runtime.prepare()\n"
+            "runtime.step()\n")
+    imported = _modules(code)
+    assert "numpy" in imported and not imported & {"scipy", "numba"}
