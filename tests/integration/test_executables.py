@@ -109,6 +109,11 @@ def test_run_flight_flies_the_graph_and_leaves_a_readable_bag(tmp_path):
     assert summary["duration"] == pytest.approx(4.0)
     assert 500.0 <= summary["mean_damping"] <= 600.0  # the wing file's c2 until the first command
     assert all(code == 0 for code in summary["exit_codes"].values()), summary["exit_codes"]
+    phases = summary["phase_wall_times"]  # where run_flight's wall time went
+    assert phases["flight"] == summary["flight_wall_time"]
+    assert all(phases[k] > 0 for k in ("start", "flight", "stop"))
+    assert phases["start"] + phases["flight"] + phases["stop"] == pytest.approx(
+        summary["wall_time"])
     log = load_flight_log(bag)
     assert log.missing_samples == 0 and log.time.size == 4000
     assert log.applied_damping[-1] == 600.0

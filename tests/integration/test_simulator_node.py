@@ -103,6 +103,8 @@ def test_each_stepping_flies_the_runtime_s_flight_and_reports_its_time(
     report = sim._summary()
     assert report["stepping_wall_s"] > 0 and report["publishing_wall_s"] > 0
     assert report["stepping_wall_s"] + report["publishing_wall_s"] <= report["wall_time_s"]
+    assert 0 < report["stepping_cpu_s"] <= report["process_cpu_s"]
+    assert 0 < report["publishing_cpu_s"] <= report["process_cpu_s"]
 
 
 def test_bad_commands_are_rejected_never_applied(executor, spin, ros_context, tmp_path):

@@ -73,6 +73,7 @@ class McapRecorder(Node):
         # a default name another recorder took in the same second moves on to <name>_2, ...
         self.output = Path(values["output"]) if values["output"] else \
             unique_directory(Path(f"bags/run_{stamp}"), "bag")
+        self._expect_report = bool(values["expect_flight_report"])
         self._writer = BagWriter(self.output)
         self._recorded: dict[str, object] = {}
         self._skipped: set[str] = set()
@@ -175,9 +176,10 @@ class McapRecorder(Node):
     def complete(self) -> bool | None:
         """Whether every message the simulator's flight report counts (published, or received:
         the commands) is in the bag or known lost (its reader's lost-sample events; it cannot
-        come any more), None before such a report has come."""
+        come any more), None before such a report has come (False with
+        ``expect_flight_report``: the report itself is still to come)."""
         if self.simulator_counted is None:
-            return None
+            return False if self._expect_report else None
         return all(self.received_by_topic[t] + self.lost_by_topic[t] >= n
                    for t, n in self.simulator_counted.items())
 

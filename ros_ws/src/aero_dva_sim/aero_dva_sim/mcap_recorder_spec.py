@@ -22,6 +22,11 @@ SPEC = NodeSpec(
         Param("exclude", [""], "never record these topics"),
         Param("discovery_period", 0.1, "wall time between looks for new topics", "s",
               1.0e-3, 60.0),
+        Param("expect_flight_report", False, "on SIGINT/SIGTERM, take queued messages until "
+              "the simulator's end-of-flight report has come too (at most 5 s), not only until "
+              "none has come for 50 ms: a recorder starved of CPU can hold the flight's last "
+              "block and report unread when it is stopped (run_flight sets it: its simulator "
+              "always sends one)"),
         Param("flush_period", 1.0, "wall time between flushes of the MCAP chunk (bounds what a "
               "crash can lose)", "s", 1.0e-3, 3600.0),
     ),

@@ -85,7 +85,7 @@ def build_commands(args, bag: Path) -> dict[str, list[str]]:
     sim_time = {"use_sim_time": True}
     commands = {
         RECORDER: [executable("aero_dva_sim", "mcap_recorder"), "--ros-args",
-                          *ros_params(output=bag, **sim_time)],
+                          *ros_params(output=bag, expect_flight_report=True, **sim_time)],
     }
     # Commands are held until the simulator and the recorder have both matched them.
     commands.update(controller_commands(args, command_readers=2, **sim_time))
@@ -296,9 +296,11 @@ def run(args) -> dict:
         _wait_for_flight(processes, args.timeout, logs)
         ended = True
     finally:
+        flown = time.monotonic()
         codes = stop_graph(processes)
         mark_unfinished(bag, ended, codes.get("simulator"), *sys.exc_info()[:2])
-    wall = time.monotonic() - started
+    stopped = time.monotonic()
+    wall = stopped - started
     if codes.get("simulator") not in (0, None):
         raise node_failure("simulator", codes["simulator"], logs / "simulator.log",
                            "before the flight ended")
@@ -309,9 +311,16 @@ def run(args) -> dict:
     summary = summarize(log).to_dict()
     final = next((d["values"] for d in reversed(log.diagnostics)
                   if d["name"] == "simulator: flight" and "wall_time_s" in d["values"]), {})
+    flight_wall = float(final.get("wall_time_s", "nan"))
     summary.update(controller=args.controller, bag=str(bag), node_logs=str(logs),
                    wall_time=wall, exit_codes=codes,
-                   flight_wall_time=float(final.get("wall_time_s", "nan")),
+                   flight_wall_time=flight_wall,
+                   # [s] wall time of each phase: the nodes' start up to the flight's (the
+                   # simulator's end-of-flight report and exit included), stopping the graph
+                   # once the simulator had exited, reading the bag back into this summary
+                   phase_wall_times={k: None if math.isnan(v) else v for k, v in {
+                       "start": flown - started - flight_wall, "flight": flight_wall,
+                       "stop": stopped - flown, "summary": time.monotonic() - stopped}.items()},
                    command_latency_median=float(final.get("command_latency_median_s", "nan")))
     summary.update(applied_control(args, final, bag))
     return {k: (None if isinstance(v, float) and math.isnan(v) else v)

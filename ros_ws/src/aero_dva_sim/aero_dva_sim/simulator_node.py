@@ -5,9 +5,13 @@ StreamingSimulator`; with ``stepping:=compiled`` by its compiled loop, loaded be
 starts), publishes it, and advances ``/clock``; the rest of the graph runs on that sim time
 (``use_sim_time:=true``). Its end-of-flight report says where the flight's wall time went:
 ``stepping_wall_s`` (the arithmetic), ``publishing_wall_s`` (building and sending the blocks) and
-``held_wall_s`` (held for the controller's command). The damper applies the latest accepted
-``dva/damper_command`` through :class:`~aero_dva.flight.damper.DamperModel` (range, lag, stale
-fallback, rejection of absurd commands). A command from the source of a per-sample law of the
+``held_wall_s`` (held for the controller's command), and the CPU time of the first two
+(``stepping_cpu_s``, ``publishing_cpu_s``; the rest of their wall time the thread waited) and of
+the process (``process_cpu_s``); before the flight, the wall time from the process's start to the
+end of its set-up (``node_start_wall_s``) and from there to the flight's start
+(``graph_wait_wall_s``: the rest of the graph starting and matching). The damper applies the latest
+accepted ``dva/damper_command`` through :class:`~aero_dva.flight.damper.DamperModel` (range, lag,
+stale fallback, rejection of absurd commands). A command from the source of a per-sample law of the
 controller table (``"switching"``, ``"clipped_optimal"``) arms that law in the damper path (gains
 from its file, ``switching_gains``, ``clipped_optimal_gains``, checked on load): every sample of
 the block then runs the law (:mod:`aero_dva.flight.per_sample.stream`), its observer reading the
@@ -30,11 +34,13 @@ with the number rejected since the last one (all are counted in the end-of-fligh
 from __future__ import annotations
 
 import math
+import os
 import sys
 import time
 
 import numpy as np
 from rclpy.clock import Clock, ClockType
+from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.task import Future
 
@@ -63,6 +69,10 @@ REJECTION_REPORT_PERIOD = 1.0
 # [s] wall time between two looks at the publishers of dva/damper_command (a graph query per
 # command of a 10 kHz burst would cost more than the command)
 GRAPH_PERIOD = 0.05
+# [s] wall time the ended flight waits at most for its readers to acknowledge what it sent
+# (the last block and the end-of-flight report) before the node exits: a reader starved of CPU
+# cannot have them sent again by a writer that is gone
+ACK_TIMEOUT = 5.0
 #: The per-block topics besides /clock (published in the order of :meth:`Simulator._publish`).
 DATA_CHANNELS = tuple(c for c in ch.SIMULATOR_BLOCK if c != ch.CLOCK)
 DATA_TOPICS = tuple(c.name for c in DATA_CHANNELS)
@@ -146,6 +156,11 @@ class Simulator(Node):
         # [s] wall time of the flight in the simulator's arithmetic, in building and sending
         # its messages, and held for the controller (in lockstep: the command's round trip)
         self.timing = {"stepping": 0.0, "publishing": 0.0, "held": 0.0}
+        # [s] CPU time of this thread in the first two (the rest of the wall time it waited for
+        # the CPU, or for DDS), and of the whole process over the flight
+        self.cpu = {"stepping": 0.0, "publishing": 0.0}
+        self._cpu_started: float | None = None
+        self.start_timing: dict[str, float] = {}  # node_start, graph_wait (below)
         self._held_since: float | None = None
         self.switching_blocks = 0  # blocks flown with a per-sample law
         self._switching_rates: list[float] = []
@@ -166,6 +181,10 @@ class Simulator(Node):
             f"{info['sample_rate_hz']:g} Hz, U {info['airspeed_min']:.2f}-"
             f"{info['airspeed_max']:.2f} m/s (U_cr without DVA {info['critical_airspeed']:.2f} "
             f"m/s), absorber {info['absorber']}, real-time factor {self._rtf:g}")
+        # [s] wall time from the process's start to here (its imports and this set-up), and
+        # from here to the flight's start (the rest of the graph starting and matching)
+        self._initialised = time.monotonic()
+        self.start_timing["node_start"] = process_age()
 
     # ------------------------------------------------------------------ parameters
     def _declare_parameters(self) -> dict:
@@ -323,6 +342,8 @@ class Simulator(Node):
             if not self._ready():
                 return
             self._started_wall = time.monotonic()
+            self._cpu_started = time.process_time()
+            self.start_timing["graph_wait"] = self._started_wall - self._initialised
         began = time.monotonic()
         while True:
             if self._waiting_for_controller():
@@ -335,15 +356,17 @@ class Simulator(Node):
             if self._sim_time_due() < self.runtime.time - 0.5 * self.runtime.block_duration:
                 self._set_stepping(True)  # a paced flight ahead of schedule waits for a tick
                 return
-            stepped = time.perf_counter()
+            stepped, stepped_cpu = time.perf_counter(), time.thread_time()
             if self._held_since is not None:
                 self.timing["held"] += stepped - self._held_since
                 self._held_since = None
             block = self.runtime.step()
-            published = time.perf_counter()
+            published, published_cpu = time.perf_counter(), time.thread_time()
             self._publish(block)
             self.timing["stepping"] += published - stepped
             self.timing["publishing"] += time.perf_counter() - published
+            self.cpu["stepping"] += published_cpu - stepped_cpu
+            self.cpu["publishing"] += time.thread_time() - published_cpu
             self._check_damper_status()
             if block.diverged:
                 self._end("diverged", "error", stop_message(
@@ -361,7 +384,10 @@ class Simulator(Node):
                 break
         # As fast as possible the flight mostly has to wait for the controller right away:
         # pause now rather than on the next tick. A paced flight waits for its tick.
-        self._set_stepping(self._rtf > 0 or not self._waiting_for_controller())
+        waiting = self._waiting_for_controller()
+        if waiting and self._held_since is None:
+            self._held_since = time.perf_counter()  # held from now until the command comes
+        self._set_stepping(self._rtf > 0 or not waiting)
 
     def _sim_time_due(self) -> float:
         """[s] sim time the flight should have reached by now (inf when not paced)."""
@@ -440,6 +466,10 @@ class Simulator(Node):
                   self.lag_timeouts,
                   "real_time_factor": sim / wall if wall > 0 else math.inf,
                   **{f"{phase}_wall_s": t for phase, t in self.timing.items()},
+                  **{f"{phase}_cpu_s": t for phase, t in self.cpu.items()},
+                  **{f"{phase}_wall_s": t for phase, t in self.start_timing.items()},
+                  "process_cpu_s": time.process_time() - (self._cpu_started
+                                                          or time.process_time()),
                   "critical_airspeed_no_dva": self.runtime.critical_airspeed,
                   "block_duration_s": self.runtime.block_duration,
                   "commands_received": self.commands_received,
@@ -496,7 +526,20 @@ class Simulator(Node):
         self._timer.cancel()
         self._poll.cancel()
         if not self.finished.done():
+            self._linger()
             self.finished.set_result(outcome)
+
+    def _linger(self) -> None:
+        """Let every reliable reader acknowledge what the flight sent (``ACK_TIMEOUT`` in all):
+        a loaded recorder (a batch task) had taken 199 of 200 blocks and no report when the
+        simulator exited, and those were then lost for good (docs/reliability.md)."""
+        deadline = time.monotonic() + ACK_TIMEOUT
+        for publisher in [*self._pub.values(), self._clock_pub, self._diag_pub]:
+            left = deadline - time.monotonic()
+            if left <= 0 or not publisher.wait_for_all_acked(Duration(seconds=left)):
+                self.get_logger().warning(f"not every reader acknowledged the flight's last "
+                                          f"messages within {ACK_TIMEOUT:g} s")
+                return
 
 
 class Commanders:
@@ -594,6 +637,16 @@ class Commanders:
                                              sorted(self.foreign_sources.items())),
                 "foreign_nodes": ", ".join(f"{k} ({n})" for k, n in
                                            sorted(self.foreign_nodes.items()))}
+
+
+def process_age() -> float:
+    """[s] wall time since this process started (Linux; NaN elsewhere)."""
+    try:
+        with open("/proc/self/stat") as stat:
+            ticks = int(stat.read().rpartition(")")[2].split()[19])  # field 22, starttime
+        return time.clock_gettime(time.CLOCK_BOOTTIME) - ticks / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError, AttributeError):
+        return math.nan
 
 
 def topic_count(entry: str) -> tuple[str, int]:
