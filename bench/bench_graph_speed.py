@@ -84,18 +84,24 @@ def node_start(repeats: int) -> dict:
     return {name: min(t) for name, t in times.items()}
 
 
-def baseline_runtime() -> tuple[float, float, int]:
-    """(sim s, wall s, blocks) of the ramp flight through the flight runtime alone."""
+def baseline_runtime(repeats: int = 3) -> tuple[float, float, int]:
+    """(sim s, wall s, blocks) of the ramp flight through the flight runtime alone, each a
+    new runtime as the simulator's is (the least wall time of ``repeats``)."""
     from aero_dva.flight.flight_runtime import FlightRuntime, load_runtime_config
 
-    runtime = FlightRuntime(load_runtime_config({}))
-    blocks = 0
-    started = time.perf_counter()
-    while not runtime.done:
-        blocks += 1
-        if runtime.step().diverged:
-            break
-    return runtime.time, time.perf_counter() - started, blocks
+    best = None
+    for _ in range(repeats):
+        runtime = FlightRuntime(load_runtime_config({}))
+        blocks = 0
+        started = time.perf_counter()
+        while not runtime.done:
+            blocks += 1
+            if runtime.step().diverged:
+                break
+        wall = time.perf_counter() - started
+        if best is None or wall < best[1]:
+            best = (runtime.time, wall, blocks)
+    return best
 
 
 def schedule_file(directory: Path) -> Path:
@@ -352,7 +358,7 @@ def main() -> int:
         print(f"\nflight (30 s lockstep schedule flight): {idle['duration']:.2f} s sim in "
               f"{idle['flight_wall_time']:.3f} s wall = {factor:.1f}x real time "
               f"(target >= 50x: {'met' if factor >= 50 else 'NOT met'}); baseline, the flight "
-              f"runtime alone here: {sim_s:.2f} s in {runtime_wall:.3f} s = "
+              f"runtime alone here (best of 3): {sim_s:.2f} s in {runtime_wall:.3f} s = "
               f"{sim_s / runtime_wall:.0f}x")
         print(f"run_flight start to summary: {idle['command_wall_time']:.2f} s wall (target "
               f"<= 3 s: {'met' if idle['command_wall_time'] <= 3 else 'NOT met'}); inside "
