@@ -167,6 +167,12 @@ def test_jointed_beam_at_force_levels_is_an_amplitude_dependence(capsys):
                    for c in out["candidates"])
     ref = out["saturated_reference"]
     assert ref["used"] and out["final"]["error"] <= 1.5 * ref["error"]
+    # the force swings within each sweep by as much as levels 3 and 4 differ; their difference
+    # is the moved resonance, no noise: no replicates, the noise floor is the data's own
+    est = out["noise_estimates"]
+    assert est["replicate_sets"] == [] and est["replicates"] is None
+    assert any("difference is no noise" in n for n in est["notes"])
+    assert out["noise_floor"]["sigma"] < 0.2 * ref["error"]
 
 
 def test_repeated_hits_on_a_linear_structure_name_no_effect(capsys):
