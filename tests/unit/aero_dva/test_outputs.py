@@ -2,11 +2,11 @@
 exactly one gets it; a default name moves on; a held output refuses a second run."""
 from __future__ import annotations
 
-import multiprocessing
 import os
 import subprocess
 import sys
 import textwrap
+import time
 
 import pytest
 
@@ -22,19 +22,51 @@ from aero_dva.bag.writer import BagWriter, open_new_bag_file
 
 N = 8  # processes racing for one name
 
+#: One racer: a fresh interpreter (a fork of this test process could inherit the locks of
+#: threads other tests left running, e.g. Ray's or rerun's, and hang), ready when it has
+#: imported, claiming when the go file appears, printing what it got.
+RACER = textwrap.dedent("""
+    import os, sys, time
+    from pathlib import Path
+    from aero_dva.atomic_io import new_directory, unique_directory
+    mode, target, ready, go = sys.argv[1:]
+    Path(ready).touch()
+    while not os.path.exists(go):
+        time.sleep(0.001)
+    if mode == "default":
+        print(unique_directory(Path(target), siblings=("_logs",)))
+    else:
+        try:
+            new_directory(Path(target), "--output", siblings=("_logs",))
+            print("created")
+        except FileExistsError as exc:
+            print(f"refused: {exc}")
+""")
 
-def _claim_default(args) -> str:
-    stem, barrier = args
-    barrier.wait()  # all start their claim together
-    return str(unique_directory(stem, siblings=("_logs",)))
+
+def _race(mode: str, target, tmp_path) -> list[str]:
+    """What each of N racers for ``target`` got, all let go at once once all have started."""
+    go = tmp_path / "go"
+    ready = [tmp_path / f"ready_{i}" for i in range(N)]
+    racers = [subprocess.Popen([sys.executable, "-c", RACER, mode, str(target), str(r), str(go)],
+                               stdout=subprocess.PIPE, text=True) for r in ready]
+    try:
+        while not all(r.exists() for r in ready):  # a condition: every racer has imported
+            assert all(p.poll() is None for p in racers), "a racer ended before the start"
+            time.sleep(0.01)
+        go.touch()
+        outputs = [p.communicate(timeout=600)[0].strip() for p in racers]
+    finally:
+        for p in racers:
+            if p.poll() is None:
+                p.kill()
+    assert all(p.returncode == 0 for p in racers), outputs
+    return outputs
 
 
 def test_runs_started_together_get_distinct_default_names(tmp_path):
-    context = multiprocessing.get_context("fork")
-    barrier = context.Manager().Barrier(N)
     stem = tmp_path / "runs" / "ramp_fixed_20261128T120000Z"
-    with context.Pool(N) as pool:
-        names = pool.map(_claim_default, [(stem, barrier)] * N)
+    names = _race("default", stem, tmp_path)
     assert len(set(names)) == N
     assert sorted(names) == sorted([str(stem)] + [f"{stem}_{n}" for n in range(2, N + 1)])
     for name in names:  # each with its own logs folder, both empty
@@ -42,21 +74,8 @@ def test_runs_started_together_get_distinct_default_names(tmp_path):
         assert not any((tmp_path / "runs" / f"{name}_logs").iterdir())
 
 
-def _claim_given(args) -> str:
-    path, barrier = args
-    barrier.wait()
-    try:
-        new_directory(path, "--output", siblings=("_logs",))
-    except FileExistsError as exc:
-        return f"refused: {exc}"
-    return "created"
-
-
 def test_of_runs_given_one_name_at_once_exactly_one_gets_it(tmp_path):
-    context = multiprocessing.get_context("fork")
-    barrier = context.Manager().Barrier(N)
-    with context.Pool(N) as pool:
-        results = pool.map(_claim_given, [(tmp_path / "bag", barrier)] * N)
+    results = _race("given", tmp_path / "bag", tmp_path)
     assert results.count("created") == 1
     assert all("choose another name" in r for r in results if r != "created")
 
