@@ -96,19 +96,27 @@ def test_stamps_ahead_of_sim_time_and_long_sources_are_handled(executor, spin, r
     assert "\x1b" not in text and "\\x1b[31m" in text and len(text) < 400
 
 
+@pytest.mark.parametrize("source", ["intruder", "fixed"])
 def test_run_flight_with_a_second_commander_fails_and_says_so(executor, spin, ros_context,
-                                                              ros_domain, tmp_path):
+                                                              ros_domain, tmp_path, source):
+    """The issue's flight: a second node commands valid values beside the controller, under
+    another source or under the controller's own ("fixed"). run_flight is strict by default:
+    its c2 never reaches the damper, and the flight exits 1 saying so in its last line and in
+    its summary."""
+    from aero_dva.bag.reader import read_messages
+
     scenario = _scenario(tmp_path, "{kind: constant, value_ratio: 0.8}", duration=3.0,
                          block=50)
     intruder = Node("intruder", context=ros_context)
     publisher = intruder.create_publisher(DamperCommand, "dva/damper_command", 10)
-    intruder.create_timer(0.02, lambda: publisher.publish(_command(INTRUDER, "intruder")))
+    intruder.create_timer(0.02, lambda: publisher.publish(_command(INTRUDER, source)))
     executor.add_node(intruder)
     env = dict(os.environ, PYTHONUNBUFFERED="1")
+    bag = tmp_path / "bag"
     process = subprocess.Popen(
         [sys.executable, "-m", "aero_dva_sim.run_flight", "--scenario", scenario,
          "--controller", "fixed", "--real-time-factor", "1", "--domain-id", str(ros_domain),
-         "--output", str(tmp_path / "bag"), "--json"],
+         "--output", str(bag), "--json"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     assert spin(executor, lambda: process.poll() is not None, timeout=300.0)
     out, err = process.communicate()
@@ -118,5 +126,12 @@ def test_run_flight_with_a_second_commander_fails_and_says_so(executor, spin, ro
     # or, if its node was not yet matched, its commands (another source) are refused and the
     # flight fails on them at the end
     assert "a second commander" in last or (
-        "unexpected commander" in last and "refused" in last
-        and json.loads(out)["commands_foreign"] > 0), last
+        "unexpected commander" in last and "refused" in last), last
+    summary = json.loads(out) if out.strip() else None
+    if summary is not None:
+        assert summary["commands_foreign"] > 0 and summary["strict_commands"] is True
+        assert "unexpected commander" in summary["control_problem"]
+    applied = [m.message.applied_damping for m in read_messages(
+        bag, ["/dva/damper_state"], allow_truncated=True)]
+    # (none when the flight stopped before the recorder kept a block)
+    assert INTRUDER not in applied and all(0.0 <= c2 <= 2500.0 for c2 in applied)

@@ -368,7 +368,8 @@ def applied_control(args, final: dict, bag: Path) -> dict:
         control_problem=None if args.controller == NONE else control_problem(
             blocks, out["blocks_controlled"], out["blocks_fallback"], args.max_fallback_share))
     out.update(commanders(final))
-    problems = [p for p in (out["control_problem"], out["commander_problem"]) if p]
+    # the commander first: it explains the rest (its c2, not the controller's, flew)
+    problems = [p for p in (out["commander_problem"], out["control_problem"]) if p]
     out["control_problem"] = "; ".join(problems) or None
     return out
 

@@ -73,6 +73,8 @@ GRAPH_PERIOD = 0.05
 # (the last block and the end-of-flight report) before the node exits: a reader starved of CPU
 # cannot have them sent again by a writer that is gone
 ACK_TIMEOUT = 5.0
+#: The graph's name for a publisher whose node's name has not been discovered yet (rmw).
+UNKNOWN_NODE = "_NODE_NAME_UNKNOWN_"
 #: The per-block topics besides /clock (published in the order of :meth:`Simulator._publish`).
 DATA_CHANNELS = tuple(c for c in ch.SIMULATOR_BLOCK if c != ch.CLOCK)
 DATA_TOPICS = tuple(c.name for c in DATA_CHANNELS)
@@ -203,16 +205,18 @@ class Simulator(Node):
             self._step()
             return
         self.commands_received += 1
+        # every command is checked against the flight's commander first, so that one from
+        # another node or source is counted whatever else is wrong with it
+        if not self.commanders.admit(msg.source, self.runtime.time):
+            self._report_rejection(msg, "unexpected_commander")
+            if self.commanders.stop_reason is not None:
+                self._fail(self.commanders.stop_reason)
+            return
         stamp = time_to_seconds(msg.header.stamp)
         if stamp > self.runtime.time + self.runtime.block_duration * (1 + 1e-9):
             # a command answers an input the flight has published: one from beyond the next
             # block is a clock gone wrong or a forgery, and would skew the latencies
             self._report_rejection(msg, "stamp_ahead_of_sim_time")
-            return
-        if not self.commanders.admit(msg.source, self.runtime.time):
-            self._report_rejection(msg, "unexpected_commander")
-            if self.commanders.stop_reason is not None:
-                self._fail(self.commanders.stop_reason)
             return
         result = self.runtime.command(msg.damping, msg.source)
         if result is not None and result.accepted:
@@ -566,25 +570,32 @@ class Commanders:
         self.expected_node = None if entry is None else entry.node
         self.foreign_sources: dict[str, int] = {}
         self.foreign_nodes: dict[str, int] = {}
-        self._nodes: tuple[str, ...] = ()
+        self._nodes: tuple[str, ...] = ()  # foreign node names in the graph
+        self._listed, self._expected_listed = 0, False  # publishers in it, the expected's
         self._looked = -math.inf
         self.stop_reason: str | None = None  # strict: why the flight must stop
         self._reported: dict[str, float] = {}
 
     def _publishers(self) -> tuple[str, ...]:
         """Publishers of commands other than the expected node's: their node names from the
-        graph (cached), and "unnamed publisher" for each further publisher the command
-        subscription has matched (a message that came was matched; its node's name may
-        reach the graph later)."""
+        graph (cached), and "unnamed publisher" for each further one: a publisher the graph
+        lists before its node's name has come (DDS discovers the endpoint and the node apart)
+        or that the command subscription has matched before the graph lists it. One such
+        publisher is taken for the controller's while its name is not in the graph."""
         now = time.monotonic()
         if now - self._looked >= GRAPH_PERIOD:
             self._looked = now
             topic = self._node.resolve_topic_name(ch.DAMPER_COMMAND.name)
             names = [info.node_name for info in
                      self._node.get_publishers_info_by_topic(topic)]
-            self._nodes = tuple(sorted(n for n in names if n != self.expected_node))
-        matched = self._subscription.get_publisher_count()
-        unnamed = matched - (self.expected_node is not None) - len(self._nodes)
+            self._listed = len(names)
+            self._expected_listed = self.expected_node in names
+            self._nodes = tuple(sorted(n for n in names
+                                       if n not in (self.expected_node, UNKNOWN_NODE)))
+        listed_unknown = self._listed - len(self._nodes) - self._expected_listed
+        not_listed = self._subscription.get_publisher_count() - self._listed
+        unnamed = listed_unknown + max(not_listed, 0) - (
+            self.expected_node is not None and not self._expected_listed)
         return self._nodes + ("unnamed publisher",) * max(unnamed, 0)
 
     def admit(self, source: str, sim_time: float) -> bool:
