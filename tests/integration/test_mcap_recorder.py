@@ -197,3 +197,25 @@ def test_a_stopped_recorder_takes_what_the_simulator_counted(
     else:
         assert f"; all {sent} its flight report counts" in closing, closing
     assert bag_topics(bag)["/flight/condition"].message_count == sent
+
+
+def test_a_message_past_max_message_bytes_is_counted_not_recorded(executor, spin, ros_context,
+                                                                  start_process, tmp_path):
+    """A command whose source is 2 MB (a hostile publisher) is not written into the bag: the
+    recorder says so and the bag stays readable; the commands around it are recorded."""
+    bag = tmp_path / "bag"
+    node = Node("source", context=ros_context)
+    executor.add_node(node)
+    commands = node.create_publisher(DamperCommand, "dva/damper_command", 10)
+    recorder = _start_recorder(start_process, bag)
+    assert _wait_subscribed(executor, spin, commands), recorder.output()
+    commands.publish(DamperCommand(damping=1.0, source="test"))
+    commands.publish(DamperCommand(damping=2.0, source="\x1b[31m" + "x" * 2_000_000))
+    commands.publish(DamperCommand(damping=3.0, source="test"))
+    assert commands.wait_for_all_acked(Duration(seconds=120))
+    assert recorder.stop() == 0, recorder.output()
+    kept = [m.message.damping for m in read_messages(bag, ["/dva/damper_command"])]
+    assert kept == [1.0, 3.0]
+    output = recorder.output()
+    assert "not recorded (more than max_message_bytes 1,048,576" in output, output
+    assert "1 too large, not recorded" in output, output

@@ -41,6 +41,7 @@ from aero_dva.flight.flight_limits import (  # their home: said once, re-exporte
     MAX_DAMPING,
     SWITCHING_SOURCE,
 )
+from aero_dva.text_input import loggable
 
 __all__ = [
     "DAMPER_RANGE",
@@ -404,7 +405,9 @@ class DamperModel:
         clipped = min(max(value, self.config.min_damping), self.config.max_damping)
         self._accepted_time = self._time
         self._accepted_value = clipped
-        self._accepted_source = source
+        # echoed in every damper state from here on: outside text, escaped and cut (a 10 MB
+        # source would otherwise fill each state, and the bag, with it)
+        self._accepted_source = loggable(source)
         self._accepted_saturated = clipped != value
         if self.config.time_constant == 0.0:
             self._applied = clipped

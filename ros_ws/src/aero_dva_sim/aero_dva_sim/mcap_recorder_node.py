@@ -16,6 +16,7 @@ Its parameters (units, defaults, ranges) are the table ``SPEC`` of
 """
 from __future__ import annotations
 
+import math
 import sys
 import time
 from collections import Counter
@@ -83,6 +84,9 @@ class McapRecorder(Node):
         # topic -> messages the simulator published (or received: the commands), from its last
         # flight report (None: none)
         self.simulator_counted: dict[str, int] | None = None
+        self._max_bytes = int(values["max_message_bytes"])
+        self._oversized: Counter[str] = Counter()  # messages too large to record, by topic
+        self._oversized_said: dict[str, float] = {}
         self._diagnostics = self.resolve_topic_name(ch.DIAGNOSTICS.name)
         self._diagnostic_type = message_class(ch.DIAGNOSTICS.type_name)
         try:
@@ -154,6 +158,16 @@ class McapRecorder(Node):
         self.get_logger().warning(f"not recording {topic}: {why}")
 
     def _record(self, topic: str, data: bytes) -> None:
+        if len(data) > self._max_bytes:
+            self._oversized[topic] += 1
+            wall = time.monotonic()
+            if wall - self._oversized_said.get(topic, -math.inf) >= 1.0:
+                self._oversized_said[topic] = wall
+                self.get_logger().warning(
+                    f"{loggable(topic)}: a message of {len(data):,} bytes not recorded (more "
+                    f"than max_message_bytes {self._max_bytes:,}; {self._oversized[topic]} "
+                    "on this topic)")
+            return
         self._writer.write(topic, data, self.get_clock().now().nanoseconds)
         self.received += 1
         self.received_by_topic[topic] += 1
@@ -208,6 +222,9 @@ class McapRecorder(Node):
             # After a signal the context is shut down and /rosout is gone: say it on stderr.
             lost = sum(self.lost_by_topic.values())
             said = f" ({lost} lost before reaching it: {dict(self.lost_by_topic)})" if lost else ""
+            if self._oversized:
+                said += (f" ({sum(self._oversized.values())} too large, not recorded: "
+                         f"{loggable(dict(self._oversized), 300)})")
             print(f"[mcap_recorder] closed {self.output} with {self.received} messages{said}"
                   f"{self._completeness()}", file=sys.stderr)
 

@@ -29,6 +29,10 @@ SPEC = NodeSpec(
               "always sends one)"),
         Param("flush_period", 1.0, "wall time between flushes of the MCAP chunk (bounds what a "
               "crash can lose)", "s", 1.0e-3, 3600.0),
+        Param("max_message_bytes", 2**20, "larger messages are not recorded (counted and "
+              "said once a second per topic): a message that large is none of the project's "
+              "(a block of 20,000 samples is 480 KiB) and would make chunks past what the "
+              "readers hold", "bytes", 1024, 8 * 2**20),
     ),
     topics="subscribes every matching topic (raw CDR); writes <output>/<name>_0.mcap and "
            "metadata.yaml",

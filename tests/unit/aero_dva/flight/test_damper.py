@@ -166,3 +166,13 @@ def test_rejected_commands_do_not_keep_the_damper_from_falling_back():
         model.command(math.nan, 0.01 * k)
     assert model.applied_damping == 500.0
     assert model.snapshot().status == DamperStatus.FALLBACK_STALE
+
+
+def test_a_hostile_source_is_echoed_escaped_and_cut():
+    """Every damper state carries the source in force: a 10 MB source with escape codes
+    reaches the states (and the bag) escaped and cut, not whole."""
+    damper = DamperModel(config())
+    assert damper.command(500.0, 0.0, source="\x1b[31m\n" + "x" * 10_000_000).accepted
+    source = damper.snapshot().source
+    assert source.startswith("\\x1b[31m\\n") and len(source) < 200
+    assert "\x1b" not in source and "\n" not in source
