@@ -75,7 +75,9 @@ def os_error_code(exc: OSError) -> int:
     anything else (no space left, an I/O error) fails the run."""
     bad_path = (FileExistsError, PermissionError, NotADirectoryError, IsADirectoryError,
                 FileNotFoundError)
-    return BAD_INPUT if isinstance(exc, bad_path) or exc.errno == errno.EROFS else FAILED
+    # a read-only file system, a path too long for it, a loop of links: the path is wrong
+    bad_errno = (errno.EROFS, errno.ENAMETOOLONG, errno.ELOOP)
+    return BAD_INPUT if isinstance(exc, bad_path) or exc.errno in bad_errno else FAILED
 
 
 def os_error_line(exc: OSError) -> str:

@@ -9,23 +9,38 @@ from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
 import warnings
 
-from aero_dva import exits
-from dva_offline import __version__, info
-from dva_offline.bag import cli as bag_cli
-from dva_offline.cli_failures import internal_error_line, is_input_error
-from dva_offline.cli_tools import CliError, exit_code_in_json, outputs_held
-from dva_offline.control import cli as control_cli
-from dva_offline.discrepancy import cli as discrepancy_cli
-from dva_offline.evaluation import cli as evaluation_cli
-from dva_offline.isolator import cli as isolator_cli
-from dva_offline.replay import cli as replay_cli
-from dva_offline.report import cli as report_cli
-from dva_offline.switching import cli as switching_cli
-from dva_offline.training import cli as training_cli
-from dva_offline.wing import cli as wing_cli
+
+def _stopped_while_loading(signum, frame) -> None:
+    """SIGINT or SIGTERM before the command has begun (imports, the parser): nothing was
+    started, so nothing is left; one line, exit 130, as later (no traceback from an import,
+    no silent 143)."""
+    os.write(2, b"dva: interrupted\n")
+    os._exit(130)
+
+
+if __name__ == "__main__" or os.path.basename(sys.argv[0]) == "dva":  # the program itself
+    for _signal in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(_signal, _stopped_while_loading)
+
+from aero_dva import exits  # noqa: E402
+from aero_dva.text_input import loggable  # noqa: E402
+from dva_offline import __version__, info  # noqa: E402
+from dva_offline.bag import cli as bag_cli  # noqa: E402
+from dva_offline.cli_failures import internal_error_line, is_input_error  # noqa: E402
+from dva_offline.cli_tools import CliError, exit_code_in_json, outputs_held  # noqa: E402
+from dva_offline.control import cli as control_cli  # noqa: E402
+from dva_offline.discrepancy import cli as discrepancy_cli  # noqa: E402
+from dva_offline.evaluation import cli as evaluation_cli  # noqa: E402
+from dva_offline.isolator import cli as isolator_cli  # noqa: E402
+from dva_offline.replay import cli as replay_cli  # noqa: E402
+from dva_offline.report import cli as report_cli  # noqa: E402
+from dva_offline.switching import cli as switching_cli  # noqa: E402
+from dva_offline.training import cli as training_cli  # noqa: E402
+from dva_offline.wing import cli as wing_cli  # noqa: E402
 
 __all__ = ["CLOSED_PIPE_EXIT", "COMMANDS", "CliError", "build_parser", "main"]
 
@@ -90,6 +105,10 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return exits.BAD_INPUT
+    if argv is None and signal.getsignal(signal.SIGTERM) is _stopped_while_loading:
+        # loaded: from here on the command's own handling of signals (exits)
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
     result: dict = {}
     try:
         with exit_code_in_json(args, result):
@@ -143,7 +162,14 @@ def _run(args, result: dict) -> int:
     return code
 
 
+#: Most characters of an error's line said (the rest is counted, not printed).
+ERROR_CHARS = 1000
+
+
 def _said(args, result: dict, line: str, code: int) -> int:
+    # one line whatever the input put in the message (a name with a newline or an escape
+    # code, a huge value): control characters escaped, the length bounded
+    line = loggable(line, ERROR_CHARS)
     print(f"dva {args.command}: {line}", file=sys.stderr)
     result["error"] = line.removeprefix("error: ")
     return code
@@ -160,7 +186,7 @@ def _closed_pipe() -> int:
 
 def _say_warnings(command: str, caught: list) -> None:
     for text in dict.fromkeys(str(w.message) for w in caught):
-        print(f"dva {command}: warning: {text}", file=sys.stderr)
+        print(f"dva {command}: warning: {loggable(text, ERROR_CHARS)}", file=sys.stderr)
 
 
 if __name__ == "__main__":

@@ -9,6 +9,7 @@ scipy, an unpacking error, an IndexError, an OverflowError) is the tools' own fa
 """
 from __future__ import annotations
 
+import errno
 import linecache
 import os
 from pathlib import Path
@@ -20,6 +21,8 @@ _PROJECT_PACKAGES = ("aero_dva", "dva_offline", "aero_dva_sim", "aero_dva_contro
 _CONVERSIONS = ("could not convert", "invalid literal for")
 _ALWAYS_INPUT = (FileNotFoundError, FileExistsError, NotADirectoryError, IsADirectoryError,
                  PermissionError)
+#: OSErrors that say a path the user gave cannot be one (too long, a loop of links)
+_PATH_ERRNOS = (errno.ENAMETOOLONG, errno.ELOOP)
 
 
 def _in_project(filename: str) -> bool:
@@ -40,6 +43,8 @@ def is_input_error(exc: BaseException, input_types: tuple = ()) -> bool:
     """Whether ``exc`` reports a bad input (see the module docstring); ``input_types`` are
     further types that always do (the CLI's own error type)."""
     if isinstance(exc, (*input_types, *_ALWAYS_INPUT)):
+        return True
+    if isinstance(exc, OSError) and exc.errno in _PATH_ERRNOS:
         return True
     if not isinstance(exc, (ValueError, TypeError)):
         return False

@@ -322,8 +322,10 @@ def _paired(args) -> int:
             "results": [_row_json(r) for r in rows], "boundaries": boundaries,
             "law_pairs": law_pairs(records, per_sample, list(cases)),
         }
-        files = write_paired_results(out, payload, records)
-        payload["files"] = {**files, **plot_paired(out, payload, kept, u_cr)}
+        # the plots first, then the tables: an interrupt among the plots leaves no results.md
+        # that would pass for the run's (results.json, last, says the run is complete)
+        plots = plot_paired(out, payload, kept, u_cr)
+        payload["files"] = {**write_paired_results(out, payload, records), **plots}
         payload["wall_time_s"] = time.monotonic() - started
         with atomic_output(out / "results.json") as stream:  # last: the run is complete
             stream.write(json.dumps(payload, allow_nan=False))

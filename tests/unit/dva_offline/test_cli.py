@@ -58,3 +58,43 @@ def test_bag_info_into_head_says_nothing_on_stderr(tmp_path):
         capture_output=True, text=True, timeout=300)
     assert result.stdout == f"bag        {bag}\n"
     assert result.stderr in ("exit 0\n", "exit 141\n")
+
+
+def test_an_error_naming_hostile_text_is_one_escaped_bounded_line(tmp_path, capsys):
+    """A file name with escape codes and a newline, and thousands of characters, reaches
+    the error line escaped and cut: one line, no raw control character."""
+    name = "\x1b[31mred\nINJECTED " + "y" * 3000
+    assert cli.main(["wing", "flutter", "--wing", str(tmp_path / name)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "\x1b" not in err and len(err) < 1200, err
+    assert "\\x1b[31m" in err or "\\\\x1b[31m" in err
+
+
+def test_an_error_raised_while_an_interrupt_unwinds_is_an_interrupt(monkeypatch, capsys):
+    """Code on the way out that breaks because of the interrupt (tqdm stopped inside its
+    lock raises AttributeError) does not turn an interrupt into an internal error."""
+    from dva_offline.wing import cli as wing_cli
+
+    def broken_by_the_interrupt(args):
+        try:
+            raise KeyboardInterrupt
+        finally:
+            raise AttributeError("type object 'tqdm' has no attribute '_lock'")
+
+    monkeypatch.setattr(wing_cli, "_flutter", broken_by_the_interrupt, raising=False)
+    parser = cli.build_parser()
+    args = parser.parse_args(["wing", "flutter"])
+    monkeypatch.setattr(args, "func", broken_by_the_interrupt)
+    monkeypatch.setattr(cli, "build_parser", lambda: _Fixed(args))
+    assert cli.main(["wing", "flutter"]) == 130
+    assert capsys.readouterr().err.strip().splitlines()[-1] == "dva wing: interrupted"
+
+
+class _Fixed:
+    """A parser that returns the given arguments."""
+
+    def __init__(self, args):
+        self.args = args
+
+    def parse_args(self, argv):
+        return self.args
