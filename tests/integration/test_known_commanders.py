@@ -103,7 +103,7 @@ def test_run_flight_with_a_second_commander_fails_and_says_so(executor, spin, ro
     another source or under the controller's own ("fixed"). run_flight is strict by default:
     its c2 never reaches the damper, and the flight exits 1 saying so in its last line and in
     its summary."""
-    from aero_dva.bag.reader import read_messages
+    from aero_dva.bag.reader import bag_topics, read_messages
 
     scenario = _scenario(tmp_path, "{kind: constant, value_ratio: 0.8}", duration=3.0,
                          block=50)
@@ -120,18 +120,23 @@ def test_run_flight_with_a_second_commander_fails_and_says_so(executor, spin, ro
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     assert spin(executor, lambda: process.poll() is not None, timeout=300.0)
     out, err = process.communicate()
-    assert process.returncode == 1, err
+    # 3: strict stopped the flight (the simulator failed it); 1: it flew, refusing the
+    # commands of another source, and does not count as controlled
+    assert process.returncode in (1, 3), err
     last = err.strip().splitlines()[-1]
     # strict (run_flight's default): the flight stops at the second commander's first command,
     # or, if its node was not yet matched, its commands (another source) are refused and the
     # flight fails on them at the end
     assert "a second commander" in last or (
         "unexpected commander" in last and "refused" in last), last
-    summary = json.loads(out) if out.strip() else None
-    if summary is not None:
+    summary = json.loads(out) if out.strip() else {}
+    if "commands_foreign" in summary:  # the flight flew: its summary says it
         assert summary["commands_foreign"] > 0 and summary["strict_commands"] is True
         assert "unexpected commander" in summary["control_problem"]
+    else:  # stopped: the JSON carries the one line
+        assert "commander" in json.dumps(summary) or not summary, summary
+    # (none when the flight stopped before the recorder kept a state)
     applied = [m.message.applied_damping for m in read_messages(
-        bag, ["/dva/damper_state"], allow_truncated=True)]
-    # (none when the flight stopped before the recorder kept a block)
+        bag, ["/dva/damper_state"], allow_truncated=True)] \
+        if "/dva/damper_state" in bag_topics(bag) else []
     assert INTRUDER not in applied and all(0.0 <= c2 <= 2500.0 for c2 in applied)
