@@ -272,9 +272,13 @@ class Trend:
     moving : bool
     scores : tuple of LawScore
     law : str
-        The chosen law (``constant`` when not moving).
+        The chosen law (``constant`` when not moving and not offered).
     reason : str
         Why that law.
+    offered : bool
+        Not moving, but its law fitted all the same (``find_law(..., offer=True)``): the
+        domain offers it in the effect's full form, which the loop keeps only when its
+        held-out score beats the moving coordinates' form by the ambiguity margin.
     """
 
     effect: str
@@ -291,6 +295,7 @@ class Trend:
     scores: tuple
     law: str
     reason: str
+    offered: bool = False
 
     @property
     def chosen(self) -> LawScore | None:
@@ -409,8 +414,10 @@ def _score(law, cov, x, u, su, level_index) -> LawScore | None:
 
 
 def find_law(effect: str, covariate: Covariate, coordinate: str, key: tuple, x, values, std,
-             alpha: float = 1e-3) -> Trend | None:
-    """The moving test and the law of one coordinate (module docstring).
+             alpha: float = 1e-3, offer: bool = False) -> Trend | None:
+    """The moving test and the law of one coordinate (module docstring); with ``offer``, a
+    coordinate that does not move gets its law too, marked ``offered`` (a test of each
+    parameter alone misses parameters that move together: their errors are correlated).
 
     ``x``, ``values``, ``std``: per condition (covariate mean, coordinate > 0, standard
     error). Conditions whose value is not positive or whose standard error is not finite
@@ -427,13 +434,17 @@ def find_law(effect: str, covariate: Covariate, coordinate: str, key: tuple, x, 
     dof = x.size - 1
     p = float(stats.chi2.sf(chi2, dof))
     level_index = covariate.level_index(x)
-    if p >= alpha:
+    still = (f"does not move beyond its errors (chi2 = {chi2:.3g}, {dof} dof, p = {p:.2g})")
+    if p >= alpha and not offer:
         return Trend(effect, covariate.name, coordinate, key, x, y, s, chi2, dof, p, False, (),
-                     "constant", f"does not move beyond its errors (chi2 = {chi2:.3g}, "
-                                 f"{dof} dof, p = {p:.2g})")
+                     "constant", still)
     scores = [sc for law in LAWS if law != "constant" and applicable(law, covariate)
               for sc in [_score(law, covariate, x, u, su, level_index)] if sc is not None]
     law, reason = _choose(scores, x.size, alpha)
+    if p >= alpha:
+        return Trend(effect, covariate.name, coordinate, key, x, y, s, chi2, dof, p, False,
+                     tuple(scores), law, f"{still}; offered in the effect's full form: "
+                                         f"{reason}", True)
     return Trend(effect, covariate.name, coordinate, key, x, y, s, chi2, dof, p, True,
                  tuple(scores), law, reason)
 
@@ -544,13 +555,14 @@ class LawModel:
     """The laws a covariate effect's model is built from (carried by its spec and fit, to
     print and to check the fitted law).
 
-    ``parts``: the moving coordinates and their laws; ``constant``: the coordinates tested
-    and found not to move."""
+    ``parts``: the coordinates and their laws; ``constant``: the coordinates held constant;
+    ``offered``: those of ``parts`` that did not move alone (the effect's full form)."""
 
     effect: str
     covariate: Covariate
     parts: tuple
     constant: tuple = ()
+    offered: tuple = ()
 
     def _values(self, fit, part):
         by_name = {e.name: e for e in fit.estimates}
@@ -571,7 +583,8 @@ class LawModel:
                           "parameters": [{"name": n, "value": v, "std": s}
                                          for n, v, s in self._values(fit, p)]}
                          for p in self.parts],
-                "constant": list(self.constant), "text": self.describe(fit)}
+                "constant": list(self.constant), "offered": list(self.offered),
+                "text": self.describe(fit)}
 
     def implausible(self, fit) -> str:
         """Why the fitted laws mean nothing physically ('' when they do): a factor (a

@@ -372,8 +372,17 @@ def _best_eligible(eligible, rule):
     effect by ``rule.ambiguity_margin`` (where the library's law does as well, it is the
     named one; "free per level" says less than WLF at the same score); when its added
     parameters hit a bound, another form of the same effect whose fit stays inside its
-    bounds (Arrhenius for a WLF whose C2 ran to its bound) if it scores within the margin."""
+    bounds (Arrhenius for a WLF whose C2 ran to its bound) if it scores within the margin. A
+    law form that also carries coordinates that did not move alone (``law.offered``: the
+    effect's full form) likewise only when it beats the form of the moving coordinates by
+    the margin."""
     best = min(eligible, key=lambda c: c.delta_bic)
+    if best.fit.law is not None and best.fit.law.offered:
+        moving = [c for c in eligible if c.effect == best.effect and c.fit.law is not None
+                  and not c.fit.law.offered
+                  and c.delta_bic - best.delta_bic < rule.ambiguity_margin]
+        if moving:
+            best = min(moving, key=lambda c: c.delta_bic)
     if best.fit.law is not None:
         library = [c for c in eligible if c.effect == best.effect and c.fit.law is None
                    and c.delta_bic - best.delta_bic < rule.ambiguity_margin]

@@ -226,6 +226,7 @@ class ModalDomain:
         f_fac = np.ones((vs.shape[0], n, w.size))
         z_fac = np.ones((vs.shape[0], n, w.size))
         a_fac = None
+        res_fac = [1.0, 1.0]  # the residual terms U, L (a law's factors)
         delay = np.zeros((vs.shape[0], 1))
         phase = np.zeros((vs.shape[0], 1))
         i = 0
@@ -261,6 +262,10 @@ class ModalDomain:
                         f_fac[:, r] = f_fac[:, r] * np.exp(0.5 * lf)
                     elif which == "damping":
                         z_fac[:, r] = z_fac[:, r] * np.exp(lf)
+                    elif which == "upper residual":
+                        res_fac[0] = res_fac[0] * np.exp(lf)
+                    elif which == "lower residual":
+                        res_fac[1] = res_fac[1] * np.exp(lf)
                     else:
                         a_fac = np.ones((vs.shape[0], n, w.size)) if a_fac is None else a_fac
                         a_fac[:, r] = a_fac[:, r] * np.exp(lf)
@@ -271,6 +276,7 @@ class ModalDomain:
         wr = 2 * np.pi * fr * f_fac
         z = zr * z_fac
         ar = ar if a_fac is None else ar * a_fac
+        u, low = u * res_fac[0], low * res_fac[1]
         h = np.sum(ar / (wr**2 - w**2 + 2j * z * wr * w), axis=1) + u - low / w**2
         out = h * np.exp(-1j * (w * delay - phase))
         return out if np.ndim(v) == 2 else out[0]
@@ -681,9 +687,11 @@ class ModalDomain:
         return replace(spec, starts=(np.r_[values, sol], *spec.starts))
 
     def _law_trends(self, reference) -> list:
-        """Per covariate: each mode's stiffness w_r^2, damping ratio and modal constant in
-        every condition, from the baseline fitted to that condition alone, and their laws
-        (:func:`.laws.find_law`); computed once (the per-condition fits do not change)."""
+        """Per covariate: each mode's stiffness w_r^2, damping ratio and modal constant, and
+        the residual terms U and L, in every condition, from the baseline fitted to that
+        condition alone, and their laws (:func:`.laws.find_law`; every coordinate gets one,
+        those that do not move are ``offered``); computed once (the per-condition fits do
+        not change)."""
         if self._law_inputs is not None:
             return self._law_inputs
         obs, n = self.observations, self._n
@@ -718,7 +726,16 @@ class ModalDomain:
                         coords.append(("modal constant", np.abs(a), sa))
                     for which, y, s in coords:
                         t = laws.find_law(effect, cov, f"mode {r + 1} {which}",
-                                          (r, which), x, y, s)
+                                          (r, which), x, y, s, offer=True)
+                        if t is not None:
+                            trends.append(t)
+                # the residual terms (the modes outside the band) as factors
+                for p, which in (("U", "upper residual"), ("L", "lower residual")):
+                    y = np.array([est[lab][p].value for lab in labels])
+                    s = np.array([est[lab][p].std for lab in labels])
+                    if np.all(y > 0) or np.all(y < 0):
+                        t = laws.find_law(effect, cov, which, (None, which), x, np.abs(y), s,
+                                          offer=True)
                         if t is not None:
                             trends.append(t)
                 out.append((name, effect, cov, trends))
@@ -735,10 +752,10 @@ class ModalDomain:
         stack_params = list(self._params_of_stack)
         present = {(t.effect, t.label) for t in self._stack}
         own = reference.per_condition if reference is not None else {}
-        g = self.observations.groups
         for name, effect, cov, trends in self._law_trends(reference):
             label = f"{name}, law"
-            if (effect, label) in present:
+            if any((effect, lab) in present
+                   for lab in (label, f"{label}, all coordinates")):
                 continue
             moving = [t for t in trends if t.moving]
             if not moving:
@@ -746,32 +763,49 @@ class ModalDomain:
                                                  f"constant moves with {name} beyond its "
                                                  "errors", label))
                 continue
-            coords, added, parts = [], [], []
-            short = {"stiffness": "k", "damping": "z", "modal constant": "A"}
-            for t in moving:
-                r, which = t.key
-                sc = t.chosen
-                theta = sc.theta if sc is not None else ()
-                specs = laws.param_specs(t.law, cov, theta, f"{short[which]}{r + 1}", name)
-                coords.append((r, which, t.law, len(specs)))
-                added += specs
-                parts.append(laws.LawPart(t.coordinate, t.law, tuple(p.name for p in specs)))
-            col = self.observations.covariates[name]
-            means = np.array([col[g == lab].mean() for lab in range(len(self.conditions))])
-            term = ModalTerm(effect, label, "law", len(added),
-                             data={"coords": coords, "x": col, "cov": cov,
-                                   "level_index": cov.level_index(means[g])})
-            spec = self._spec(values, stack_params, term, tuple(added), [], label)
-            law = laws.LawModel(effect, cov, tuple(parts),
-                                tuple(t.coordinate for t in trends if not t.moving))
-            # the reference condition's own fit (the laws are normalised there) first
-            starts = list(spec.starts)
-            if self.reference in own:
-                head = np.array([e.value for e in own[self.reference]])
-                init = np.array([p.initial for p in added])
-                starts.insert(0, np.concatenate([head, values[head.size:len(values)], init]))
-            out.append(replace(spec, starts=tuple(starts), n_priority=1, law=law))
+            # the effect as its moving coordinates carry it, and its full form with every
+            # coordinate (the loop keeps it only when it beats the first by the ambiguity
+            # margin: parameters that move together can each pass for constant alone)
+            offered = [t for t in trends if t.offered]
+            forms = [(label, moving)] + ([(f"{label}, all coordinates", moving + offered)]
+                                         if offered else [])
+            for lab, used in forms:
+                out.append(self._law_spec(name, effect, cov, trends, used, lab, values,
+                                          stack_params, own))
         return out
+
+    def _law_spec(self, name, effect, cov, trends, used, label, values, stack_params, own):
+        """The effect whose coordinates ``used`` follow their laws (the others constant)."""
+        g = self.observations.groups
+        coords, added, parts = [], [], []
+        short = {"stiffness": "k", "damping": "z", "modal constant": "A",
+                 "upper residual": "U", "lower residual": "L"}
+        for t in used:
+            r, which = t.key
+            sc = t.chosen
+            theta = sc.theta if sc is not None else ()
+            prefix = short[which] + ("" if r is None else f"{r + 1}")
+            specs = laws.param_specs(t.law, cov, theta, prefix, name)
+            coords.append((r, which, t.law, len(specs)))
+            added += specs
+            parts.append(laws.LawPart(t.coordinate, t.law, tuple(p.name for p in specs)))
+        col = self.observations.covariates[name]
+        means = np.array([col[g == lab].mean() for lab in range(len(self.conditions))])
+        term = ModalTerm(effect, label, "law", len(added),
+                         data={"coords": coords, "x": col, "cov": cov,
+                               "level_index": cov.level_index(means[g])})
+        spec = self._spec(values, stack_params, term, tuple(added), [], label)
+        law = laws.LawModel(effect, cov, tuple(parts),
+                            tuple(t.coordinate for t in trends
+                                  if all(t is not u for u in used)),
+                            tuple(t.coordinate for t in used if t.offered))
+        # the reference condition's own fit (the laws are normalised there) first
+        starts = list(spec.starts)
+        if self.reference in own:
+            head = np.array([e.value for e in own[self.reference]])
+            init = np.array([p.initial for p in added])
+            starts.insert(0, np.concatenate([head, values[head.size:len(values)], init]))
+        return replace(spec, starts=tuple(starts), n_priority=1, law=law)
 
     @property
     def _params_of_stack(self):

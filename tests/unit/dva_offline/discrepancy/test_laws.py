@@ -37,6 +37,19 @@ def test_a_constant_coordinate_does_not_move():
     assert not t.moving and t.law == "constant" and t.p_value > 1e-3
 
 
+def test_a_coordinate_that_does_not_move_alone_can_be_offered_with_its_law():
+    # a 3 % trend inside 2 % errors: no move at p = 0.001, but offered its law is fitted
+    x = LEVELS
+    y = 3.0 * (1 + 0.03 * np.log(x / x[2]) / np.log(10.0))
+    s = 0.02 * y
+    args = ("amplitude_dependence", level_cov(x), "stiffness", ("k",), x, y, s)
+    alone = laws.find_law(*args)
+    assert not alone.moving and not alone.offered and alone.scores == ()
+    t = laws.find_law(*args, offer=True)
+    assert not t.moving and t.offered and t.p_value == alone.p_value
+    assert t.law != "constant" and t.scores and "full form" in t.reason
+
+
 def test_a_power_change_is_found_with_its_exponent():
     # a hardening spring: k = k_lin (1 + 0.05 (a / 20 N)^2)
     t = trend(1e4 * (1 + 0.05 * (LEVELS / 20.0) ** 2), rel_std=2e-4)
