@@ -427,9 +427,6 @@ def _trend_lines(result) -> list[str]:
             lines.append(f"  {t.effect} ({t.covariate}): {t.coordinate} moves (chi2 "
                          f"{t.chi2:.3g}, {t.dof} dof, p = {t.p_value:.2g}): law {t.law}, "
                          f"{t.reason}")
-        elif t.offered and t.law != "constant":
-            lines.append(f"  {t.effect} ({t.covariate}): {t.coordinate} does not move alone "
-                         f"(p = {t.p_value:.2g}); law {t.law} in the effect's full form")
     return lines
 
 
