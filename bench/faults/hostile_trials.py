@@ -54,7 +54,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from aero_dva.flight.flight_limits import MAX_WINDOW_SAMPLES
+from aero_dva.flight.flight_limits import DAMPER_RANGE, MAX_WINDOW_SAMPLES
 from bench.faults import bad_inputs
 from bench.faults import resource_bombs as rb
 
@@ -62,7 +62,8 @@ CAP = 3 * 2**30  # [bytes] address space of each trial's process
 GIB = 2**30
 # control characters but tab, newline and the progress bars' carriage return
 CONTROL = re.compile(r"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f]")
-HOSTILE_C2 = (1e12, 1e300, 2500.001, 2501.0, 1e4, -1.0, -5e-324, math.inf, -math.inf, math.nan)
+HOSTILE_C2 = (1e12, 1e300, DAMPER_RANGE[1] + 0.001, DAMPER_RANGE[1] + 1.0, 1e4, -1.0, -5e-324,
+              math.inf, -math.inf, math.nan)
 CLASSES = ("c2", "zip bomb", "listed", "long", "numbers", "interrupt", "commander", "names")
 
 
@@ -500,7 +501,7 @@ def commander_trials(work: Path, rng: np.random.Generator, n: int) -> Iterator[T
         log_bytes = sum(p.stat().st_size for p in logs.glob("*.log")) if logs.exists() else 0
         log_text = "".join(p.read_text(errors="replace") for p in logs.glob("*.log")) \
             if logs.exists() else ""
-        if any(not (0.0 <= c <= 2500.0) for c in applied):
+        if any(not (DAMPER_RANGE[0] <= c <= DAMPER_RANGE[1]) for c in applied):
             checks.append(f"c2 outside the range applied ({max(applied):.3g})")
         if strict and damping in applied and source is not None and damping != 0.0:
             checks.append("the intruder's c2 applied under strict commands")
