@@ -40,7 +40,7 @@ from typing import TYPE_CHECKING
 # and the controller node's start read it (docs/performance.md, the start-up budget).
 from aero_dva.control.law_defaults import FALLBACK_SOURCE, STUDY_BAND, WINDOW_FUNCTIONS
 from aero_dva.flight.flight_limits import DAMPER_RANGE, MAX_DAMPING, SWITCHING_SOURCE
-from aero_dva.input_ranges import MAX_AIRSPEED
+from aero_dva.input_ranges import MAX_AIRSPEED, SCHEDULE
 from aero_dva.wing.channel_names import ACCELERATION_NAMES
 
 if TYPE_CHECKING:
@@ -360,9 +360,11 @@ BUILTIN = (
                 "ignored and reported on /diagnostics.",
         params=(
             LawParam("a0", -2150.0, "eq. 7.1 intercept (used when schedule_file is empty)",
-                     "N s/m", -1.0e6, 1.0e6, excludes="schedule_file"),
+                     "N s/m", SCHEDULE["a0"].low, SCHEDULE["a0"].high,
+                     excludes="schedule_file"),
             LawParam("a1", 31.5, "eq. 7.1 slope (used when schedule_file is empty)",
-                     "N s^2/m^2", -1.0e5, 1.0e5, excludes="schedule_file"),
+                     "N s^2/m^2", SCHEDULE["a1"].low, SCHEDULE["a1"].high,
+                     excludes="schedule_file"),
             LawParam("schedule_file", "", "JSON airspeed schedule (dva control schedule); when "
                      "set, its a0, a1 and ranges replace the parameters",
                      default_text="'' (use a0, a1)"),
