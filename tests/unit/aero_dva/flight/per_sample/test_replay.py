@@ -14,17 +14,22 @@ from aero_dva.flight.per_sample.replay import fly_again
 SAFE_C2 = 624.7  # [N s/m]
 
 
+def _switching_runtime(folder, duration, start, end, seed):
+    """The config and runtime of a switching law (10 ms damper lag) on a ramp start..end U_cr."""
+    scenario = folder / "ramp.yaml"
+    scenario.write_text(f"name: ramp\nduration: {duration}\nblock_size: 50\n"
+                        f"airspeed: {{kind: ramp, start_ratio: {start}, end_ratio: {end}}}\n"
+                        f"excitation: {{force_std: 1000.0, seed: {seed}}}\n")
+    config = load_runtime_config({"scenario": str(scenario), "damper_time_constant": 0.01})
+    config = with_switching(config, str(data_file("switching_gains.json")))
+    return config, FlightRuntime(config)
+
+
 @pytest.fixture(scope="module")
 def flight(tmp_path_factory):
     """A 3 s ramp through 1.0 .. 1.15 U_cr: the law armed from the third block on, the first
     two blocks on the start-up and then a held c2 (a block of each kind)."""
-    scenario = tmp_path_factory.mktemp("replay") / "ramp.yaml"
-    scenario.write_text("name: ramp\nduration: 3.0\nblock_size: 50\n"
-                        "airspeed: {kind: ramp, start_ratio: 1.0, end_ratio: 1.15}\n"
-                        "excitation: {force_std: 1000.0, seed: 4}\n")
-    config = load_runtime_config({"scenario": str(scenario), "damper_time_constant": 0.01})
-    config = with_switching(config, str(data_file("switching_gains.json")))
-    rt = FlightRuntime(config)
+    config, rt = _switching_runtime(tmp_path_factory.mktemp("replay"), 3.0, 1.0, 1.15, seed=4)
     blocks = []
     while not rt.done:
         if len(blocks) == 1:
@@ -65,13 +70,7 @@ def test_a_flight_past_the_fixed_c2s_flutter_is_flown_again_to_the_bit_order(tmp
     times per second at 1.17-1.2 U_cr): a product taken in another order than the compiled
     loop's grows from 1e-16 to beyond 1e-9 of the peak within seconds. The state is stepped in the
     loop's order, so the recorded accelerations come out whatever the flight's length."""
-    scenario = tmp_path / "ramp.yaml"
-    scenario.write_text("name: ramp\nduration: 8.0\nblock_size: 50\n"
-                        "airspeed: {kind: ramp, start_ratio: 1.12, end_ratio: 1.2}\n"
-                        "excitation: {force_std: 1000.0, seed: 1}\n")
-    config = load_runtime_config({"scenario": str(scenario), "damper_time_constant": 0.01})
-    config = with_switching(config, str(data_file("switching_gains.json")))
-    rt = FlightRuntime(config)
+    config, rt = _switching_runtime(tmp_path, 8.0, 1.12, 1.2, seed=1)
     blocks = []
     while not rt.done:
         rt.command(SAFE_C2, SWITCHING_SOURCE)
