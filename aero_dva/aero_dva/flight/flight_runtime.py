@@ -183,6 +183,7 @@ class FlightRuntime:
         self._damper = DamperModel(config.damper, start_time=0.0)
         self._rng = np.random.default_rng(self.scenario.seed)
         self._index = 0
+        self._inputs: tuple | None = None  # (first sample, t, airspeed, density) of a block
         self._sweep = self.scenario.airspeed.kind == "steps"
         self._laws: dict = {}  # source -> its per-sample law's damper path, built when armed
         self._flown_law = (-1, None)  # (first sample, law) of the last block a law flew
@@ -245,16 +246,33 @@ class FlightRuntime:
         state at the block's end is the next block's only if no command comes between)."""
         return self._flown
 
+    def next_condition(self) -> tuple[float, float, float]:
+        """(t0 [s], airspeed [m/s], density [kg/m^3]) of the next block's first sample, known
+        from the scenario before the block is flown: the values :meth:`step` flies it with
+        (the same arrays, kept for it), so a flight condition published ahead of its block
+        equals the block's."""
+        if self.done:
+            raise ValueError("the flight is over")
+        t, airspeed, density = self._block_inputs()
+        return float(t[0]), float(airspeed[0]), float(density[0])
+
+    def _block_inputs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The next block's sample times, airspeeds and densities (computed once per block)."""
+        if self._inputs is None or self._inputs[0] != self._index:
+            n = min(self.block_size, self.scenario.n_samples - self._index)
+            t = sample_times(self.scenario, self._index, n)
+            self._inputs = (self._index, t, airspeed_at(self.scenario, t),
+                            density_at(self.scenario, t))
+        return self._inputs[1:]
+
     def step(self) -> FlightSamples:
         """Simulate the next block (shorter at the end of the flight): its samples, with the c2
         the damper applied; with a per-sample law armed, also the law's targets and the damper
         force at each sample (``damper_force``)."""
-        n = min(self.block_size, self.scenario.n_samples - self._index)
-        if n <= 0:
+        if self.done:
             raise ValueError("the flight is over")
-        t = sample_times(self.scenario, self._index, n)
-        airspeed = airspeed_at(self.scenario, t)
-        density = density_at(self.scenario, t)
+        t, airspeed, density = self._block_inputs()
+        n = t.size
         if self._sweep:
             # The sweep operates the damper itself: command it every block so the damper's
             # state (and dva/damper_state) reports the c2 the wing really has.

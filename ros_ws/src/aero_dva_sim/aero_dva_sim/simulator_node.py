@@ -75,7 +75,7 @@ GRAPH_PERIOD = 0.05
 ACK_TIMEOUT = 5.0
 #: The graph's name for a publisher whose node's name has not been discovered yet (rmw).
 UNKNOWN_NODE = "_NODE_NAME_UNKNOWN_"
-#: The per-block topics besides /clock (published in the order of :meth:`Simulator._publish`).
+#: The per-block topics besides /clock (the flight condition before its block, the rest after).
 DATA_CHANNELS = tuple(c for c in ch.SIMULATOR_BLOCK if c != ch.CLOCK)
 DATA_TOPICS = tuple(c.name for c in DATA_CHANNELS)
 #: The DVA's parameters (nothing to set with absorber:=none).
@@ -364,6 +364,7 @@ class Simulator(Node):
             if self._held_since is not None:
                 self.timing["held"] += stepped - self._held_since
                 self._held_since = None
+            self._publish_condition()
             block = self.runtime.step()
             published, published_cpu = time.perf_counter(), time.thread_time()
             self._publish(block)
@@ -439,16 +440,24 @@ class Simulator(Node):
             (self._poll if stepping else self._timer).cancel()
             (self._timer if stepping else self._poll).reset()
 
+    def _publish_condition(self) -> None:
+        """The flight condition of the block about to be flown, before it is flown: the
+        scenario fixes it (FlightRuntime.next_condition), and a law of the condition answers
+        while the block is stepped instead of after it (in lockstep the flight waits for that
+        answer). Its command still acts from the next block on, as the damper takes commands
+        between blocks only; the /clock before it is the block's start, its stamp."""
+        t0, airspeed, density = self.runtime.next_condition()
+        self._pub[ch.FLIGHT_CONDITION.name].publish(
+            conversions.flight_condition(t0, airspeed, density))
+        self.published[ch.FLIGHT_CONDITION.name] += 1
+
     def _publish(self, block) -> None:
-        # What the controllers read goes first (the flight condition, the damper state, then
-        # the accelerations of the spectra), each message built just before it is sent: in
-        # lockstep the flight waits for the controller's answer, which it now computes while
-        # the rest of the block is built and sent.
+        # What the controllers read goes first (the damper state, then the accelerations of the
+        # spectra; the flight condition went before the block), each message built just before
+        # it is sent: a controller computes while the rest of the block is built and sent.
         fs, i0, t0 = self.runtime.sample_rate, block.first_index, block.t0
         self._clock_pub.publish(conversions.clock(block.t_end))
         for channel, make in (
-                (ch.FLIGHT_CONDITION, lambda: conversions.flight_condition(
-                    t0, block.airspeed[0], block.density[0])),
                 (ch.DAMPER_STATE, lambda: conversions.damper_state(self.runtime.flown_damper)),
                 (ch.ACCELERATION, lambda: conversions.acceleration_block(
                     t0, fs, i0, block.accelerations)),
