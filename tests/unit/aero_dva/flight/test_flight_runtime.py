@@ -101,3 +101,22 @@ def test_the_flown_damper_is_the_state_each_block_was_flown_with():
     # stale after 0.03 s)
     assert all(end.status == DamperStatus.FALLBACK_STALE for _, _, end in seen)
     assert runtime.applied.fallback == sources.count("fallback") == 8
+
+
+def test_the_next_condition_is_the_one_the_block_is_flown_with():
+    """The simulator publishes a block's condition before flying it: it must be the block's
+    first sample to the bit (a ramp with a density wave and a short last block), and asking
+    for it changes nothing of the flight."""
+    scenario = Scenario("c", 1.03, block_size=50, airspeed=AirspeedProfile("ramp", (80.0, 95.0)),
+                        density_variation=0.2, density_frequency=3.0, seed=2)
+    plain, asked = _runtime(scenario), _runtime(scenario)
+    while not plain.done:
+        t0, airspeed, density = asked.next_condition()
+        assert asked.next_condition() == (t0, airspeed, density)  # asked twice: the same
+        a, b = plain.step(), asked.step()
+        assert (t0, airspeed, density) == (b.t0, b.airspeed[0], b.density[0])
+        for name in ("airspeed", "density", "force", "displacements", "accelerations"):
+            np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+    assert b.force.size == 30  # the last block, shorter
+    with pytest.raises(ValueError, match="over"):
+        asked.next_condition()
