@@ -227,7 +227,8 @@ def echo_round_trips(count: int) -> dict:
             if done.returncode != 0:
                 raise SystemExit(f"bench: graph_echo ping ({mode}) failed: "
                                  f"{done.stderr.strip()[-300:]}")
-            trips = json.loads(done.stdout)["round_trips_s"]
+            # (Fast DDS prints its transport errors on stdout: the JSON is the last line)
+            trips = json.loads(done.stdout.strip().splitlines()[-1])["round_trips_s"]
             out[mode] = {"median": statistics.median(trips),
                          "p99": float(np.percentile(trips, 99))}
     return out
