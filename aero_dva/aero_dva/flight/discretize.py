@@ -66,7 +66,9 @@ def expm_batch(m) -> np.ndarray:
         raise ValueError("m must have shape (..., n, n)")
     if not np.all(np.isfinite(m)):
         raise ValueError("m must be finite")
-    flat = m.reshape((-1,) + m.shape[-2:])
+    # C order: the identity is added through a flat view (_add_identity), which of a
+    # transposed stack would be a copy, so the identity terms would be lost
+    flat = np.ascontiguousarray(m.reshape((-1,) + m.shape[-2:]))
     norms = np.abs(flat).sum(axis=-2).max(axis=-1)
     squarings = np.maximum(0, np.ceil(np.log2(np.maximum(norms, 1e-300)))).astype(int)
     out = np.empty_like(flat)

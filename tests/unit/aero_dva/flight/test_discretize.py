@@ -20,6 +20,13 @@ def test_expm_batch_matches_scipy(scale):
     np.testing.assert_allclose(expm_batch(m), ref, rtol=1e-11, atol=1e-12 * np.abs(ref).max())
 
 
+def test_expm_batch_of_a_transposed_stack_is_that_of_its_copy():
+    m = np.random.default_rng(2).standard_normal((5, 6, 6)) * 0.5
+    view = m.transpose(0, 2, 1)  # not C-contiguous
+    np.testing.assert_array_equal(expm_batch(view), expm_batch(view.copy()))
+    np.testing.assert_allclose(expm_batch(view)[0], expm(view[0]), rtol=1e-12, atol=1e-14)
+
+
 def test_zoh_matches_scipy_and_survives_a_singular_a():
     model = AeroelasticModel(WING, DVA.replace(damping=np.inf))  # locked damper: A singular
     ss = model.state_space(80.0, 1.2)
