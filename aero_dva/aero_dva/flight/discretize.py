@@ -26,36 +26,33 @@ TAYLOR = np.array([1.0 / math.factorial(k) for k in range(19)])
 """The coefficients ``1 / k!`` of the degree-18 Taylor polynomial of ``exp``."""
 
 
-def _add_identity(m: np.ndarray, c: float) -> np.ndarray:
-    """``m += c I`` in place for a stack (k, n, n); returns ``m``."""
-    n = m.shape[-1]
-    m.reshape(m.shape[0], n * n)[:, :: n + 1] += c
-    return m
+# Paterson-Stockmeyer's blocks: the leading c[16] I + c[17] x + c[18] x^2, then
+# c[4j] I + c[4j+1] x + c[4j+2] x^2 + c[4j+3] x^3 for j = 0..3. Their coefficients of x, x^2,
+# x^3 (shaped to scale a stack (3, k, n, n); the leading block has no x^3) and of I.
+_BLOCK_POWERS = np.array([[TAYLOR[17], TAYLOR[18], 0.0]]
+                         + [TAYLOR[4 * j + 1:4 * j + 4] for j in range(4)]).reshape(5, 3, 1, 1, 1)
+_BLOCK_IDENTITY = np.array([TAYLOR[16], *TAYLOR[0:16:4]]).reshape(5, 1, 1)
 
 
 def _taylor18(x: np.ndarray) -> np.ndarray:
     """Degree-18 Taylor polynomial of ``exp`` for a stack (k, n, n), Paterson-Stockmeyer.
 
-    In-place updates and the identity added on the diagonal only: for the small matrices
-    here the elementwise work costs as much as the seven matrix products.
+    The blocks are built together (their terms scaled in one product and summed in the order
+    x, x^2, x^3, then the identity added on the diagonal only): for the small matrices here
+    each elementwise operation costs as much as a matrix product.
     """
     x2 = x @ x
     x3 = x2 @ x
     x4 = x2 @ x2
-    c = TAYLOR
-
-    def block(j):
-        out = c[4 * j + 1] * x
-        out += c[4 * j + 2] * x2
-        out += c[4 * j + 3] * x3
-        return _add_identity(out, c[4 * j])
-
-    out = c[17] * x
-    out += c[18] * x2
-    _add_identity(out, c[16])
+    k, n = x.shape[0], x.shape[-1]
+    terms = _BLOCK_POWERS * np.stack((x, x2, x3))
+    blocks = terms[:, 0] + terms[:, 1]
+    blocks[1:] += terms[1:, 2]
+    blocks.reshape(5, k, n * n)[:, :, :: n + 1] += _BLOCK_IDENTITY
+    out = blocks[0]
     for j in (3, 2, 1, 0):
         out = out @ x4
-        out += block(j)
+        out += blocks[j + 1]
     return out
 
 
@@ -64,13 +61,20 @@ def expm_batch(m) -> np.ndarray:
     m = np.asarray(m, dtype=float)
     if m.ndim < 2 or m.shape[-1] != m.shape[-2]:
         raise ValueError("m must have shape (..., n, n)")
-    if not np.all(np.isfinite(m)):
+    if not np.isfinite(m).all():
         raise ValueError("m must be finite")
-    # C order: the identity is added through a flat view (_add_identity), which of a
-    # transposed stack would be a copy, so the identity terms would be lost
+    # C order: the products' rounding does not depend on how the caller laid the stack out
     flat = np.ascontiguousarray(m.reshape((-1,) + m.shape[-2:]))
     norms = np.abs(flat).sum(axis=-2).max(axis=-1)
     squarings = np.maximum(0, np.ceil(np.log2(np.maximum(norms, 1e-300)))).astype(int)
+    if squarings.size == 1 or (squarings.size and (squarings == squarings[0]).all()):
+        # one scaling for the whole stack (a streamed flight's few new conditions): the
+        # stack is scaled as it is, not gathered by a mask
+        s = squarings[0]
+        e = _taylor18(flat / 2.0**s)
+        for _ in range(s):
+            e = e @ e
+        return e.reshape(m.shape)
     out = np.empty_like(flat)
     for s in np.unique(squarings):
         sel = squarings == s
@@ -109,10 +113,12 @@ def zoh(a, b, dt: float, expm=None):
     n, m = a.shape[-1], b.shape[-1]
     if a.shape[-2] != n or b.shape[-2] != n:
         raise ValueError(f"a must be (..., n, n) and b (..., n[, m]); got {a.shape}, {b.shape}")
-    shape = np.broadcast_shapes(a.shape[:-2], b.shape[:-2])
+    shape = a.shape[:-2]
+    if b.shape[:-2] != shape:
+        shape = np.broadcast_shapes(shape, b.shape[:-2])
     aug = np.zeros(shape + (n + m, n + m))
-    aug[..., :n, :n] = a * dt
-    aug[..., :n, n:] = b * dt
+    np.multiply(a, dt, out=aug[..., :n, :n])
+    np.multiply(b, dt, out=aug[..., :n, n:])
     e = (expm_batch if expm is None else expm)(aug)
     phi = e[..., :n, :n]
     gamma = e[..., :n, n:]
