@@ -230,6 +230,7 @@ class DiscreteWing:
         self.max_conditions = int(max_conditions)
         self._probe = moment_probe(model) if "pitch_moment" in inputs else None
         self._conditions: dict[tuple, DiscreteCondition] = {}
+        self._identity = np.eye(self.n_states)
         self._sampling_passed: set[tuple] = set()
 
     # -- what it is ------------------------------------------------------------------------
@@ -292,6 +293,17 @@ class DiscreteWing:
         if q == 0.0:
             return [tuple(raw) for raw in raws]
         out = []
+        if len(held) == 3:  # (U, rho, damping), unrolled
+            u0, r0, c0 = held
+            for u, r, c in raws:
+                if not abs(u - u0) <= q * abs(u0):  # also true when the held value is NaN
+                    u0 = u
+                if not abs(r - r0) <= q * abs(r0):
+                    r0 = r
+                if not abs(c - c0) <= q * abs(c0):
+                    c0 = c
+                out.append((u0, r0, c0))
+            return out
         for raw in raws:
             held = tuple(cur if abs(v - cur) <= q * abs(cur) else v for v, cur in zip(raw, held))
             out.append(held)
@@ -360,7 +372,10 @@ class DiscreteWing:
         # The streaming simulator's hot path (a few new conditions per 50-sample block): the
         # one-sample map is filled straight from the parts rather than via discretise().
         model = self.model
-        a, b = self.continuous(np.array(keys, dtype=float))
+        if self._probe is None:
+            a, b = model.matrices_of(keys)
+        else:
+            a, b = self.continuous(np.array(keys, dtype=float))
         ad, bd = zoh(a, b, self.dt)
         h, ns, k, p, nd = self.hold, self.n_states, len(keys), N_OUTPUTS, N_DISPLACEMENTS
         ni = self.n_inputs
@@ -378,16 +393,21 @@ class DiscreteWing:
                 step[:, ns + nd:, ns + i] = model.acceleration_output(a, b[..., i])[1]
         # The period map is h steps of the one-sample map applied to [state; forces] as a
         # linear function of (start state, the period's h forces): ``x`` holds the state's
-        # map and, in its last row, the selector of the force acting at that sample.
+        # map and, in its last row, the selector of the force acting at that sample. The
+        # outputs go straight into their rows of the period map (a view of them by output
+        # and sample), the state's map into its first rows at the end.
         force_step = step if ni == 1 else step[:, :, :ns + 1]
-        outputs = np.empty((k, p, h, ns + h))
+        period = np.empty((k, ns + p * h, ns + h))
+        outputs = period[:, ns:].reshape(k, p, h, ns + h)
         x = np.zeros((k, ns + 1, ns + h))
-        x[:, :ns, :ns] = np.eye(ns)
+        state, selector = x[:, :ns], x[:, ns]
+        state[:, :, :ns] = self._identity
         for j in range(h):
-            x[:, ns] = 0.0
-            x[:, ns, ns + j] = 1.0
+            if j:
+                selector[:, ns + j - 1] = 0.0
+            selector[:, ns + j] = 1.0
             r = force_step @ x
             outputs[:, :, j] = r[:, ns:]
-            x[:, :ns] = r[:, :ns]
-        period = np.concatenate([x[:, :ns], outputs.reshape(k, p * h, ns + h)], axis=1)
+            state[...] = r[:, :ns]
+        period[:, :ns] = state
         return [DiscreteCondition(step=step[i], period=period[i]) for i in range(k)]

@@ -278,6 +278,7 @@ class AeroelasticModel:
         self._mass_rho = mass_rho
         self._force = force
         self._inv_mass = np.linalg.inv(mass)
+        self._force_rows = self._inv_mass @ force  # B's velocity rows (air adding no mass)
         self._mass_depends_on_rho = bool(np.any(mass_rho))
         out = np.zeros((4, ns))
         c0 = self.wing.leading_edge
@@ -377,6 +378,22 @@ class AeroelasticModel:
         rho = np.broadcast_to(density, phi.shape[:-1])
         return self.matrices_from_features(phi, rho)
 
+    def matrices_of(self, conditions) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`matrices_unchecked` of a few conditions ``[(U, rho, damping), ...]`` (floats
+        the caller has already checked; ``damping`` is ignored without absorber): ``A`` (K, n,
+        n), ``B`` (K, n). The features are built in plain Python, as for
+        :meth:`_still_air_features`: for the handful of new conditions of a streamed block the
+        array version's broadcasting costs more than the assembly."""
+        ab = self.absorber
+        k1 = 0.0 if ab is None else ab.stiffness
+        row = self._feature_row
+        if ab is None:
+            phi = [row(u, rho, k1, 0.0) for u, rho, _ in conditions]
+        else:
+            phi = [row(u, rho, k1, c) for u, rho, c in conditions]
+        return self.matrices_from_features(np.array(phi),
+                                           np.array([rho for _, rho, _ in conditions]))
+
     def matrices_from_features(self, phi: np.ndarray, density):
         """``A, B`` from feature vectors ``phi`` (..., 8) and densities (...)."""
         a = np.einsum("...j,jab->...ab", phi, self._features)
@@ -384,8 +401,11 @@ class AeroelasticModel:
         minv = self._inv_mass_at(density)
         a[..., n:2 * n, :] = minv @ a[..., n:2 * n, :]
         b = np.zeros(a.shape[:-1])
-        b[..., n:2 * n] = minv @ self._force if minv.ndim == 2 else np.einsum(
-            "...ij,j->...i", minv, self._force)
+        if minv is self._inv_mass:
+            b[..., n:2 * n] = self._force_rows
+        else:
+            b[..., n:2 * n] = minv @ self._force if minv.ndim == 2 else np.einsum(
+                "...ij,j->...i", minv, self._force)
         return a, b
 
     def polynomial(self, density, damping=None, stiffness=None):
@@ -412,7 +432,12 @@ class AeroelasticModel:
     def _still_air_features(self, rho: float, k1: float, c: float) -> np.ndarray:
         """:meth:`_features_of` at ``U = 0`` for one condition, in plain Python (the array
         version's broadcasting costs more than the assembly it feeds)."""
-        phi = [1.0, 0.0, 0.0, 0.0, k1, c, 0.0, 0.0]
+        return np.array(self._feature_row(0.0, 0.0, k1, c))  # U = 0: rho enters no feature
+
+    def _feature_row(self, u: float, rho: float, k1: float, c: float) -> list:
+        """:meth:`_features_of` of one checked condition, in plain Python (the same
+        operations, so the same values)."""
+        phi = [1.0, u, rho * u, rho * u * u, k1, c, 0.0, 0.0]
         if self.has_maxwell:
             k2 = self.absorber.series_stiffness
             if c * MAXWELL_RATE_LIMIT < k2 and k2 > 0:  # includes c = 0
@@ -420,7 +445,7 @@ class AeroelasticModel:
             else:
                 phi[5], phi[7] = 0.0, 1.0
                 phi[6] = 0.0 if math.isinf(c) else k2 / (c if c > 0 else 1.0)
-        return np.array(phi)
+        return phi
 
     def _polynomial_of(self, phi, rho: float):
         # Rows: the features of A0 (still air), of dA/dU and of d2A/dU2 / 2.
