@@ -31,6 +31,8 @@ rounding.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from aero_dva.flight.batch_simulator import BatchStepper
@@ -62,7 +64,18 @@ periods is cheaper from a few hundred periods on."""
 
 def _input(value, name: str, allow_inf: bool = False):
     """A flight input as a float (scalar) or a 1-D float array, checked as
-    :meth:`DiscreteWing.checked_inputs` checks it."""
+    :meth:`DiscreteWing.checked_inputs` checks it.
+
+    A float or a float 1-D array that passes is returned after one comparison (NaN fails it:
+    the flight runtime's inputs, every block); anything else is checked in full, for the
+    error that names what is wrong."""
+    if type(value) is float:
+        if value >= 0.0 and (allow_inf or value < math.inf):
+            return value
+    elif type(value) is np.ndarray and value.dtype == np.float64 and value.ndim == 1 \
+            and value.size:
+        if value.min() >= 0.0 and (allow_inf or value.max() < math.inf):
+            return value
     arr = real_array(value, name, allow_inf=allow_inf)
     if arr.ndim == 0:
         x = float(arr)
@@ -72,6 +85,17 @@ def _input(value, name: str, allow_inf: bool = False):
     if arr.size and arr.min() < 0:
         raise ValueError(f"{name} must be >= 0")
     return arr
+
+
+def _per_sample(value, n: int) -> np.ndarray:
+    """A checked input (a float or an (n,) array) as a read-only (n,) array, as
+    ``np.broadcast_to`` gives it (a view of an array; for a scalar, its own copy)."""
+    if isinstance(value, np.ndarray) and value.shape == (n,):
+        out = value.view()
+    else:
+        out = np.full(n, value, dtype=float)
+    out.flags.writeable = False
+    return out
 
 
 class StreamingSimulator:
@@ -209,15 +233,13 @@ class StreamingSimulator:
         self._index += n
         if not self._diverged:
             self._diverged = bool(
-                not np.all(np.isfinite(self._y))
-                or not np.all(np.isfinite(disp))
-                or (n and np.max(np.abs(disp[LEADING_EDGE])) > self.divergence_limit)
+                not np.isfinite(self._y).all()
+                or not np.isfinite(disp).all()
+                or (n and np.abs(disp[LEADING_EDGE]).max() > self.divergence_limit)
             )
-        shape = (n,)
         return FlightSamples(first_index=first, sample_rate=dw.sample_rate,
-                             airspeed=np.broadcast_to(u, shape),
-                             density=np.broadcast_to(rho, shape),
-                             damping=np.broadcast_to(c, shape), force=f, displacements=disp,
+                             airspeed=_per_sample(u, n), density=_per_sample(rho, n),
+                             damping=_per_sample(c, n), force=f, displacements=disp,
                              accelerations=acc, diverged=self._diverged)
 
     def _segments(self, total: int, airspeed, density, damping):

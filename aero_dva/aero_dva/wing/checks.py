@@ -46,7 +46,6 @@ def real_array(value, name: str, allow_inf: bool = False) -> np.ndarray:
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError) as exc:
         raise TypeError(f"{name} must be an array of real numbers") from exc
-    bad = np.isnan(arr) if allow_inf else ~np.isfinite(arr)
-    if np.any(bad):
+    if np.isnan(arr).any() if allow_inf else not np.isfinite(arr).all():
         raise ValueError(f"{name} must not contain NaN{'' if allow_inf else ' or inf'}")
     return arr
