@@ -57,6 +57,7 @@ BENCHMARKS = {
     "bench_faults": ["--trials", "1", "--only", "burst"],
     "bench_evaluate_workers": ["--runs", "1", "--seeds", "2", "--cases", "rho0",
                                "--controllers", "fixed,oracle"],
+    "bench_flight_runtime": ["--repeats", "1"],
 }
 NEEDS_ROS_BUILD = {"bench_graph"}
 # Benchmarks that do more since the base: arguments of this tree's run that do the base's work,
