@@ -397,8 +397,9 @@ def main() -> int:
         print("  the simulator's split (wall / CPU of its thread), which adds up to the block: "
               f"stepping {ms(split['stepping'])} / {ms(report['stepping_cpu_s'] / blocks)}, "
               f"publishing {ms(split['publishing'])} / "
-              f"{ms(report['publishing_cpu_s'] / blocks)}, held for the command (from the end of "
-              f"publishing to its arrival) {ms(split['held'])}, between blocks (its executor) "
+              f"{ms(report['publishing_cpu_s'] / blocks)}, held (from the end of publishing to "
+              f"the next block: the command awaited, taken and checked) {ms(split['held'])}, "
+              f"between blocks (its executor) "
               f"{ms(between)}; its process CPU {ms(report['process_cpu_s'] / blocks)}")
         print(f"  stepping: the same arithmetic in this process {ms(runtime_block)} with the "
               f"law ({ms(costs['law'])} of it); the rest of the node's stepping is the "
@@ -409,7 +410,7 @@ def main() -> int:
               f"{ms(split['publishing'] - publish_python)}, is the DDS writes to their readers "
               "(the recorder's 6, the controller's /clock)")
         print(f"  held: the condition goes out before its block, so the controller answers while "
-              f"the simulator steps; its round trip, timed apart: DDS condition -> command "
+              f"the simulator steps; the round trip, timed apart: DDS condition -> command "
               f"ping-pong between two processes on bare wait sets, median "
               f"{ms(echo['waitset']['median'])} (p99 {ms(echo['waitset']['p99'])}); on the "
               f"events executor {ms(echo['events']['median'])} (p99 "
