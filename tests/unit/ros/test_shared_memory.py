@@ -41,3 +41,22 @@ def test_each_removed_port_is_said_after_its_remover(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err == (f"[fixed_controller] removed {dead}: an unsized Fast DDS port file a dead "
                    "process left\n")
+
+
+def test_only_old_segments_whose_lock_nobody_holds_are_removed(tmp_path, capsys):
+    import fcntl
+
+    def segment(name: str, age: float):
+        return _file(tmp_path / name, 4096, age), _file(tmp_path / f"{name}_el", 0, age)
+
+    dead, dead_lock = segment("fastrtps_00de632052a5ac1d", 120.0)
+    live, live_lock = segment("fastrtps_11de632052a5ac1d", 120.0)
+    young, young_lock = segment("fastrtps_22de632052a5ac1d", 1.0)
+    port_lock = _file(tmp_path / "fastrtps_port7911_el", 0, 120.0)  # a port's: not a segment
+    with open(live_lock, "rb") as held:
+        fcntl.flock(held, fcntl.LOCK_EX)  # as a live participant holds its segment's lock
+        assert clear_dead_ports("[simulator]", tmp_path) == [dead]
+    assert not dead.exists() and not dead_lock.exists()
+    for kept in (live, live_lock, young, young_lock, port_lock):
+        assert kept.exists(), kept.name
+    assert capsys.readouterr().err == ""  # a node's one-line errors stay one line
