@@ -10,6 +10,7 @@ Prints, in one run, each figure with the baseline measured in the same run:
   dva_controller against ``python -c "import rclpy, numpy"`` (best of ``--repeats``, taken in
   turns);
 - the 30 s lockstep schedule flight (``run_flight --controller schedule --real-time-factor 0``,
+  flown ``--flights`` times, the median's figures printed with every flight's factor;
   the README's flight): sim time / wall time against the same flight in this process (the
   flight runtime with the schedule law after every block, ``closed_loop.fly``: the arithmetic
   and the law without DDS or processes);
@@ -24,7 +25,7 @@ Prints, in one run, each figure with the baseline measured in the same run:
   process (median, p99, max), idle and beside two CPU-bound loops this benchmark starts and
   stops;
 - the record: the lockstep flight flown again beside the two busy loops gives the idle record
-  digit for digit (divergence, RMS, mean c2, commands recorded).
+  digit for digit, as every idle flight's (divergence, RMS, mean c2, commands recorded).
 
 The machine's load average is printed first: on a machine shared with other work, the wall
 times (every figure here but the CPU ones) measure the sharing too.
@@ -328,6 +329,9 @@ def main() -> int:
                         help="[s] sim time (= wall time) of each rate-1 flight (default 10)")
     parser.add_argument("--echo-count", type=int, default=500,
                         help="timed round trips of the ping-pong")
+    parser.add_argument("--flights", type=int, default=3,
+                        help="idle lockstep flights; the median's figures are printed "
+                             "(default: %(default)s)")
     parser.add_argument("--json", help="also write every figure to this JSON file")
     parser.add_argument("--keep", help="directory to keep the bags in (default: temporary)")
     args = parser.parse_args()
@@ -355,17 +359,25 @@ def main() -> int:
 
         # -- flight, start, stop
         sim_s, runtime_wall, runtime_blocks, runtime_samples = baseline_flight(schedule)
-        idle = run_flight(schedule, root / "lockstep_idle", ["--real-time-factor", "0"])
-        report = end_report(root / "lockstep_idle")
+        # the median of --flights flights: one flight's figure moves by +-5 % from run to run
+        flights = [run_flight(schedule, root / f"lockstep_idle_{i}", ["--real-time-factor", "0"])
+                   for i in range(args.flights)]
+        order = sorted(range(len(flights)), key=lambda i: flights[i]["flight_wall_time"])
+        median = order[len(order) // 2]
+        idle = flights[median]
+        report = end_report(root / f"lockstep_idle_{median}")
         phases = idle["phase_wall_times"]
         factor = idle["duration"] / idle["flight_wall_time"]
-        print(f"\nflight (30 s lockstep schedule flight): {idle['duration']:.2f} s sim in "
+        each = " / ".join(f"{f['duration'] / f['flight_wall_time']:.1f}x" for f in flights)
+        print(f"\nflight (30 s lockstep schedule flight, the median of {len(flights)}: {each}): "
+              f"{idle['duration']:.2f} s sim in "
               f"{idle['flight_wall_time']:.3f} s wall = {factor:.1f}x real time "
               f"(target >= 50x: {'met' if factor >= 50 else 'NOT met'}); baseline, the same "
               f"flight in this process (best of 3): {sim_s:.2f} s in {runtime_wall:.3f} s = "
               f"{sim_s / runtime_wall:.0f}x, ended at the same sample: "
               f"{'yes' if abs(sim_s - idle['duration']) < 1e-9 else 'NO'}")
-        print(f"run_flight start to summary: {idle['command_wall_time']:.2f} s wall (target "
+        print(f"run_flight start to summary (that flight): {idle['command_wall_time']:.2f} s "
+              f"wall (target "
               f"<= 3 s: {'met' if idle['command_wall_time'] <= 3 else 'NOT met'}); inside "
               f"run_flight: start {phases['start']:.2f} s, flight {phases['flight']:.2f} s, "
               f"stop {phases['stop']:.2f} s, summary {phases['summary']:.2f} s; the rest "
@@ -377,6 +389,7 @@ def main() -> int:
               f"{report.get('graph_wait_wall_s', float('nan')):.2f} s")
         figures.update(in_process={"sim_s": sim_s, "wall_s": runtime_wall,
                                    "samples": runtime_samples},
+                       lockstep_idle_flights=[f["flight_wall_time"] for f in flights],
                        lockstep_idle={k: idle[k] for k in (
                            "duration", "flight_wall_time", "wall_time", "command_wall_time",
                            "phase_wall_times", "blocks", *RECORD)},
@@ -438,8 +451,9 @@ def main() -> int:
         figures["latency_rate_1_s"] = latency
 
         # -- the record, idle and loaded
-        same = all(idle[k] == loaded[k] for k in RECORD)
-        print("\nrecord of the lockstep flight, idle / beside two busy loops: " + "; ".join(
+        same = all(f[k] == loaded[k] for f in flights for k in RECORD)
+        print(f"\nrecord of the lockstep flight, idle ({len(flights)} flights) / beside two busy "
+              "loops: " + "; ".join(
             f"{k} {idle[k]!r} / {loaded[k]!r}" for k in RECORD)
             + f": {'identical' if same else 'DIFFERENT'} (the loaded flight: "
             f"{loaded['duration'] / loaded['flight_wall_time']:.1f}x real time)")
