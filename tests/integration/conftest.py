@@ -21,7 +21,6 @@ try:
     from rclpy.executors import SingleThreadedExecutor
 
     from aero_dva_sim.run_flight import die_with_parent
-    from dva_ros_common.dds_profile import use_dds_profile
     from dva_ros_common.node_tools import close_executor
     from dva_ros_common.ros_domain import reserved_domain
     from dva_ros_common.shared_memory import remove_unsized_ports
@@ -32,8 +31,6 @@ except ImportError as exc:  # pragma: no cover - environment problem, reported c
     ) from exc
 
 pytestmark = pytest.mark.ros
-
-use_dds_profile()  # as every node of the project: before this process's first participant
 
 
 @pytest.fixture(scope="session", autouse=True)

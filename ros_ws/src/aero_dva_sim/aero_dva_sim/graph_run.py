@@ -111,11 +111,9 @@ def run_on_domain(prog: str, run, args) -> tuple[dict | None, int]:
     fails (also left in ``args.failure``). ``run`` names its run by setting ``args.run_name``
     (its bag) as soon as it has one.
     """
-    from dva_ros_common.dds_profile import use_dds_profile
     from dva_ros_common.ros_domain import reserved_domain, use_discovery
 
     use_discovery(getattr(args, "discovery", None))
-    use_dds_profile()  # the nodes inherit it
     args.run_name = None
     try:
         with exits.signals_interrupt(), contextlib.ExitStack() as stack:

@@ -37,7 +37,6 @@ from aero_dva import exits
 from aero_dva.bag.channels import DIAGNOSTICS
 from aero_dva.text_input import loggable
 from dva_ros_common.conversions import ERROR, WARN, diagnostic_array, diagnostic_status
-from dva_ros_common.dds_profile import use_dds_profile
 from dva_ros_common.node_params import (  # noqa: F401 - DATA_DEPTH: its users import it here
     DATA_DEPTH,
     INPUT_HEALTH_PARAMS,
@@ -259,7 +258,6 @@ def run_node(node_class: Callable[[], Node], spec: NodeSpec, args=None, *,
     node_name = spec.name
     signalled = _Signals()  # first: a signal while rclpy starts is noted too
     clear_dead_ports(f"[{node_name}]")  # else the node could hang before its first line
-    use_dds_profile()  # before the process's DDS participant
     try:
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     except RCLError as exc:  # e.g. ROS_SECURITY_* set without a usable keystore
