@@ -422,8 +422,9 @@ def main() -> int:
               f"serializing them {ms(costs['serialize'])} (timed here); the rest, "
               f"{ms(split['publishing'] - publish_python)}, is the DDS writes to their readers "
               "(the recorder's 6, the controller's /clock)")
-        print(f"  held: the condition goes out before its block, so the controller answers while "
-              f"the simulator steps; the round trip, timed apart: DDS condition -> command "
+        print(f"  held: in lockstep a block's condition goes out as soon as the block before is "
+              f"stepped, so the controller answers while the simulator publishes; the round "
+              f"trip, timed apart: DDS condition -> command "
               f"ping-pong between two processes on bare wait sets, median "
               f"{ms(echo['waitset']['median'])} (p99 {ms(echo['waitset']['p99'])}); on the "
               f"events executor {ms(echo['events']['median'])} (p99 "

@@ -136,6 +136,10 @@ class Simulator(Node):
             self.published[channel.name] = 0
         self._latencies: list[float] = []  # [s] sim time from a command's input to its effect
         self._max_lag = float(self.get_parameter("max_command_lag").value)
+        self._condition_sent = -1.0  # [s] sim time of the last block whose condition was sent
+        # lockstep: as fast as possible, each block waiting for the answer to the one before
+        self._condition_ahead = self._rtf <= 0 and 0 < self._max_lag <= \
+            self.runtime.block_duration * (1 + 1e-9)
         self._lag_timeout = float(self.get_parameter("command_wait_timeout").value)
         self._last_command_stamp: float | None = None
         self._lag_since: float | None = None
@@ -367,6 +371,8 @@ class Simulator(Node):
             self._publish_condition()
             block = self.runtime.step()
             published, published_cpu = time.perf_counter(), time.thread_time()
+            if self._condition_ahead and not (block.diverged or self.runtime.done):
+                self._publish_condition()  # the next block's
             self._publish(block)
             self.timing["stepping"] += published - stepped
             self.timing["publishing"] += time.perf_counter() - published
@@ -441,11 +447,18 @@ class Simulator(Node):
             (self._timer if stepping else self._poll).reset()
 
     def _publish_condition(self) -> None:
-        """The flight condition of the block about to be flown, before it is flown: the
-        scenario fixes it (FlightRuntime.next_condition), and a law of the condition answers
-        while the block is stepped instead of after it (in lockstep the flight waits for that
-        answer). Its command still acts from the next block on, as the damper takes commands
-        between blocks only; the /clock before it is the block's start, its stamp."""
+        """The flight condition of the next block, before the block is flown: the scenario
+        fixes it (FlightRuntime.next_condition), so a law of the condition answers while the
+        simulator is busy instead of after. In lockstep (``_condition_ahead``) it goes out as
+        soon as the block before has been stepped, first of all that block's messages: the law
+        answers while the rest of them are sent; otherwise just before its block is stepped.
+        Either way its command acts from the block after the one it answers, as before: the
+        simulator takes commands only between its steps, and in lockstep the command of the
+        block before is what lets the next be flown (the bag's commands replayed give its
+        samples bit for bit: test_flight_determinism)."""
+        if self._condition_sent == self.runtime.time:
+            return  # sent ahead
+        self._condition_sent = self.runtime.time
         t0, airspeed, density = self.runtime.next_condition()
         self._pub[ch.FLIGHT_CONDITION.name].publish(
             conversions.flight_condition(t0, airspeed, density))
