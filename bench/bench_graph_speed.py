@@ -103,7 +103,7 @@ def baseline_flight(schedule: Path, repeats: int = 3) -> tuple[float, float, int
         outcome = fly(config, law)
         wall = time.perf_counter() - started
         if best is None or wall < best[1]:
-            blocks = -(-outcome.samples // 50)
+            blocks = -(-outcome.samples // config.scenario.block_size)
             best = (outcome.samples / outcome.sample_rate, wall, blocks, outcome.samples)
     return best
 
