@@ -180,6 +180,8 @@ def test_a_stopped_recorder_takes_what_the_simulator_counted(
     executor.add_node(node)
     conditions = node.create_publisher(FlightCondition, "flight/condition", 1000)
     reports = node.create_publisher(DiagnosticArray, "/diagnostics", 10)
+    words = []  # the recorder's word on dva/recorded that it holds the flight
+    node.create_subscription(DiagnosticArray, ch.RECORDED.name, words.append, 10)
     recorder = _start_recorder(start_process, bag)
     assert _wait_subscribed(executor, spin, conditions), recorder.output()
     assert _wait_subscribed(executor, spin, reports), recorder.output()
@@ -189,14 +191,24 @@ def test_a_stopped_recorder_takes_what_the_simulator_counted(
     reports.publish(diagnostics(1.0, ch.FLIGHT_DIAGNOSTIC_NAME, ch.SIMULATOR_HARDWARE_ID, [
         ("ok", "flight completed", {"published:flight/condition": sent + claimed_extra})]))
     assert reports.wait_for_all_acked(Duration(seconds=120))
+    if not claimed_extra:  # said as soon as it holds them, before it is stopped
+        assert spin(executor, lambda: words, timeout=60.0), recorder.output()
     assert recorder.stop() == 0, recorder.output()
     closing = next(line for line in recorder.output().splitlines() if "closed" in line)
     if claimed_extra:
         assert f"; {claimed_extra} of the {sent + claimed_extra} its flight report counts " \
                "missing" in closing, closing
+        executor.spin_once(timeout_sec=0.1)
+        assert words == []  # never said: it does not hold them
     else:
         assert f"; all {sent} its flight report counts" in closing, closing
+        [word] = words
+        [status] = word.status
+        assert (word.header.stamp.sec, word.header.stamp.nanosec) == (1, 0)  # the report's
+        assert status.name == ch.RECORDED_NAME and status.hardware_id == "/mcap_recorder"
+        assert {kv.key: kv.value for kv in status.values} == {"recorded:/flight/condition": "40"}
     assert bag_topics(bag)["/flight/condition"].message_count == sent
+    assert "/dva/recorded" not in bag_topics(bag)  # the word is not recorded
 
 
 def test_a_message_past_max_message_bytes_is_counted_not_recorded(executor, spin, ros_context,

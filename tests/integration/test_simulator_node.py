@@ -207,3 +207,38 @@ def test_a_flight_ahead_of_its_controller_is_said_once_and_loudly(executor, spin
     assert len(ahead) == 1 and sim.flew_ahead
     assert "a command for t = 0.000 s arrived at t = " in ahead[0]
     assert "max_command_lag 0 s, so the flight runs free" in ahead[0]
+
+
+@pytest.mark.parametrize("word", ["its_report", "another_report", "none"])
+def test_the_ended_flight_exits_on_its_recorders_word(executor, spin, ros_context, tmp_path,
+                                                      monkeypatch, word):
+    """With a recorder in the graph (a publisher on dva/recorded), the ended flight exits once
+    the recorder says, stamped with the end-of-flight report's stamp, that it holds the flight;
+    a word for another report, or none, is waited for until ACK_TIMEOUT (then said)."""
+    from aero_dva.bag import channels as ch
+    from aero_dva_sim import simulator_node
+    from dva_ros_common.conversions import diagnostics
+
+    # The word must end it: the wait would otherwise outlast the spin below.
+    monkeypatch.setattr(simulator_node, "ACK_TIMEOUT", 600.0 if word == "its_report" else 1.0)
+    probe = Probe(ros_context)
+    recorder = Node("recorder", context=ros_context)
+    said = recorder.create_publisher(DiagnosticArray, ch.RECORDED.name, 10)
+
+    def answer(report: DiagnosticArray) -> None:
+        if word == "none" or not any(s.name == ch.FLIGHT_DIAGNOSTIC_NAME for s in report.status):
+            return
+        stamp = report.header.stamp if word == "its_report" else 123.0
+        said.publish(diagnostics(stamp, ch.RECORDED_NAME, "/recorder", [("ok", "held", {})]))
+
+    recorder.create_subscription(DiagnosticArray, "/diagnostics", answer, 10)
+    sim = _simulator(ros_context, tmp_path, _scenario(tmp_path, "{kind: constant, "
+                                                      "value_ratio: 0.8}"))
+    executor.add_node(probe.node)
+    executor.add_node(recorder)
+    # matched before the flight (started by adding the simulator) can end
+    assert spin(executor, lambda: sim._recorded_sub.get_publisher_count() == 1, timeout=60.0)
+    executor.add_node(sim)
+    assert spin(executor, sim.finished.done, timeout=120.0)
+    assert sim.finished.result() == "completed"
+    assert sim._lingering["heard"] == ({"/recorder"} if word == "its_report" else set())

@@ -25,6 +25,8 @@ __all__ = [
     "FLIGHT_CONDITION",
     "FLIGHT_DIAGNOSTIC_NAME",
     "LAW_INPUTS",
+    "RECORDED",
+    "RECORDED_NAME",
     "SIMULATOR_BLOCK",
     "SIMULATOR_HARDWARE_ID",
     "SPECTRUM",
@@ -59,6 +61,9 @@ SPECTRUM = Channel("dva/spectrum", "dva_msgs/msg/ScaledSpectrum")
 #: A per-sample law's damper, sample by sample, beside each block it flew (not every block).
 DAMPER_BLOCK = Channel("dva/damper_block", "dva_msgs/msg/DamperBlock")
 DIAGNOSTICS = Channel("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray")
+#: A recorder's word that it holds every message a flight report counts (not recorded): the
+#: simulator exits on it rather than on DDS acknowledgements, which wait for a heartbeat.
+RECORDED = Channel("dva/recorded", "diagnostic_msgs/msg/DiagnosticArray")
 
 #: The topic of each input a control law reads (aero_dva.control.controllers: CONDITION, ...).
 LAW_INPUTS = {"condition": FLIGHT_CONDITION, "spectrum": SPECTRUM, "displacement": DISPLACEMENT,
@@ -75,6 +80,9 @@ DIAGNOSTIC_LEVELS = {"ok": 0, "warn": 1, "error": 2, "stale": 3}
 #: Name and hardware_id of the simulator's "flight completed / diverged" status.
 FLIGHT_DIAGNOSTIC_NAME = "simulator: flight"
 SIMULATOR_HARDWARE_ID = "aero_dva_sim"
+#: Name of the status on :data:`RECORDED` (its hardware_id: the recorder's node; its stamp: the
+#: flight report's).
+RECORDED_NAME = "mcap_recorder: flight recorded"
 
 
 def absolute(name: str, namespace: str = "") -> str:

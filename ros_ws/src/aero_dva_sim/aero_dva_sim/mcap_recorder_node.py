@@ -7,7 +7,10 @@ the bag cleanly: everything received is in the MCAP file, and ``metadata.yaml`` 
 Once it has recorded the simulator's end-of-flight report, which counts what the simulator
 published on each topic and the commands it received (the answer to the last block's input
 included), it takes queued messages until it holds every one of them (at most
-``dva_ros_common.node_tools.DRAIN_LIMIT`` s), and says on closing whether it does.
+``dva_ros_common.node_tools.DRAIN_LIMIT`` s), and says on closing whether it does. As soon as
+it holds them it says so on ``dva/recorded`` (a topic it does not record), stamped with the
+report's stamp: the simulator exits on that word (DDS acknowledgements would wait for the
+writer's next heartbeat, up to 3 s).
 
 Its parameters (units, defaults, ranges) are the table ``SPEC`` of
 :mod:`aero_dva_sim.mcap_recorder_spec`, which the node declares them from and
@@ -34,7 +37,7 @@ from aero_dva.bag.schemas import MessageDefinitionNotFound
 from aero_dva.bag.writer import BagWriter, qos_profile_yaml
 from aero_dva.text_input import loggable
 from aero_dva_sim.mcap_recorder_spec import SPEC, main
-from dva_ros_common.conversions import message_class
+from dva_ros_common.conversions import diagnostic_array, diagnostic_status, message_class
 from dva_ros_common.node_params import declare_parameters
 from dva_ros_common.node_tools import RCLError
 
@@ -84,11 +87,15 @@ class McapRecorder(Node):
         # topic -> messages the simulator published (or received: the commands), from its last
         # flight report (None: none)
         self.simulator_counted: dict[str, int] | None = None
+        self._report_stamp = None  # the header stamp of that report, until it is said recorded
         self._max_bytes = int(values["max_message_bytes"])
         self._oversized: Counter[str] = Counter()  # messages too large to record, by topic
         self._oversized_said: dict[str, float] = {}
         self._diagnostics = self.resolve_topic_name(ch.DIAGNOSTICS.name)
         self._diagnostic_type = message_class(ch.DIAGNOSTICS.type_name)
+        self._said_topic = self.resolve_topic_name(ch.RECORDED.name)
+        self._said = self.create_publisher(message_class(ch.RECORDED.type_name),
+                                           ch.RECORDED.name, 10)
         try:
             wall = Clock(clock_type=ClockType.STEADY_TIME)
             self.create_timer(float(values["discovery_period"]),
@@ -115,7 +122,8 @@ class McapRecorder(Node):
         return [s for s in self.get_parameter(name).value if s]
 
     def _wanted(self, topic: str) -> bool:
-        return topic not in self._exclude and (not self._only or topic in self._only)
+        return topic not in self._exclude and topic != self._said_topic and (
+            not self._only or topic in self._only)
 
     def _discover(self) -> None:
         for topic, types in self.get_topic_names_and_types():
@@ -173,19 +181,33 @@ class McapRecorder(Node):
         self.received_by_topic[topic] += 1
         if topic == self._diagnostics:
             self._read_flight_report(data)
+        if self._report_stamp is not None and self.complete():
+            self._say_recorded()
 
     def _read_flight_report(self, data: bytes) -> None:
         """Keep the simulator's counts of what it published and received, from its flight
         reports: the messages on those topics the bag must hold."""
         from rclpy.serialization import deserialize_message
 
-        for status in deserialize_message(data, self._diagnostic_type).status:
+        report = deserialize_message(data, self._diagnostic_type)
+        for status in report.status:
             if status.name != ch.FLIGHT_DIAGNOSTIC_NAME:
                 continue
             counts = {self.resolve_topic_name(kv.key.partition(":")[2]): int(kv.value)
                       for kv in status.values if kv.key.startswith(COUNTED)}
             if counts:
                 self.simulator_counted = counts
+                self._report_stamp = report.header.stamp
+
+    def _say_recorded(self) -> None:
+        """Say on ``dva/recorded`` that the bag holds every message of the last flight report
+        (or knows it lost), once per report; the simulator waits for this before it exits."""
+        values = {f"recorded:{t}": self.received_by_topic[t] for t in self.simulator_counted}
+        values.update({f"lost:{t}": n for t, n in self.lost_by_topic.items() if n})
+        self._said.publish(diagnostic_array(self._report_stamp, [diagnostic_status(
+            0, ch.RECORDED_NAME, "every message the flight report counts is recorded",
+            values, self.get_fully_qualified_name())]))
+        self._report_stamp = None
 
     def complete(self) -> bool | None:
         """Whether every message the simulator's flight report counts (published, or received:

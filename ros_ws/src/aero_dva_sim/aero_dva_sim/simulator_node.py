@@ -69,9 +69,9 @@ REJECTION_REPORT_PERIOD = 1.0
 # [s] wall time between two looks at the publishers of dva/damper_command (a graph query per
 # command of a 10 kHz burst would cost more than the command)
 GRAPH_PERIOD = 0.05
-# [s] wall time the ended flight waits at most for its readers to acknowledge what it sent
-# (the last block and the end-of-flight report) before the node exits: a reader starved of CPU
-# cannot have them sent again by a writer that is gone
+# [s] wall time the ended flight waits at most for its recorders to say they hold what it sent
+# (or, with none, for its readers to acknowledge it): the last block and the end-of-flight
+# report. A reader starved of CPU cannot have them sent again by a writer that is gone.
 ACK_TIMEOUT = 5.0
 #: The graph's name for a publisher whose node's name has not been discovered yet (rmw).
 UNKNOWN_NODE = "_NODE_NAME_UNKNOWN_"
@@ -127,6 +127,11 @@ class Simulator(Node):
                                                 ch.CLOCK.name, 10)
         self._diag_pub = self.create_publisher(message_class(ch.DIAGNOSTICS.type_name),
                                                ch.DIAGNOSTICS.name, 10)
+        # The recorders' word that they hold the flight (_linger): recorder -> said so
+        self._recorded_sub = self.create_subscription(
+            message_class(ch.RECORDED.type_name), ch.RECORDED.name, self._on_recorded, 10)
+        self._report_stamp = None  # the end-of-flight report's header stamp
+        self._lingering: dict | None = None  # outcome, recorders, deadline timer, heard from
         self.published = dict.fromkeys(DATA_TOPICS, 0)
         # A per-sample law's damper, sample by sample, beside each block it flies.
         if any(not isinstance(law, str) for law in self.runtime.config.per_sample.values()):
@@ -341,7 +346,7 @@ class Simulator(Node):
         return True
 
     def _step(self) -> None:
-        if self.finished.done():
+        if self.finished.done() or self._lingering is not None:
             return
         if self._ending is not None:
             self._end(*self._ending)
@@ -538,27 +543,67 @@ class Simulator(Node):
             if not self.finished.done():
                 self._set_stepping(False)  # the poll and the answer call this again
             return
-        self._diagnose(level, text, self._summary())
+        self._report(level, text)
         self._finish(outcome)
 
     def _fail(self, text: str) -> None:
-        if self.finished.done():
+        if self.finished.done() or self._lingering is not None:
             return
-        self._diagnose("error", text, self._summary())
+        self._report("error", text)
         self.exit_code = exits.FAILED
         self._finish("failed")
 
+    def _report(self, level: str, text: str) -> None:
+        """The end-of-flight report, with the counts the recorders check their bags by."""
+        self._report_stamp = conversions.seconds_to_time(self.runtime.time)
+        self._diagnose(level, text, self._summary())
+
     def _finish(self, outcome: str) -> None:
+        """End the node once what the flight sent is safe (:meth:`_linger`): at once when every
+        recorder in the graph says it holds the flight (``dva/recorded``), at ``ACK_TIMEOUT``
+        if one does not; with no recorder, once every reader has acknowledged it."""
         self._timer.cancel()
         self._poll.cancel()
-        if not self.finished.done():
-            self._linger()
-            self.finished.set_result(outcome)
+        if self.finished.done() or self._lingering is not None:
+            return
+        recorders = self._recorded_sub.get_publisher_count()
+        if recorders and self._report_stamp is not None:
+            self._lingering = {"outcome": outcome, "recorders": recorders, "heard": set(),
+                               "timer": self.create_timer(ACK_TIMEOUT, self._recorders_late,
+                                                          clock=self._wall)}
+            return
+        self._linger()
+        self.finished.set_result(outcome)
+
+    def _on_recorded(self, msg) -> None:
+        linger = self._lingering
+        if linger is None or self.finished.done():
+            return
+        stamp = (self._report_stamp.sec, self._report_stamp.nanosec)
+        if (msg.header.stamp.sec, msg.header.stamp.nanosec) != stamp:
+            return  # another flight's report (or one before this flight's last)
+        linger["heard"].update(s.hardware_id for s in msg.status if s.name == ch.RECORDED_NAME)
+        if len(linger["heard"]) >= linger["recorders"]:
+            linger["timer"].cancel()
+            self.finished.set_result(linger["outcome"])
+
+    def _recorders_late(self) -> None:
+        linger = self._lingering
+        linger["timer"].cancel()
+        if self.finished.done():
+            return
+        self.get_logger().warning(
+            f"{len(linger['heard'])} of {linger['recorders']} recorder(s) said within "
+            f"{ACK_TIMEOUT:g} s that they hold the flight's messages")
+        self.finished.set_result(linger["outcome"])
 
     def _linger(self) -> None:
         """Let every reliable reader acknowledge what the flight sent (``ACK_TIMEOUT`` in all):
         a loaded recorder (a batch task) had taken 199 of 200 blocks and no report when the
-        simulator exited, and those were then lost for good (docs/reliability.md)."""
+        simulator exited, and those were then lost for good (docs/reliability.md). A reader
+        acknowledges on the writer's heartbeat (Fast DDS: every 3 s), so this takes up to 3 s
+        even when every reader holds everything: a recorder's word ends it sooner
+        (:meth:`_finish`)."""
         deadline = time.monotonic() + ACK_TIMEOUT
         for publisher in [*self._pub.values(), self._clock_pub, self._diag_pub]:
             left = deadline - time.monotonic()
