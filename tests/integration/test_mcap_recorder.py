@@ -231,3 +231,25 @@ def test_a_message_past_max_message_bytes_is_counted_not_recorded(executor, spin
     output = recorder.output()
     assert "not recorded (more than max_message_bytes 1,048,576" in output, output
     assert "1 too large, not recorded" in output, output
+
+
+@pytest.mark.parametrize(("topics", "offers"), [([], True), (["/flight/condition"], False),
+                                               (["/diagnostics"], True)])
+def test_the_recorder_offers_its_word_only_when_it_records_the_flight_report(
+        ros_context, tmp_path, topics, offers):
+    """The word on dva/recorded needs the simulator's report on /diagnostics: a recorder that
+    leaves it out offers no word (the simulator then waits for acknowledgements instead)."""
+    from rclpy.parameter import Parameter
+
+    from aero_dva_sim.mcap_recorder_node import McapRecorder
+
+    overrides = [Parameter("output", value=str(tmp_path / "bag"))]
+    if topics:
+        overrides.append(Parameter("topics", value=topics))
+    recorder = McapRecorder(context=ros_context, parameter_overrides=overrides)
+    try:
+        assert (recorder.count_publishers("dva/recorded") == 1) is offers
+        assert (recorder._word is not None) is offers
+    finally:
+        recorder.close()
+        recorder.destroy_node()

@@ -93,9 +93,12 @@ class McapRecorder(Node):
         self._oversized_said: dict[str, float] = {}
         self._diagnostics = self.resolve_topic_name(ch.DIAGNOSTICS.name)
         self._diagnostic_type = message_class(ch.DIAGNOSTICS.type_name)
-        self._said_topic = self.resolve_topic_name(ch.RECORDED.name)
-        self._said = self.create_publisher(message_class(ch.RECORDED.type_name),
-                                           ch.RECORDED.name, 10)
+        self._word_topic = self.resolve_topic_name(ch.RECORDED.name)
+        # The word needs the flight report: a recorder that leaves /diagnostics out offers
+        # none, and the simulator then waits for DDS acknowledgements instead.
+        self._word = self.create_publisher(message_class(ch.RECORDED.type_name),
+                                           ch.RECORDED.name, 10) \
+            if self._wanted(self._diagnostics) else None
         try:
             wall = Clock(clock_type=ClockType.STEADY_TIME)
             self.create_timer(float(values["discovery_period"]),
@@ -122,7 +125,7 @@ class McapRecorder(Node):
         return [s for s in self.get_parameter(name).value if s]
 
     def _wanted(self, topic: str) -> bool:
-        return topic not in self._exclude and topic != self._said_topic and (
+        return topic not in self._exclude and topic != self._word_topic and (
             not self._only or topic in self._only)
 
     def _discover(self) -> None:
@@ -204,7 +207,7 @@ class McapRecorder(Node):
         (or knows it lost), once per report; the simulator waits for this before it exits."""
         values = {f"recorded:{t}": self.received_by_topic[t] for t in self.simulator_counted}
         values.update({f"lost:{t}": n for t, n in self.lost_by_topic.items() if n})
-        self._said.publish(diagnostic_array(self._report_stamp, [diagnostic_status(
+        self._word.publish(diagnostic_array(self._report_stamp, [diagnostic_status(
             0, ch.RECORDED_NAME, "every message the flight report counts is recorded",
             values, self.get_fully_qualified_name())]))
         self._report_stamp = None
