@@ -164,11 +164,12 @@ def test_messages_a_writer_dropped_before_the_recorder_had_them_are_reported(
     assert recorded + lost == 3002, closing  # every message is either in the bag or counted
 
 
-@pytest.mark.parametrize("claimed_extra", [0, 3])
+@pytest.mark.parametrize(("claimed_extra", "left_out"), [(0, False), (3, False), (0, True)])
 def test_a_stopped_recorder_takes_what_the_simulator_counted(
-        executor, spin, ros_context, start_process, tmp_path, claimed_extra):
+        executor, spin, ros_context, start_process, tmp_path, claimed_extra, left_out):
     """On SIGINT the recorder holds on until it has every message the simulator's flight report
-    counts, and says so on closing; a count it cannot reach is said as missing."""
+    counts, and says so on closing; a count it cannot reach is said as missing. A topic the
+    recorder leaves out (``exclude``) is not waited for."""
     from diagnostic_msgs.msg import DiagnosticArray
 
     from aero_dva.bag import channels as ch
@@ -182,14 +183,16 @@ def test_a_stopped_recorder_takes_what_the_simulator_counted(
     reports = node.create_publisher(DiagnosticArray, "/diagnostics", 10)
     words = []  # the recorder's word on dva/recorded that it holds the flight
     node.create_subscription(DiagnosticArray, ch.RECORDED.name, words.append, 10)
-    recorder = _start_recorder(start_process, bag)
+    recorder = _start_recorder(start_process, bag,
+                               *(["-p", "exclude:=[/wing/acceleration]"] if left_out else []))
     assert _wait_subscribed(executor, spin, conditions), recorder.output()
     assert _wait_subscribed(executor, spin, reports), recorder.output()
     sent = 40
     for i in range(sent):
         conditions.publish(FlightCondition(airspeed=80.0 + i, air_density=1.2))
     reports.publish(diagnostics(1.0, ch.FLIGHT_DIAGNOSTIC_NAME, ch.SIMULATOR_HARDWARE_ID, [
-        ("ok", "flight completed", {"published:flight/condition": sent + claimed_extra})]))
+        ("ok", "flight completed", {"published:flight/condition": sent + claimed_extra,
+                                    **({"published:wing/acceleration": 7} if left_out else {})})]))
     assert reports.wait_for_all_acked(Duration(seconds=120))
     if not claimed_extra:  # said as soon as it holds them, before it is stopped
         assert spin(executor, lambda: words, timeout=60.0), recorder.output()

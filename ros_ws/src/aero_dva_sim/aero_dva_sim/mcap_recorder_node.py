@@ -189,15 +189,17 @@ class McapRecorder(Node):
 
     def _read_flight_report(self, data: bytes) -> None:
         """Keep the simulator's counts of what it published and received, from its flight
-        reports: the messages on those topics the bag must hold."""
+        reports: the messages on those topics the bag must hold (the topics it records: one it
+        leaves out is not waited for)."""
         from rclpy.serialization import deserialize_message
 
         report = deserialize_message(data, self._diagnostic_type)
         for status in report.status:
             if status.name != ch.FLIGHT_DIAGNOSTIC_NAME:
                 continue
-            counts = {self.resolve_topic_name(kv.key.partition(":")[2]): int(kv.value)
-                      for kv in status.values if kv.key.startswith(COUNTED)}
+            counts = {topic: int(kv.value) for kv in status.values
+                      if kv.key.startswith(COUNTED) and self._wanted(
+                          topic := self.resolve_topic_name(kv.key.partition(":")[2]))}
             if counts:
                 self.simulator_counted = counts
                 self._report_stamp = report.header.stamp

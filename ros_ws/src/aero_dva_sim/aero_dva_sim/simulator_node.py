@@ -127,7 +127,7 @@ class Simulator(Node):
                                                 ch.CLOCK.name, 10)
         self._diag_pub = self.create_publisher(message_class(ch.DIAGNOSTICS.type_name),
                                                ch.DIAGNOSTICS.name, 10)
-        # The recorders' word that they hold the flight (_linger): recorder -> said so
+        # The recorders' word that they hold the flight: the node exits on it (_finish)
         self._recorded_sub = self.create_subscription(
             message_class(ch.RECORDED.type_name), ch.RECORDED.name, self._on_recorded, 10)
         self._report_stamp = None  # the end-of-flight report's header stamp
