@@ -10,6 +10,7 @@ import os
 import signal
 import subprocess
 import time
+import weakref
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
@@ -19,6 +20,7 @@ try:
     import rclpy
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
 
     from aero_dva_sim.run_flight import die_with_parent
     from dva_ros_common.node_tools import close_executor
@@ -47,15 +49,47 @@ def ros_domain() -> Iterator[int]:
         yield reserved
 
 
+#: Every rclpy node this process makes: a node nobody destroys outlives its context's shutdown
+#: (its DDS participant stays in the domain), and the domain, released after the test, is the
+#: next test's: its graph then meets the old node (a switching_controller a test had only
+#: removed from its executor stopped later flights as a second commander).
+_NODES: weakref.WeakSet = weakref.WeakSet()
+_node_init = Node.__init__
+
+
+def _tracked_init(self, *args, **kwargs) -> None:
+    _node_init(self, *args, **kwargs)
+    _NODES.add(self)
+
+
+Node.__init__ = _tracked_init
+
+
+def _alive(node: Node) -> bool:
+    try:
+        node.get_name()
+    except Exception:  # rclpy's InvalidHandle: destroyed
+        return False
+    return True
+
+
 @pytest.fixture
 def ros_context(ros_domain: int) -> Iterator[Context]:
-    """A fresh, initialised rclpy Context on the test's own domain."""
+    """A fresh, initialised rclpy Context on the test's own domain. A node of it the test left
+    alive is destroyed before the domain is released, and fails the test."""
     context = Context()
     rclpy.init(context=context, domain_id=ros_domain)
     try:
         yield context
     finally:
+        leaked = [node for node in list(_NODES) if node.context is context and _alive(node)]
+        names = sorted(node.get_fully_qualified_name() for node in leaked)
+        for node in leaked:
+            node.destroy_node()
         rclpy.try_shutdown(context=context)
+    if names:
+        pytest.fail(f"the test left node(s) {names} alive: destroyed now, before its domain "
+                    "is released")
 
 
 @pytest.fixture

@@ -71,6 +71,7 @@ def fly(executor, spin, ros_context, tmp_path, controller: Node | None, airspeed
     if stop is not None:
         assert spin(executor, lambda: stop(states) or sim.finished.done(), timeout=60.0)
         executor.remove_node(controller)
+        controller.destroy_node()  # alive, it would stay in the domain after the test
     assert spin(executor, sim.finished.done, timeout=120.0)
     spin(executor, lambda: len(states) >= sim.published["dva/damper_state"]
          and len(blocks) >= sim.published["wing/displacement"], timeout=5.0)
