@@ -567,7 +567,7 @@ class Simulator(Node):
         if self.finished.done() or self._lingering is not None:
             return
         recorders = self._recorded_sub.get_publisher_count()
-        if recorders and self._report_stamp is not None:
+        if recorders:  # (the report, and so its stamp, went out just before: _report)
             self._lingering = {"outcome": outcome, "recorders": recorders, "heard": set(),
                                "timer": self.create_timer(ACK_TIMEOUT, self._recorders_late,
                                                           clock=self._wall)}
@@ -579,8 +579,7 @@ class Simulator(Node):
         linger = self._lingering
         if linger is None or self.finished.done():
             return
-        stamp = (self._report_stamp.sec, self._report_stamp.nanosec)
-        if (msg.header.stamp.sec, msg.header.stamp.nanosec) != stamp:
+        if msg.header.stamp != self._report_stamp:
             return  # another flight's report (or one before this flight's last)
         linger["heard"].update(s.hardware_id for s in msg.status if s.name == ch.RECORDED_NAME)
         if len(linger["heard"]) >= linger["recorders"]:
