@@ -31,19 +31,30 @@ PORT_NAME = re.compile(r"fastrtps_port\d+")
 SEGMENT_LOCK = re.compile(r"fastrtps_[0-9a-f]{16}_el")
 
 
+def _old_files(shm: Path, pattern: str, name: re.Pattern, min_age: float):
+    """(path, stat) of each file of ``shm`` matching ``pattern`` whose name is all ``name`` and
+    that was last changed more than ``min_age`` seconds ago (one that vanishes is skipped)."""
+    now = time.time()
+    for path in sorted(shm.glob(pattern)):
+        if not name.fullmatch(path.name):
+            continue
+        try:
+            info = path.stat()
+        except OSError:
+            continue
+        if now - info.st_mtime > min_age:
+            yield path, info
+
+
 def remove_unsized_ports(shm: Path = SHM, min_age: float = MIN_AGE) -> list[Path]:
     """Remove port segments (``fastrtps_portN``) of size 0 older than ``min_age`` seconds, with
     their mutex (``sem.fastrtps_portN_mutex``); return the ports removed. Lock files, files that
     vanish meanwhile and files of another user are left alone."""
     removed = []
-    now = time.time()
-    for port in sorted(shm.glob("fastrtps_port*")):
-        if not PORT_NAME.fullmatch(port.name):
+    for port, info in _old_files(shm, "fastrtps_port*", PORT_NAME, min_age):
+        if info.st_size != 0:
             continue
         try:
-            info = port.stat()
-            if info.st_size != 0 or now - info.st_mtime <= min_age:
-                continue
             port.unlink()
             (shm / f"sem.{port.name}_mutex").unlink(missing_ok=True)
         except OSError:
@@ -58,13 +69,8 @@ def remove_dead_segments(shm: Path = SHM, min_age: float = MIN_AGE) -> list[Path
     A lock held (a live participant's), a file that vanishes meanwhile or one of another user is
     left alone."""
     removed = []
-    now = time.time()
-    for lock in sorted(shm.glob("fastrtps_*_el")):
-        if not SEGMENT_LOCK.fullmatch(lock.name):
-            continue
+    for lock, _ in _old_files(shm, "fastrtps_*_el", SEGMENT_LOCK, min_age):
         try:
-            if now - lock.stat().st_mtime <= min_age:
-                continue
             fd = os.open(lock, os.O_RDONLY)
         except OSError:
             continue
