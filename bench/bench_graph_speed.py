@@ -335,8 +335,10 @@ def main() -> int:
     parser.add_argument("--json", help="also write every figure to this JSON file")
     parser.add_argument("--keep", help="directory to keep the bags in (default: temporary)")
     args = parser.parse_args()
-    if args.repeats < 1 or args.latency_duration <= 0 or args.echo_count < 10:
-        parser.error("--repeats >= 1, --latency-duration > 0 and --echo-count >= 10")
+    if args.repeats < 1 or args.latency_duration <= 0 or args.echo_count < 10 or \
+            args.flights < 1:
+        parser.error("--repeats >= 1, --latency-duration > 0, --echo-count >= 10 and "
+                     "--flights >= 1")
     figures: dict = {"load_average_at_start": os.getloadavg()}
     print(f"load average at start: {' '.join(f'{x:.2f}' for x in os.getloadavg())} "
           f"({os.cpu_count()} CPUs); wall times below include whatever else runs")
